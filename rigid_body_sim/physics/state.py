@@ -1,0 +1,212 @@
+"""The state of a rigid body, in the world frame: an immutable value.
+
+State variables (all world frame, SI): the rotation R (body to world, x_world = R x_body +
+x_com), the COM position x (m), the linear momentum p = m v (kg m/s) and the angular
+momentum about the COM L (kg m^2/s).  Momenta, not velocities, are the state because the
+torque-free motion conserves world L exactly, and the integrators keep it so.
+
+Velocities are derived with the body's mass properties:
+I_w = R I_b R^T, omega = I_w^{-1} L (world), Omega = R^T omega (body), v = p / m.
+"""
+
+import numpy as np
+
+from .rotations import check_quaternion
+from .rotations import check_rotation_matrix
+from .rotations import matrix_from_quaternion
+from .rotations import quaternion_from_matrix
+
+__all__ = ['State']
+
+
+def _vector(value, name, unit):
+    array = np.array(value, dtype=float).reshape(-1) if value is not None else np.zeros(3)
+    if array.shape != (3,):
+        raise ValueError(f'{name} must be a 3-vector in {unit}; got {np.shape(value)}')
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f'{name} must be finite; got {array.tolist()}')
+    array.flags.writeable = False
+    return array
+
+
+def _frozen(array):
+    array.flags.writeable = False
+    return array
+
+
+class State:
+    """Rigid-body state in the world frame (immutable).
+
+    Parameters
+    ----------
+    rotation : array_like, shape (3, 3) or (4,)
+        Orientation, body to world: a rotation matrix, or a unit quaternion (x, y, z, w).
+        Default: identity.
+    position : array_like, shape (3,)
+        COM position in m, world frame.  Default: origin.
+    linear_momentum : array_like, shape (3,)
+        p = m v in kg m/s, world frame.  Default: zero.
+    angular_momentum : array_like, shape (3,)
+        L about the COM in kg m^2/s, world frame.  Default: zero.
+
+    Raises
+    ------
+    ValueError
+        For non-finite entries, wrong shapes, or a rotation that is not orthonormal with
+        det = +1 (to 1e-6), or a quaternion whose norm is not 1 (to 1e-6).
+    """
+
+    __slots__ = ('_rotation', '_quaternion', '_position', '_linear_momentum',
+                 '_angular_momentum')
+
+    def __init__(self, rotation=None, position=None, linear_momentum=None,
+                 angular_momentum=None):
+        if rotation is None:
+            quaternion = np.array([0.0, 0.0, 0.0, 1.0])
+            matrix = np.eye(3)
+        elif np.shape(rotation) == (4,):
+            quaternion = check_quaternion(rotation, 'rotation quaternion')
+            matrix = matrix_from_quaternion(quaternion)
+        else:
+            matrix = check_rotation_matrix(rotation, 'rotation')
+            quaternion = quaternion_from_matrix(matrix)
+            # Re-derive R from its quaternion so the stored pair agree and R is orthonormal to
+            # round-off even if the input was only orthonormal to the tolerance.
+            matrix = matrix_from_quaternion(quaternion)
+        self._set(quaternion, matrix, _vector(position, 'position', 'm'),
+                  _vector(linear_momentum, 'linear_momentum', 'kg m/s'),
+                  _vector(angular_momentum, 'angular_momentum', 'kg m^2/s'))
+
+    def _set(self, quaternion, matrix, position, linear_momentum, angular_momentum):
+        object.__setattr__(self, '_quaternion', _frozen(quaternion))
+        object.__setattr__(self, '_rotation', _frozen(matrix))
+        object.__setattr__(self, '_position', position)
+        object.__setattr__(self, '_linear_momentum', linear_momentum)
+        object.__setattr__(self, '_angular_momentum', angular_momentum)
+
+    @classmethod
+    def _from_arrays(cls, quaternion, position, linear_momentum, angular_momentum):
+        """Build a state from trusted float arrays (integrator output): no validation.
+
+        The quaternion is normalised here, so R is orthonormal to round-off.  Callers own the
+        arrays they pass; they are frozen, not copied.
+        """
+        state = object.__new__(cls)
+        q = quaternion / np.sqrt(quaternion @ quaternion)
+        state._set(q, matrix_from_quaternion(q), _frozen(position), _frozen(linear_momentum),
+                   _frozen(angular_momentum))
+        return state
+
+    def __setattr__(self, name, value):
+        """Refuse assignment: a State is an immutable value."""
+        raise AttributeError('State is immutable; use State.replace(...) for a changed copy')
+
+    @classmethod
+    def from_velocity(cls, body, rotation=None, position=None, velocity=None,
+                      angular_velocity_body=None, angular_velocity_world=None):
+        """Return the state of `body` moving with the given velocities.
+
+        Parameters
+        ----------
+        body : RigidBody
+        rotation : array_like, shape (3, 3) or (4,), optional
+            Body to world rotation matrix, or quaternion (x, y, z, w).  Default identity.
+        position : array_like, optional
+            COM position in m (world).
+        velocity : array_like, optional
+            COM velocity in m/s (world).
+        angular_velocity_body, angular_velocity_world : array_like, optional
+            Angular velocity in rad/s, in the body frame (Omega) or the world frame (omega);
+            give at most one.  L = R I_b Omega = I_w omega.
+        """
+        if angular_velocity_body is not None and angular_velocity_world is not None:
+            raise ValueError('give angular_velocity_body or angular_velocity_world, not both')
+        oriented = cls(rotation)
+        matrix = oriented.rotation
+        v = _vector(velocity, 'velocity', 'm/s')
+        if angular_velocity_world is not None:
+            omega_body = matrix.T @ _vector(angular_velocity_world, 'angular_velocity_world',
+                                            'rad/s')
+        else:
+            omega_body = _vector(angular_velocity_body, 'angular_velocity_body', 'rad/s')
+        angular_momentum = matrix @ (body.inertia @ omega_body)
+        return cls(oriented.quaternion, position, body.mass * v, angular_momentum)
+
+    def replace(self, rotation=None, position=None, linear_momentum=None,
+                angular_momentum=None):
+        """Return a copy with the given fields changed (validated like the constructor)."""
+        return State(self._quaternion if rotation is None else rotation,
+                     self._position if position is None else position,
+                     self._linear_momentum if linear_momentum is None else linear_momentum,
+                     self._angular_momentum if angular_momentum is None else angular_momentum)
+
+    # -- state variables
+
+    @property
+    def rotation(self):
+        """Rotation matrix R, body to world (3x3, read-only)."""
+        return self._rotation
+
+    @property
+    def quaternion(self):
+        """Orientation as a unit quaternion (x, y, z, w), body to world (read-only)."""
+        return self._quaternion
+
+    @property
+    def position(self):
+        """COM position in m, world frame (read-only)."""
+        return self._position
+
+    @property
+    def linear_momentum(self):
+        """Linear momentum p = m v in kg m/s, world frame (read-only)."""
+        return self._linear_momentum
+
+    @property
+    def angular_momentum(self):
+        """Angular momentum about the COM in kg m^2/s, world frame (read-only)."""
+        return self._angular_momentum
+
+    # -- derived quantities, which need the body's mass properties
+
+    def inertia_world(self, body):
+        """Return I_w = R I_b R^T, the inertia about the COM in world axes (kg m^2)."""
+        return self._rotation @ body.inertia @ self._rotation.T
+
+    def velocity(self, body):
+        """Return the COM velocity v = p / m in m/s, world frame."""
+        return self._linear_momentum / body.mass
+
+    def angular_velocity_body(self, body):
+        """Return Omega = I_b^{-1} R^T L in rad/s, body frame."""
+        return body.inertia_inverse @ (self._rotation.T @ self._angular_momentum)
+
+    def angular_velocity(self, body):
+        """Return omega = R Omega = I_w^{-1} L in rad/s, world frame."""
+        return self._rotation @ self.angular_velocity_body(body)
+
+    def kinetic_energy(self, body):
+        """Return T = |p|^2 / (2 m) + omega . L / 2 in J."""
+        p = self._linear_momentum
+        return 0.5 * (p @ p) / body.mass + 0.5 * (
+            self.angular_velocity(body) @ self._angular_momentum)
+
+    def __eq__(self, other):
+        """Return True if all state variables are bit-identical."""
+        if not isinstance(other, State):
+            return NotImplemented
+        return all(np.array_equal(a, b) for a, b in zip(self._fields(), other._fields()))
+
+    __hash__ = None
+
+    def _fields(self):
+        return (self._quaternion, self._position, self._linear_momentum,
+                self._angular_momentum)
+
+    def __repr__(self):
+        """Return the state variables, quaternion (x, y, z, w) for the rotation."""
+        def fmt(a):
+            return np.array2string(a, precision=6, separator=', ')
+        return (f'State(quaternion={fmt(self._quaternion)}, position={fmt(self._position)}, '
+                f'linear_momentum={fmt(self._linear_momentum)}, '
+                f'angular_momentum={fmt(self._angular_momentum)})')

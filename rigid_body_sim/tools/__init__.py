@@ -1,0 +1,1 @@
+"""Command-line tools of ``rigid-body-sim``: one module per subcommand (see cli.TOOLS)."""
