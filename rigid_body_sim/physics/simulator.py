@@ -112,6 +112,21 @@ class Simulator:
             self._held = (zero, zero.copy(), force, torque)
         self._held_active = bool(np.any(force) or np.any(torque))
 
+    def hold_wrench(self, force_world=None, torque_world=None, force_body=None,
+                    torque_body=None):
+        """Hold world-fixed and body-fixed parts of the wrench at once (N, N m).
+
+        The total held wrench is force_world + R force_body through the COM and
+        torque_world + R torque_body about it; the body parts turn with the body during the
+        steps.  What is not given is zero.  Use it when inputs in both frames are active.
+        """
+        parts = (_checked_vector(force_world, 'force_world'),
+                 _checked_vector(torque_world, 'torque_world'),
+                 _checked_vector(force_body, 'force_body'),
+                 _checked_vector(torque_body, 'torque_body'))
+        self._held = parts
+        self._held_active = any(bool(np.any(part)) for part in parts)
+
     @property
     def held_wrench(self):
         """The held wrench: (force_world, torque_world, force_body, torque_body)."""
