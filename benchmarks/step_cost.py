@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Print the time per step of each integrator inside Simulator.run (median of repeats).
+"""
+Print the time per step of each integrator inside Simulator.run (median of repeats).
 
 Usage: .venv/bin/python benchmarks/step_cost.py [--steps N] [--repeats K]
 

@@ -1,4 +1,5 @@
-"""The ``rigid-body-sim`` command: one entry point, one subcommand per tool.
+"""
+The ``rigid-body-sim`` command: one entry point, one subcommand per tool.
 
 Each tool is a module in :mod:`rigid_body_sim.tools` with ``add_arguments(parser)`` and
 ``main(args) -> int`` and a docstring whose first line is its one-line help.  Adding a tool
@@ -26,7 +27,7 @@ def build_parser():
     """Return the argument parser with every tool's subcommand."""
     parser = argparse.ArgumentParser(
         prog='rigid-body-sim',
-        description='Simulate a rigid body with geometric integrators (Buss\'s augmented '
+        description="Simulate a rigid body with geometric integrators (Buss's augmented "
                     'second-order method and its rivals): offline runs and reports beside '
                     'the ROS 2 node rigid_body_node.',
         epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)

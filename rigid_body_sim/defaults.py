@@ -1,4 +1,5 @@
-"""The default body and initial state: a T-handle spun near its intermediate axis.
+"""
+The default body and initial state: a T-handle spun near its intermediate axis.
 
 Shared by ``rigid-body-sim run`` and the node, so a newcomer sees the same thing in both:
 the Dzhanibekov flip, which with these numbers first happens after about 7.5 s and then

@@ -1,4 +1,5 @@
-"""The physics core: mass properties, world-frame state, integrators and the simulator.
+"""
+The physics core: mass properties, world-frame state, integrators and the simulator.
 
 Pure numpy/scipy (and numba for the compiled fast paths): no ROS, no messages, no I/O.
 """

@@ -1,4 +1,5 @@
-"""Mass properties of a rigid body: mass and the inertia tensor about the centre of mass.
+"""
+Mass properties of a rigid body: mass and the inertia tensor about the centre of mass.
 
 Everything here is fixed body data (the analogue of MuJoCo's mjModel); the changing state
 lives in :mod:`rigid_body_sim.physics.state`.  Frame: the body frame, origin at the centre of
@@ -42,7 +43,8 @@ def _check_positive_lengths(values, name, count):
 
 
 class RigidBody:
-    """A rigid body: its mass and its inertia tensor about the COM, in the body frame.
+    """
+    A rigid body: its mass and its inertia tensor about the COM, in the body frame.
 
     Parameters
     ----------
@@ -59,6 +61,7 @@ class RigidBody:
         not positive definite, or its principal moments violate the triangle inequality
         I1 + I2 >= I3 (equality, a flat plate, is allowed).  The message names the rule and
         the values.
+
     """
 
     def __init__(self, mass, inertia):
@@ -105,7 +108,8 @@ class RigidBody:
 
     @classmethod
     def box(cls, mass, size):
-        """Return a solid box of edge lengths size = (a, b, c) along body x, y, z (m).
+        """
+        Return a solid box of edge lengths size = (a, b, c) along body x, y, z (m).
 
         I = m/12 (b^2 + c^2, a^2 + c^2, a^2 + b^2).
         """
@@ -115,7 +119,8 @@ class RigidBody:
 
     @classmethod
     def cylinder(cls, mass, radius, height):
-        """Return a solid cylinder of `radius` and `height` (m), its axis along body z.
+        """
+        Return a solid cylinder of `radius` and `height` (m), its axis along body z.
 
         I = (m (3 r^2 + h^2)/12, same, m r^2 / 2).
         """
@@ -134,7 +139,8 @@ class RigidBody:
 
     @classmethod
     def ellipsoid(cls, mass, semi_axes):
-        """Return a solid ellipsoid of semi-axes (a, b, c) along body x, y, z (m).
+        """
+        Return a solid ellipsoid of semi-axes (a, b, c) along body x, y, z (m).
 
         I = m/5 (b^2 + c^2, a^2 + c^2, a^2 + b^2).
         """
@@ -144,7 +150,8 @@ class RigidBody:
 
     @classmethod
     def from_point_masses(cls, masses, positions):
-        """Return the body made of point masses rigidly joined.
+        """
+        Return the body made of point masses rigidly joined.
 
         Parameters
         ----------
@@ -158,6 +165,7 @@ class RigidBody:
         I = sum_i m_i (|r_i|^2 E - r_i r_i^T) with r_i = position_i - COM.
         Collinear points (fewer than two independent directions) have no finite-inertia
         rotation about their line and are rejected.
+
         """
         m = np.array(masses, dtype=float).reshape(-1)
         r = np.array(positions, dtype=float)
@@ -217,13 +225,13 @@ class RigidBody:
 
     @property
     def is_symmetric_top(self):
-        """True if two principal moments agree within a relative 1e-9 (spherical tops too)."""
+        """Tell whether two principal moments agree within a relative 1e-9 (spherical tops too)."""
         i1, i2, i3 = self._principal_moments
         return bool(i2 - i1 <= _EQUAL_MOMENTS_RTOL * i3 or i3 - i2 <= _EQUAL_MOMENTS_RTOL * i3)
 
     @property
     def is_spherical_top(self):
-        """True if all three principal moments agree within a relative 1e-9."""
+        """Tell whether all three principal moments agree within a relative 1e-9."""
         i1, _, i3 = self._principal_moments
         return bool(i3 - i1 <= _EQUAL_MOMENTS_RTOL * i3)
 

@@ -1,4 +1,5 @@
-"""Rotations: skew matrices, the exponential map, quaternions (x, y, z, w) and matrices.
+"""
+Rotations: skew matrices, the exponential map, quaternions (x, y, z, w) and matrices.
 
 Conventions (see README): a rotation matrix R maps body coordinates to world coordinates,
 x_world = R x_body.  Quaternions are stored (x, y, z, w) as in geometry_msgs and compose
@@ -24,13 +25,14 @@ _SERIES_ANGLE = 1e-4
 
 
 def skew(vector):
-    """Return the 3x3 cross-product matrix [v]x, so that skew(v) @ u = v x u."""
+    """Return the 3x3 cross-product matrix [v]x of v, which maps u to v x u."""
     x, y, z = vector
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
 def rotation_matrix_from_rotation_vector(rotation_vector):
-    """Return exp([v]x) by Rodrigues' formula; v is the rotation axis times the angle (rad).
+    """
+    Return exp([v]x) by Rodrigues' formula; v is the rotation axis times the angle (rad).
 
     exp([v]x) = E + sin(t)/t [v]x + (1 - cos t)/t^2 [v]x^2 with t = |v|.
     """
@@ -47,7 +49,8 @@ def rotation_matrix_from_rotation_vector(rotation_vector):
 
 
 def quaternion_from_rotation_vector(rotation_vector):
-    """Return the unit quaternion (x, y, z, w) of the rotation exp([v]x).
+    """
+    Return the unit quaternion (x, y, z, w) of the rotation exp([v]x).
 
     q = (sin(t/2) v/t, cos(t/2)), t = |v|; any angle, including several turns, is exact.
     """
@@ -85,7 +88,8 @@ def matrix_from_quaternion(quaternion):
 
 
 def quaternion_from_matrix(rotation):
-    """Return the unit quaternion (x, y, z, w), w >= 0, of a rotation matrix.
+    """
+    Return the unit quaternion (x, y, z, w), w >= 0, of a rotation matrix.
 
     Shepperd's method: take the largest of the four squared components first, so no
     division by a small number loses precision.
@@ -116,7 +120,8 @@ def quaternion_from_matrix(rotation):
 
 
 def check_rotation_matrix(rotation, name='rotation', tolerance=1e-6):
-    """Return `rotation` as a float 3x3 array, or raise ValueError if it is not a rotation.
+    """
+    Return `rotation` as a float 3x3 array, or raise ValueError if it is not a rotation.
 
     A rotation is finite, orthonormal (|R^T R - E| <= tolerance) and proper (det R = +1).
     """
@@ -137,7 +142,8 @@ def check_rotation_matrix(rotation, name='rotation', tolerance=1e-6):
 
 
 def check_quaternion(quaternion, name='quaternion', tolerance=1e-6):
-    """Return a unit quaternion (x, y, z, w), or raise ValueError.
+    """
+    Return a unit quaternion (x, y, z, w), or raise ValueError.
 
     The input must be finite with norm within `tolerance` of 1; it is then normalised exactly.
     """

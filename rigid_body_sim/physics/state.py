@@ -1,4 +1,5 @@
-"""The state of a rigid body, in the world frame: an immutable value.
+"""
+The state of a rigid body, in the world frame: an immutable value.
 
 State variables (all world frame, SI): the rotation R (body to world, x_world = R x_body +
 x_com), the COM position x (m), the linear momentum p = m v (kg m/s) and the angular
@@ -35,7 +36,8 @@ def _frozen(array):
 
 
 class State:
-    """Rigid-body state in the world frame (immutable).
+    """
+    Rigid-body state in the world frame (immutable).
 
     Parameters
     ----------
@@ -54,6 +56,7 @@ class State:
     ValueError
         For non-finite entries, wrong shapes, or a rotation that is not orthonormal with
         det = +1 (to 1e-6), or a quaternion whose norm is not 1 (to 1e-6).
+
     """
 
     __slots__ = ('_rotation', '_quaternion', '_position', '_linear_momentum',
@@ -86,7 +89,8 @@ class State:
 
     @classmethod
     def _from_arrays(cls, quaternion, position, linear_momentum, angular_momentum):
-        """Build a state from trusted float arrays (integrator output): no validation.
+        """
+        Build a state from trusted float arrays (integrator output): no validation.
 
         The quaternion is normalised here, so R is orthonormal to round-off.  Callers own the
         arrays they pass; they are frozen, not copied.
@@ -104,11 +108,13 @@ class State:
     @classmethod
     def from_velocity(cls, body, rotation=None, position=None, velocity=None,
                       angular_velocity_body=None, angular_velocity_world=None):
-        """Return the state of `body` moving with the given velocities.
+        """
+        Return the state of `body` moving with the given velocities.
 
         Parameters
         ----------
         body : RigidBody
+            The body whose inertia turns angular velocity into angular momentum.
         rotation : array_like, shape (3, 3) or (4,), optional
             Body to world rotation matrix, or quaternion (x, y, z, w).  Default identity.
         position : array_like, optional
@@ -118,6 +124,7 @@ class State:
         angular_velocity_body, angular_velocity_world : array_like, optional
             Angular velocity in rad/s, in the body frame (Omega) or the world frame (omega);
             give at most one.  L = R I_b Omega = I_w omega.
+
         """
         if angular_velocity_body is not None and angular_velocity_world is not None:
             raise ValueError('give angular_velocity_body or angular_velocity_world, not both')
@@ -149,7 +156,7 @@ class State:
 
     @property
     def quaternion(self):
-        """Orientation as a unit quaternion (x, y, z, w), body to world (read-only)."""
+        """Get the orientation, body to world, as a unit quaternion [x, y, z, w] (read-only)."""
         return self._quaternion
 
     @property

@@ -1,4 +1,5 @@
-"""Simulate the default tumbling body offline and print a readable summary.
+"""
+Simulate the default tumbling body offline and print a readable summary.
 
 The default body is the T-handle I = (1, 2, 3) kg m^2 spun at 2 rad/s about its middle
 (unstable) axis with a small nudge: watch the body angular velocity's y component reverse
@@ -12,8 +13,8 @@ import time
 import numpy as np
 
 from ..defaults import default_body
-from ..defaults import default_state
 from ..defaults import DEFAULT_INTEGRATOR
+from ..defaults import default_state
 from ..physics import INTEGRATORS
 from ..physics import Simulator
 

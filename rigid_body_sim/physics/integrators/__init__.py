@@ -1,4 +1,5 @@
-"""Integrators, registered by name in :data:`INTEGRATORS` (see :mod:`.registry`).
+"""
+Integrators, registered by name in :data:`INTEGRATORS` (see :mod:`.registry`).
 
 Importing this package imports every integrator module, which registers itself.  Adding an
 integrator: write one module with a step function decorated by ``register_integrator`` and

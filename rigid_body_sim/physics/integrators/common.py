@@ -1,4 +1,5 @@
-"""Building blocks shared by the readable integrator definitions.
+"""
+Building blocks shared by the readable integrator definitions.
 
 Frames: everything here is world frame unless a name ends in ``_body``.  Units SI.
 """
@@ -11,7 +12,8 @@ from ..state import State
 
 
 def rotate_by_world_vector(quaternion, rotation_vector):
-    """Return R' = exp([v]x) R as a unit quaternion: turn by v (rad, world frame).
+    """
+    Return R' = exp([v]x) R as a unit quaternion: turn by v (rad, world frame).
 
     The quaternion form of the seed's update R <- exp(h [w]x) R; it is exact for any angle
     and renormalised, so R stays orthonormal to round-off however many steps are taken.
@@ -26,7 +28,8 @@ def world_inertia_inverse(body, rotation):
 
 
 def kick(state, time, half_step, wrench):
-    """Return the state after the momenta take the wrench for `half_step` s.
+    """
+    Return the state after the momenta take the wrench for `half_step` s.
 
     The kick flow changes p and L with the configuration (R, x) fixed:
     p <- p + h F, L <- L + h tau.  For a wrench that depends only on configuration and time
@@ -46,7 +49,8 @@ def kick(state, time, half_step, wrench):
 
 
 def kick_drift_kick(body, state, time, dt, wrench, drift):
-    """Return the Strang composition kick(dt/2) drift(dt) kick(dt/2).
+    """
+    Return the Strang composition kick(dt/2) drift(dt) kick(dt/2).
 
     `drift(body, state, dt)` is a torque-free, force-free step (the free flow), of order >= 2.
     Splitting the wrench off this way keeps a second-order drift second order with any

@@ -1,4 +1,5 @@
-"""Compiled fast paths (numba) of the integrators, for runs under a held wrench.
+"""
+Compiled fast paths (numba) of the integrators, for runs under a held wrench.
 
 Each kernel advances (quaternion, position, linear_momentum, angular_momentum) in place over
 `steps` steps.  The wrench is held constant in the world frame (force_world, torque_world)

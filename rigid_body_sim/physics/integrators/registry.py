@@ -1,4 +1,5 @@
-"""The integrator registry: one name -> one step function with one shared signature.
+"""
+The integrator registry: one name -> one step function with one shared signature.
 
 Every integrator is a pure function
 
@@ -26,7 +27,8 @@ FAST_KERNELS = {}
 
 
 def register_integrator(name, order, fast_kernel=None):
-    """Register the decorated step function under `name`, with its order of accuracy.
+    """
+    Register the decorated step function under `name`, with its order of accuracy.
 
     The function gains the attributes ``integrator_name`` and ``order``.
     """

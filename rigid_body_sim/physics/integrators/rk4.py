@@ -1,4 +1,5 @@
-"""Classical fourth-order Runge-Kutta on (quaternion, position, momenta), re-normalised.
+"""
+Classical fourth-order Runge-Kutta on (quaternion, position, momenta), re-normalised.
 
 A baseline, not a geometric method: it conserves neither world L nor |q| by construction
 (|q| is restored after each step), but it is fourth order.

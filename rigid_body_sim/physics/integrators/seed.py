@@ -1,4 +1,5 @@
-"""The seed's integrators: the simple first-order method and Buss's second-order methods.
+"""
+The seed's integrators: the simple first-order method and Buss's second-order methods.
 
 Both start from the world angular velocity omega = I_w^{-1} L and end with
 R <- exp(h [w]x) R, I_w = R I_b R^T (seed 000, "Numerical Methods for Rigid Body
@@ -20,7 +21,8 @@ from ..state import State
 
 @register_integrator('first_order', order=1, fast_kernel=first_order_kernel)
 def first_order(body, state, time, dt, wrench):
-    """Seed's simple first-order method: w = omega = I_w^{-1} L, then R <- exp(h [w]x) R.
+    """
+    Seed's simple first-order method: w = omega = I_w^{-1} L, then R <- exp(h [w]x) R.
 
     The wrench is read once at the start of the step and held over it: L <- L + h tau,
     p <- p + h F, and x <- x + h p/m + h^2 F/(2m) (the exact motion under the held force, so
@@ -39,7 +41,8 @@ def first_order(body, state, time, dt, wrench):
 
 
 def buss_free_step(body, state, dt, augmented=True):
-    """Return Buss's torque-free step (the drift); world L and p are unchanged.
+    """
+    Return Buss's torque-free step (the drift); world L and p are unchanged.
 
     alpha = I_w^{-1} (tau - omega x L) with tau = 0 inside the drift (torques enter as
     kicks around it), and the effective angular velocity
@@ -67,7 +70,8 @@ def _buss_plain_free_step(body, state, dt):
 
 @register_integrator('buss', order=2, fast_kernel=buss_kernel(augmented=True))
 def buss(body, state, time, dt, wrench):
-    """Buss's augmented second-order method (J. Comput. Phys. 164:377, 2000).
+    """
+    Buss's augmented second-order method (J. Comput. Phys. 164:377, 2000).
 
     Torque-free it is exactly Buss's step (see :func:`buss_free_step`); a wrench enters as
     half kicks of the momenta around it (Strang splitting), which keeps second order.
