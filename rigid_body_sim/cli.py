@@ -13,6 +13,7 @@ import sys
 # Subcommand name -> module in rigid_body_sim.tools.
 TOOLS = {
     'run': 'summary',
+    'bench': 'bench',
 }
 
 _EPILOG = """\

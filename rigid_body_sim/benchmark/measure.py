@@ -1,0 +1,299 @@
+"""
+Errors and CPU time of one benchmark run, and the whole sweep.
+
+For one case (body + initial state), one method (a registered integrator or a MuJoCo
+integrator) and one time step dt:
+
+- accuracy run: N_short = round(T_short / dt) and N_long = round(T_long / dt) steps of exactly
+  dt (so both methods take the same steps; the reference is taken at t = N dt), sampled every
+  ~0.1 s of simulated time.  Measured: the orientation error (rotation angle, rad, between the
+  computed R and the reference R) at t = N_short dt and t = N_long dt; the max relative
+  kinetic-energy error max |T(t) - T(0)| / T(0); the max relative error of the magnitude of
+  the angular momentum max ||L(t)| - |L(0)|| / |L(0)|; and, for the JSON, the max relative
+  error of the world vector L, max |L(t) - L(0)| / |L(0)|.
+- timing runs: a fresh start, then N_long steps in ONE call (``Simulator.run`` for ours,
+  ``mujoco.mj_step(..., nstep=N_long)`` for MuJoCo: each its own compiled loop where it has
+  one), timed with ``time.process_time`` (CPU time of this process, so other processes on a
+  shared machine count less), repeated and the median kept.  The accuracy run before it is
+  the warm-up, so numba compilation is never timed.  Reported: us per step and CPU seconds
+  per simulated second.
+"""
+
+from dataclasses import asdict
+from dataclasses import dataclass
+import math
+import statistics
+import time
+
+import numpy as np
+
+from .bodies import benchmark_cases
+from .bodies import CASE_NAMES
+from .bodies import QUICK_CASE_NAMES
+from .peer_mujoco import mujoco_available
+from .peer_mujoco import MUJOCO_INTEGRATORS
+from .peer_mujoco import MujocoPeer
+from .reference import reference_rotations
+from ..physics import INTEGRATORS
+from ..physics import Simulator
+
+__all__ = ['BenchmarkConfig', 'FULL', 'QUICK', 'step_counts', 'measure_run', 'run_benchmark',
+           'our_integrators']
+
+# Simulated time (s) between the energy / momentum samples of an accuracy run.
+SAMPLE_INTERVAL = 0.1
+
+
+@dataclass(frozen=True)
+class BenchmarkConfig:
+    """
+    What one benchmark sweep covers.
+
+    Attributes
+    ----------
+    cases : tuple of str
+        Benchmark body names (see :mod:`.bodies`).
+    dts : tuple of float
+        Time steps in s.
+    horizons : (float, float)
+        The short and the long horizon in s (orientation errors are taken at both).
+    repeats : int
+        Timing repeats (median kept).
+    time_budget : float
+        Stop repeating a timing once this much CPU time (s) is spent, after >= 1 repeat.
+
+    """
+
+    cases: tuple
+    dts: tuple
+    horizons: tuple
+    repeats: int
+    time_budget: float
+
+
+FULL = BenchmarkConfig(CASE_NAMES, (0.1, 0.03, 0.01, 0.003, 0.001), (10.0, 100.0), 5, 4.0)
+QUICK = BenchmarkConfig(QUICK_CASE_NAMES, (0.1, 0.01), (2.0, 10.0), 3, 0.5)
+
+
+def our_integrators():
+    """Return the registered integrator names, sorted (whatever is registered now)."""
+    return sorted(INTEGRATORS)
+
+
+def step_counts(dt, horizons):
+    """Return (N_short, N_long, stride): steps to each horizon and between samples."""
+    short, long = (max(1, int(round(h / dt))) for h in horizons)
+    return short, long, max(1, int(round(SAMPLE_INTERVAL / dt)))
+
+
+class _OurRun:
+    """Adapter: a Simulator behind the interface the measurements use."""
+
+    family = 'ours'
+
+    def __init__(self, case, integrator, dt):
+        self.case, self.integrator, self.dt = case, integrator, dt
+        self.reset()
+
+    def reset(self):
+        self.simulator = Simulator(self.case.body, self.case.state, integrator=self.integrator)
+
+    def advance(self, steps):
+        self.simulator.run(steps * self.dt, self.dt)
+
+    def diverged(self):
+        state = self.simulator.state
+        return not (np.all(np.isfinite(state.quaternion))
+                    and np.all(np.isfinite(state.angular_momentum)))
+
+    def observe(self):
+        state = self.simulator.state
+        return state.rotation, state.kinetic_energy(self.case.body), state.angular_momentum
+
+
+class _MujocoRun:
+    """Adapter: a MujocoPeer behind the interface the measurements use."""
+
+    family = 'mujoco'
+
+    def __init__(self, case, integrator, dt):
+        self.peer = MujocoPeer(case.body, case.state, integrator, dt)
+
+    def reset(self):
+        self.peer.reset()
+
+    def advance(self, steps):
+        self.peer.step(steps)
+
+    def diverged(self):
+        # MuJoCo resets the state itself when qacc blows up, so a divergence must be read
+        # from its warning counters, not from the (reset, finite) state.
+        return any(self.peer.data.warning[i].number > 0
+                   for i in range(len(self.peer.data.warning)))
+
+    def observe(self):
+        peer = self.peer
+        return peer.rotation, peer.kinetic_energy(), peer.angular_momentum
+
+
+@dataclass
+class RunRecord:
+    """
+    The measurements of one (case, method, dt); see the module docstring.
+
+    Errors are inf when the run diverged.  Times: us_per_step (microseconds per step) and
+    cpu_per_sim_second (CPU s per simulated s), medians over `timing_repeats`.
+    """
+
+    case: str
+    method: str
+    family: str
+    dt: float
+    steps_short: int
+    steps_long: int
+    time_short: float
+    time_long: float
+    error_short: float
+    error_long: float
+    max_energy_error: float
+    max_momentum_magnitude_error: float
+    max_world_momentum_error: float
+    us_per_step: float
+    cpu_per_sim_second: float
+    timing_repeats: int
+    diverged: bool
+
+
+def _accuracy(run, case, dt, horizons, reference):
+    n_short, n_long, stride = step_counts(dt, horizons)
+    _, energy0, momentum0 = run.observe()
+    magnitude0 = np.linalg.norm(momentum0)
+    marks = sorted(set(range(stride, n_long, stride)) | {n_short, n_long})
+    energy_error = magnitude_error = world_error = 0.0
+    errors = {}
+    done = 0
+    for mark in marks:
+        run.advance(mark - done)
+        done = mark
+        if run.diverged():
+            return math.inf, math.inf, math.inf, math.inf, math.inf, True
+        rotation, energy, momentum = run.observe()
+        energy_error = max(energy_error, abs(energy - energy0) / energy0)
+        magnitude_error = max(magnitude_error,
+                              abs(np.linalg.norm(momentum) - magnitude0) / magnitude0)
+        world_error = max(world_error, np.linalg.norm(momentum - momentum0) / magnitude0)
+        if mark in (n_short, n_long):
+            errors[mark] = reference.angle_error(mark * dt, rotation)
+    return (errors[n_short], errors[n_long], energy_error, magnitude_error, world_error,
+            False)
+
+
+def _timing(run, steps, repeats, budget):
+    samples = []
+    spent = 0.0
+    while len(samples) < repeats and not (samples and spent > budget):
+        run.reset()
+        started = time.process_time()
+        run.advance(steps)
+        elapsed = time.process_time() - started
+        samples.append(elapsed)
+        spent += elapsed
+    return statistics.median(samples), len(samples)
+
+
+def measure_run(case, method, dt, reference, config):
+    """
+    Measure one (case, method, dt) and return its RunRecord.
+
+    Parameters
+    ----------
+    case : BenchmarkCase
+        The body and its initial state.
+    method : str
+        A registered integrator name, or a key of :data:`MUJOCO_INTEGRATORS`.
+    dt : float
+        Time step in s.
+    reference : Reference
+        Reference orientations at t = N_short dt and N_long dt (see :func:`reference_times`).
+    config : BenchmarkConfig
+        Horizons and timing repeats.
+
+    """
+    adapter = _MujocoRun if method in MUJOCO_INTEGRATORS else _OurRun
+    run = adapter(case, method, dt)
+    n_short, n_long, _ = step_counts(dt, config.horizons)
+    (error_short, error_long, energy_error, magnitude_error, world_error,
+     diverged) = _accuracy(run, case, dt, config.horizons, reference)
+    cpu, repeats = _timing(run, n_long, config.repeats, config.time_budget)
+    return RunRecord(case.name, method, run.family, dt, n_short, n_long, n_short * dt,
+                     n_long * dt, error_short, error_long, energy_error, magnitude_error,
+                     world_error, cpu / n_long * 1e6, cpu / (n_long * dt), repeats, diverged)
+
+
+def reference_times(config):
+    """Return every time (s) at which a reference orientation is needed."""
+    times = set()
+    for dt in config.dts:
+        n_short, n_long, _ = step_counts(dt, config.horizons)
+        times.update((n_short * dt, n_long * dt))
+    return sorted(times)
+
+
+def run_benchmark(config, with_mujoco=True, progress=None):
+    """
+    Run the whole sweep; return a dict with the records and the reference checks.
+
+    Parameters
+    ----------
+    config : BenchmarkConfig
+        Bodies, time steps, horizons and timing repeats.
+    with_mujoco : bool
+        Include the MuJoCo peer (ignored, and said so in the result, when mujoco does not
+        import).
+    progress : callable, optional
+        Called with a short label after each unit of work; there are
+        ``len(cases) * (1 + len(methods) * len(dts))`` units.
+
+    Returns
+    -------
+    dict
+        'methods' (list of str), 'mujoco' (str status), 'references' (per case: source,
+        cross_check, ode_uncertainty, note, uncertainty {time: rad}), 'records' (list of
+        dict, see RunRecord).
+
+    """
+    methods = our_integrators()
+    if with_mujoco and mujoco_available():
+        methods += list(MUJOCO_INTEGRATORS)
+        mujoco_status = 'included'
+    elif with_mujoco:
+        mujoco_status = 'not installed (import mujoco failed): peer skipped'
+    else:
+        mujoco_status = 'skipped on request (--no-mujoco)'
+    times = reference_times(config)
+    references = {}
+    records = []
+    for case in benchmark_cases(config.cases):
+        reference = reference_rotations(case.body, case.state, times)
+        references[case.name] = {
+            'source': reference.source, 'cross_check': reference.cross_check,
+            'ode_uncertainty': reference.ode_uncertainty, 'note': reference.note,
+            'uncertainty': {repr(t): u for t, u in reference.uncertainty.items()},
+        }
+        if progress is not None:
+            progress(f'{case.name}: reference')
+        for method in methods:
+            for dt in config.dts:
+                records.append(asdict(measure_run(case, method, dt, reference, config)))
+                if progress is not None:
+                    progress(f'{case.name}: {method} dt={dt:g}')
+    return {'methods': methods, 'mujoco': mujoco_status, 'references': references,
+            'records': records}
+
+
+def work_units(config, with_mujoco=True):
+    """Return the number of progress units :func:`run_benchmark` will report."""
+    methods = len(our_integrators())
+    if with_mujoco and mujoco_available():
+        methods += len(MUJOCO_INTEGRATORS)
+    return len(config.cases) * (1 + methods * len(config.dts))
