@@ -44,13 +44,16 @@ def rotation_angle(rotation_a, rotation_b):
     """
     Return the angle (rad, in [0, pi]) of the rotation between two rotation matrices.
 
-    ||R_a - R_b||_F = ||E - R_a^T R_b||_F = 2 sqrt(2) sin(theta/2), so
-    theta = 2 asin(||R_a - R_b||_F / (2 sqrt 2)): unlike acos of the trace, this keeps full
-    relative precision for tiny angles (down to ~1e-16 rad).
+    The angle theta of Q = R_a^T R_b from sin(theta) = |vee(Q - Q^T)| / 2 and
+    cos(theta) = (tr Q - 1) / 2 with atan2: unlike acos of the trace alone, this keeps full
+    precision both for tiny angles (down to ~1e-16 rad) and near pi.
     """
-    difference = np.asarray(rotation_a, dtype=float) - np.asarray(rotation_b, dtype=float)
-    half_chord = np.sqrt(np.sum(difference * difference)) / (2.0 * np.sqrt(2.0))
-    return float(2.0 * np.arcsin(min(half_chord, 1.0)))
+    relative = np.asarray(rotation_a, dtype=float).T @ np.asarray(rotation_b, dtype=float)
+    sine = 0.5 * np.sqrt((relative[2, 1] - relative[1, 2]) ** 2
+                         + (relative[0, 2] - relative[2, 0]) ** 2
+                         + (relative[1, 0] - relative[0, 1]) ** 2)
+    cosine = 0.5 * (relative[0, 0] + relative[1, 1] + relative[2, 2] - 1.0)
+    return float(np.arctan2(sine, cosine))
 
 
 def _euler_rate(inertia_inverse):
