@@ -6,6 +6,7 @@ integrator: write one module with a step function decorated by ``register_integr
 import it here.
 """
 
+from . import exact  # noqa: F401  (registers exact)
 from . import rk4  # noqa: F401  (registers rk4)
 from . import seed  # noqa: F401  (registers first_order, buss, buss_plain)
 from .registry import FAST_KERNELS
