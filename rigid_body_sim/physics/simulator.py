@@ -1,4 +1,5 @@
-"""The simulator: a body, its state, an integrator chosen by name, and what pushes it.
+"""
+The simulator: a body, its state, an integrator chosen by name, and what pushes it.
 
 Data flow: body + state + effects -> Simulator -> (node, recorder, report).  The simulator
 owns the only mutable thing, the current state and time; bodies, states and integrators are
@@ -40,7 +41,8 @@ def _checked_positive(value, name):
 
 
 class Simulator:
-    """Advance a rigid body in time with a named integrator.
+    """
+    Advance a rigid body in time with a named integrator.
 
     Parameters
     ----------
@@ -52,35 +54,70 @@ class Simulator:
     effects : sequence, optional
         Objects with ``wrench(body, state, time) -> (force, torque)`` (world frame, N and
         N m about the COM), optionally ``potential_energy(body, state)`` (J) and
-        ``momentum_dependent`` (bool).  Only these are evaluated: with none, and no held
-        wrench, the motion is torque-free and no force code runs.
+        ``momentum_dependent`` (bool); see :mod:`.effects.registry` for the whole protocol:
+        a ``constant_force(body)`` (uniform gravity) is folded into the held wrench, so the
+        compiled kernel still runs; a ``flow(body, state, dt)`` (dissipation) is composed
+        with each step as flow(dt/2), step(dt), flow(dt/2); ``constrain(body)`` (a pivot)
+        makes the simulator advance the constrained system and show its physical state.
+        Only these are evaluated: with none, and no held wrench, the motion is torque-free
+        and no force code runs.
     fast : bool
         Use the integrator's compiled kernel when the wrench is a held one (default True).
         The kernel equals the readable step to round-off.
+
+    With a constraint (a pivot), :attr:`state` is always the physical state (COM position,
+    linear momentum, angular momentum about the COM), and a state that is set is projected
+    onto the constraint first (rotation and angular velocity kept).
+
     """
 
     def __init__(self, body, state, integrator='buss', effects=(), fast=True):
         if not isinstance(state, State):
             raise ValueError(f'state must be a State; got {type(state).__name__}')
         self._body = body
-        self._state = state
         self._time = 0.0
         self._time_compensation = 0.0
         self._effects = tuple(effects)
+        self._sort_effects()
+        self.state = state
         self._fast = bool(fast)
         self.integrator = integrator
         self.set_wrench()
+
+    def _sort_effects(self):
+        """Sort the effects by what they do, once, so that a step runs only what is there."""
+        constant_force = np.zeros(3)
+        wrenches, flows, constraints = [], [], []
+        for effect in self._effects:
+            if getattr(effect, 'constant_force', None) is not None:
+                constant_force = constant_force + _checked_vector(
+                    effect.constant_force(self._body), 'constant_force')
+            elif getattr(effect, 'wrench', None) is not None:
+                wrenches.append(effect)
+            if getattr(effect, 'flow', None) is not None:
+                flows.append(effect)
+            if getattr(effect, 'constrain', None) is not None:
+                constraints.append(effect)
+        if len(constraints) > 1:
+            raise ValueError(f'at most one constraint effect (pivot); got {len(constraints)}')
+        self._constant_force = constant_force
+        self._pushing_effects = tuple(wrenches)
+        self._flows = tuple(flows)
+        self._constraint = constraints[0].constrain(self._body) if constraints else None
+        # The body the integrator advances: about the pivot under a pivot constraint.
+        self._integrated_body = (self._body if self._constraint is None
+                                 else self._constraint.body)
 
     # -- configuration
 
     @property
     def body(self):
-        """The simulated RigidBody."""
+        """Get the simulated RigidBody."""
         return self._body
 
     @property
     def effects(self):
-        """The effects evaluated every step (a tuple)."""
+        """Get the effects evaluated every step (a tuple)."""
         return self._effects
 
     @property
@@ -95,7 +132,8 @@ class Simulator:
         self._kernel = FAST_KERNELS.get(name) if self._fast else None
 
     def set_wrench(self, force=None, torque=None, frame='world'):
-        """Hold a force through the COM (N) and a torque about it (N m) until changed.
+        """
+        Hold a force through the COM (N) and a torque about it (N m) until changed.
 
         frame='world': fixed in the world.  frame='body': fixed in the body, so it turns with
         it.  Each call replaces the whole held wrench (what is not given is zero);
@@ -114,7 +152,8 @@ class Simulator:
 
     def hold_wrench(self, force_world=None, torque_world=None, force_body=None,
                     torque_body=None):
-        """Hold world-fixed and body-fixed parts of the wrench at once (N, N m).
+        """
+        Hold world-fixed and body-fixed parts of the wrench at once (N, N m).
 
         The total held wrench is force_world + R force_body through the COM and
         torque_world + R torque_body about it; the body parts turn with the body during the
@@ -129,25 +168,30 @@ class Simulator:
 
     @property
     def held_wrench(self):
-        """The held wrench: (force_world, torque_world, force_body, torque_body)."""
+        """Get the held wrench: (force_world, torque_world, force_body, torque_body)."""
         return tuple(a.copy() for a in self._held)
 
     # -- state
 
     @property
     def state(self):
-        """Current State (world frame)."""
+        """Get the current State (world frame)."""
         return self._state
 
     @state.setter
     def state(self, state):
         if not isinstance(state, State):
             raise ValueError(f'state must be a State; got {type(state).__name__}')
+        if self._constraint is None:
+            self._integrated_state = state
+        else:
+            state = self._constraint.project(state)
+            self._integrated_state = self._constraint.reduce(state)
         self._state = state
 
     @property
     def time(self):
-        """Simulated time in s since the start."""
+        """Get the simulated time in s since the start."""
         return self._time
 
     def reset(self, state, time=0.0):
@@ -166,13 +210,20 @@ class Simulator:
         return energy
 
     def wrench_function(self):
-        """Return the total wrench as ``wrench(state, time)``, or None when nothing pushes."""
-        if not self._effects and not self._held_active:
+        """
+        Return the total wrench as ``wrench(state, time)``, or None when nothing pushes.
+
+        It acts on physical states: the held wrench, the effects' constant forces and their
+        wrenches (force through the COM, torque about it; world frame).  A constraint's
+        reaction is not part of it.
+        """
+        held = self._held_active or bool(np.any(self._constant_force))
+        effects = self._pushing_effects
+        if not effects and not held:
             return None
         force_world, torque_world, force_body, torque_body = self._held
-        held = self._held_active
+        force_world = force_world + self._constant_force
         body = self._body
-        effects = self._effects
 
         def wrench(state, time):
             force = force_world + state.rotation @ force_body if held else np.zeros(3)
@@ -185,6 +236,8 @@ class Simulator:
 
         wrench.momentum_dependent = any(
             getattr(effect, 'momentum_dependent', False) for effect in effects)
+        # Held and constant parts depend on the rotation alone (a pivot can skip expanding).
+        wrench.rotation_only = not effects
         return wrench
 
     # -- time stepping
@@ -195,7 +248,8 @@ class Simulator:
         return self._state
 
     def run(self, duration, dt, progress=None):
-        """Advance by `duration` s in steps of dt s; return the final State.
+        """
+        Advance by `duration` s in steps of dt s; return the final State.
 
         If dt does not divide the duration, a last shorter step ends exactly at it.
         `progress`, if given, is called with the fraction done (0..1) during long runs.
@@ -226,28 +280,52 @@ class Simulator:
         return self._state
 
     def _advance(self, steps, dt):
-        if self._kernel is not None and not self._effects:
-            self._advance_fast(steps, dt)
+        constraint = self._constraint
+        if self._runs_fast():
+            state = self._advance_fast(steps, dt)
         else:
             wrench = self.wrench_function()
-            state, time = self._state, self._time
+            if constraint is not None:
+                wrench = constraint.wrench(wrench)
+            body, step, flows = self._integrated_body, self._step, self._flows
+            state, time, half = self._integrated_state, self._time, 0.5 * dt
             for k in range(steps):
-                state = self._step(self._body, state, time + k * dt, dt, wrench)
-            self._state = state
+                for effect in flows:
+                    state = effect.flow(body, state, half)
+                state = step(body, state, time + k * dt, dt, wrench)
+                for effect in reversed(flows):
+                    state = effect.flow(body, state, half)
+        self._integrated_state = state
+        self._state = state if constraint is None else constraint.expand(state)
         self._add_time(steps * dt)
 
+    def _runs_fast(self):
+        """
+        Return True when the compiled kernel can take the steps: a held wrench only.
+
+        Constant forces (gravity) are held too, except under a constraint, where a force at
+        the COM has a torque about the pivot that turns with the body.
+        """
+        if self._kernel is None or self._pushing_effects or self._flows:
+            return False
+        if self._constraint is None:
+            return True
+        force_world, _, force_body, _ = self._held
+        return not (np.any(force_world) or np.any(force_body) or np.any(self._constant_force))
+
     def _advance_fast(self, steps, dt):
-        state = self._state
+        state = self._integrated_state
+        body = self._integrated_body
         quaternion = np.array(state.quaternion)
         position = np.array(state.position)
         linear_momentum = np.array(state.linear_momentum)
         angular_momentum = np.array(state.angular_momentum)
         force_world, torque_world, force_body, torque_body = self._held
         self._kernel(quaternion, position, linear_momentum, angular_momentum,
-                     self._body.inertia, self._body.inertia_inverse, self._body.mass,
-                     dt, steps, force_world, torque_world, force_body, torque_body)
-        self._state = State._from_arrays(quaternion, position, linear_momentum,
-                                         angular_momentum)
+                     body.inertia, body.inertia_inverse, body.mass,
+                     dt, steps, force_world + self._constant_force, torque_world, force_body,
+                     torque_body)
+        return State._from_arrays(quaternion, position, linear_momentum, angular_momentum)
 
     def _add_time(self, increment):
         # Kahan summation: keeps the clock exact to round-off over millions of ticks, where a

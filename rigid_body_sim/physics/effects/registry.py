@@ -1,0 +1,197 @@
+"""
+The effect registry: one name -> one effect class, and the checks of effect parameters.
+
+An effect is a small object the Simulator consults while it steps a body.  What it does is
+told by which of these it has (all optional; frames world, units SI):
+
+- ``wrench(body, state, time) -> (force, torque)``: a force through the COM (N) and a torque
+  about the COM (N m).  Evaluated inside every step (the readable integrators).
+- ``constant_force(body) -> force``: the effect is a force fixed in the world and in time
+  (uniform gravity).  The Simulator folds it into the held wrench, so the compiled fast path
+  still runs, and does not call ``wrench`` at all.
+- ``momentum_dependent = True``: the wrench depends on the momenta (drag); the integrators
+  then keep their order for it (see ``integrators.common.kick``).
+- ``potential_energy(body, state)``: its potential energy in J, added by Simulator.energy().
+- ``flow(body, state, dt) -> State``: a change of the state that is not a wrench (internal
+  dissipation), composed with each integrator step symmetrically: flow(dt/2), step(dt),
+  flow(dt/2) (Strang).
+- ``constrain(body) -> constraint``: a holonomic constraint (a pivot); see
+  :class:`rigid_body_sim.physics.effects.pivot.PivotConstraint` for what the Simulator uses.
+- ``accepts_external_wrench = True``: the body may be pushed from outside (the node's
+  torque and wrench topics write the Simulator's held wrench).
+
+Only what a scene names is computed: an effect that has none of these costs nothing.
+Adding an effect: one module with a class decorated by :func:`register_effect`, imported in
+``effects/__init__.py``.  Its keyword arguments are its scene parameters (the scene loader
+reads names, defaults and required ones from the signature); it checks their values with
+the ``check_*`` helpers here, which raise :class:`ParameterError` naming the parameter.
+"""
+
+import inspect
+import math
+
+import numpy as np
+
+__all__ = [
+    'EFFECTS',
+    'Effect',
+    'ParameterError',
+    'check_number',
+    'check_vector',
+    'create_effect',
+    'effect_parameters',
+    'register_effect',
+]
+
+EFFECTS = {}
+"""Effect name -> effect class (see the module docstring for what an effect provides)."""
+
+
+class ParameterError(ValueError):
+    """A bad effect parameter: `key` names the parameter, `problem` says what is wrong."""
+
+    def __init__(self, key, problem):
+        super().__init__(f'{key}: {problem}')
+        self.key = key
+        self.problem = problem
+
+
+def register_effect(name):
+    """Register the decorated effect class under `name`; it gains ``effect_name``."""
+    def decorate(cls):
+        if name in EFFECTS:
+            raise ValueError(f'effect {name!r} is registered twice')
+        cls.effect_name = name
+        EFFECTS[name] = cls
+        return cls
+    return decorate
+
+
+def effect_parameters(name):
+    """
+    Return {parameter: default} of the effect `name`; a required one has no default.
+
+    Required parameters map to :data:`inspect.Parameter.empty`.
+    """
+    signature = inspect.signature(_effect_class(name))
+    return {key: parameter.default for key, parameter in signature.parameters.items()}
+
+
+def create_effect(name, parameters=None):
+    """
+    Return the effect `name` built from a mapping of its parameters.
+
+    Raises
+    ------
+    ValueError
+        For an unknown effect (the message lists the valid names).
+    ParameterError
+        For an unknown or missing parameter or a bad value; ``key`` names the parameter.
+
+    """
+    cls = _effect_class(name)
+    parameters = dict(parameters or {})
+    accepted = effect_parameters(name)
+    for key in parameters:
+        if key not in accepted:
+            valid = ', '.join(accepted) or 'none'
+            raise ParameterError(key, f'unknown parameter of effect {name!r}; valid: {valid}')
+    for key, default in accepted.items():
+        if default is inspect.Parameter.empty and key not in parameters:
+            raise ParameterError(key, f'missing; effect {name!r} requires it')
+    return cls(**parameters)
+
+
+def _effect_class(name):
+    try:
+        return EFFECTS[name]
+    except (KeyError, TypeError):
+        valid = ', '.join(sorted(EFFECTS))
+        raise ValueError(f'unknown effect {name!r}; valid effects: {valid}') from None
+
+
+class Effect:
+    """
+    Base of the built-in effects: the defaults of the protocol and a readable repr.
+
+    Subclasses keep each constructor argument as an attribute of the same name, so that the
+    repr shows the parameters in force.
+    """
+
+    effect_name = None
+    momentum_dependent = False
+    accepts_external_wrench = False
+
+    def __repr__(self):
+        """Return ``Name(parameter=value, ...)`` with the parameters in force."""
+        signature = inspect.signature(type(self))
+        parts = []
+        for key in signature.parameters:
+            value = getattr(self, key)
+            if isinstance(value, np.ndarray):
+                value = value.tolist()
+            parts.append(f'{key}={value!r}')
+        return f'{type(self).__name__}({", ".join(parts)})'
+
+
+# -- parameter checks (the loader's messages come from here, prefixed with the key path)
+
+def _describe(value):
+    if isinstance(value, str):
+        return f'a string {value!r}'
+    if isinstance(value, bool):
+        return f'a boolean ({value})'
+    if value is None:
+        return 'nothing (null)'
+    if isinstance(value, dict):
+        return 'a mapping'
+    if isinstance(value, (list, tuple)):
+        return f'a list of {len(value)}'
+    return f'{type(value).__name__} {value!r}'
+
+
+def _is_number(value):
+    # bool is an int in Python, but `true` in a scene file is never meant as 1.
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+        value, (bool, np.bool_))
+
+
+def check_number(value, key, unit='', minimum=None, positive=False):
+    """
+    Return `value` as a finite float, else raise ParameterError naming `key`.
+
+    minimum: the smallest allowed value (inclusive); positive=True requires > 0.
+    """
+    if not _is_number(value):
+        raise ParameterError(key, f'expected a number{_unit(unit)}, got {_describe(value)}')
+    number = float(value)
+    if not math.isfinite(number):
+        raise ParameterError(key, f'expected a finite number, got {number}')
+    if positive and number <= 0.0:
+        raise ParameterError(key, f'must be > 0{_unit(unit)}, got {number:g}')
+    if minimum is not None and number < minimum:
+        raise ParameterError(key, f'must be >= {minimum:g}{_unit(unit)}, got {number:g}')
+    return number
+
+
+def check_vector(value, key, unit='', size=3):
+    """Return `value` as a float array of `size` finite numbers, else raise ParameterError."""
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if not isinstance(value, (list, tuple)):
+        raise ParameterError(key, f'expected {size} numbers{_unit(unit)}, got {_describe(value)}')
+    if len(value) != size:
+        raise ParameterError(key, f'expected {size} numbers, got {len(value)}')
+    for index, item in enumerate(value):
+        if not _is_number(item):
+            raise ParameterError(key, f'expected {size} numbers, item {index} is '
+                                      f'{_describe(item)}')
+    array = np.array(value, dtype=float)
+    if not np.all(np.isfinite(array)):
+        raise ParameterError(key, f'expected finite numbers, got {array.tolist()}')
+    array.flags.writeable = False
+    return array
+
+
+def _unit(unit):
+    return f' in {unit}' if unit else ''
