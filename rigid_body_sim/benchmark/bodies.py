@@ -7,17 +7,18 @@ benchmark measures rotation only), with its inertia tensor about the COM in the 
 Omega0 (rad/s).  Each is chosen to stress something different:
 
 - ``van_zon``: van Zon & Schofield's test body (J. Comput. Phys. 225:145, 2007),
-  I = (10, 20, 26), Omega0 = (1, 15, 1): a fast tumble near the intermediate axis, 1.5 rad
-  per step at dt = 0.1.
+  I = (10, 20, 26), Omega0 = (1, 15, 1): a fast tumble (1.5 rad per step at dt = 0.1) close
+  to the separatrix (elliptic parameter m = 0.9967, period of Omega 2.35 s).
 - ``t_handle``: the T-handle I = (1, 2, 3) spun at 2 rad/s about its unstable middle axis
   with a 1e-3 rad/s nudge on each of the other axes, Omega0 = (0.001, 2, 0.001): it flips
-  every ~12 s (Dzhanibekov) and sits next to the separatrix (elliptic parameter ~1 - 1e-6),
-  where the flip times, and so the orientation, are very sensitive to any error.
+  every ~15 s (Dzhanibekov; period of Omega 29.9 s) and sits next to the separatrix
+  (m = 1 - 5e-7), where the flip times, and so the orientation, are very sensitive to any
+  error.
 - ``fast_spin``: the same body spun fast about its stable major axis,
-  Omega0 = (0.3, 0.2, 5): a smooth, nearly steady spin with a small nutation.
+  Omega0 = (0.3, 0.2, 5): a smooth, nearly steady spin with a small nutation (m = 0.0017).
 - ``near_symmetric``: a near-symmetric (oblate) top I = (1, 1 + 1e-6, 2),
-  Omega0 = (1, 0.5, 3): precession and nutation with an elliptic parameter ~1e-6, the case
-  where formulas for the asymmetric top lose accuracy if written carelessly.
+  Omega0 = (1, 0.5, 3): precession and nutation with m = 7e-8, the case where formulas for
+  the asymmetric top lose accuracy if written carelessly.
 - ``non_diagonal``: a body whose inertia tensor in its own frame is not diagonal
   (principal moments ~ (1.87, 2.98, 4.14)), started at an oblique orientation
   (rotation vector (0.4, -0.7, 1.1) rad) with Omega0 = (1.5, -1, 2): the methods must not

@@ -141,7 +141,8 @@ class RunRecord:
     """
     The measurements of one (case, method, dt); see the module docstring.
 
-    Errors are inf when the run diverged.  Times: us_per_step (microseconds per step) and
+    Errors are inf when the run diverged before they were measured (energy and momentum
+    errors always are then).  Times: us_per_step (microseconds per step) and
     cpu_per_sim_second (CPU s per simulated s), medians over `timing_repeats`.
     """
 
@@ -176,7 +177,9 @@ def _accuracy(run, case, dt, horizons, reference):
         run.advance(mark - done)
         done = mark
         if run.diverged():
-            return math.inf, math.inf, math.inf, math.inf, math.inf, True
+            # An error measured before the blow-up stands; everything after it is lost.
+            return (errors.get(n_short, math.inf), math.inf, math.inf, math.inf, math.inf,
+                    True)
         rotation, energy, momentum = run.observe()
         energy_error = max(energy_error, abs(energy - energy0) / energy0)
         magnitude_error = max(magnitude_error,
