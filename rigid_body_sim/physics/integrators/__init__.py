@@ -9,6 +9,7 @@ import it here.
 from . import exact  # noqa: F401  (registers exact)
 from . import rk4  # noqa: F401  (registers rk4)
 from . import seed  # noqa: F401  (registers first_order, buss, buss_plain)
+from . import splitting  # noqa: F401  (registers splitting, splitting4)
 from .registry import FAST_KERNELS
 from .registry import get_integrator
 from .registry import INTEGRATORS
