@@ -63,7 +63,7 @@ def _kick(q, linear_momentum, angular_momentum, half, force_world, torque_world,
 def _free_flow(q, lx, ly, lz, moments, frame, axes, dt):
     """Return q after the Strang step with (outer, inner, central) = axes, as the readable."""
     qp = _multiply(q, frame)
-    m = list(_rotate_inverse(qp, lx, ly, lz))
+    m0, m1, m2 = _rotate_inverse(qp, lx, ly, lz)
     x, y, z, w = qp
     for flow in range(5):
         if flow == 2:
@@ -72,22 +72,27 @@ def _free_flow(q, lx, ly, lz, moments, frame, axes, dt):
             axis, duration = axes[1], 0.5 * dt
         else:
             axis, duration = axes[0], 0.5 * dt
-        angle = duration * m[axis] / moments[axis]
+        # The flow of m_i^2 / (2 I_i): qp <- qp * (half_sine e_i, half_cosine), and the
+        # other two components of m turn back by the angle.
+        if axis == 0:
+            angle = duration * m0 / moments[0]
+        elif axis == 1:
+            angle = duration * m1 / moments[1]
+        else:
+            angle = duration * m2 / moments[2]
         half_sine, half_cosine = math.sin(0.5 * angle), math.cos(0.5 * angle)
         cosine = 1.0 - 2.0 * half_sine * half_sine
         sine = 2.0 * half_sine * half_cosine
-        j, k = (axis + 1) % 3, (axis + 2) % 3
-        mj, mk = m[j], m[k]
-        m[j] = cosine * mj + sine * mk
-        m[k] = -sine * mj + cosine * mk
-        # qp <- qp * (half_sine e_axis, half_cosine)
         if axis == 0:
+            m1, m2 = cosine * m1 + sine * m2, -sine * m1 + cosine * m2
             x, y, z, w = (w * half_sine + x * half_cosine, y * half_cosine + z * half_sine,
                           z * half_cosine - y * half_sine, w * half_cosine - x * half_sine)
         elif axis == 1:
+            m2, m0 = cosine * m2 + sine * m0, -sine * m2 + cosine * m0
             x, y, z, w = (x * half_cosine - z * half_sine, w * half_sine + y * half_cosine,
                           z * half_cosine + x * half_sine, w * half_cosine - y * half_sine)
         else:
+            m0, m1 = cosine * m0 + sine * m1, -sine * m0 + cosine * m1
             x, y, z, w = (x * half_cosine + y * half_sine, y * half_cosine - x * half_sine,
                           w * half_sine + z * half_cosine, w * half_cosine - z * half_sine)
     q = _multiply((x, y, z, w), (-frame[0], -frame[1], -frame[2], frame[3]))
