@@ -26,9 +26,10 @@ from scipy.integrate import solve_ivp
 
 from ..physics import INTEGRATORS
 from ..physics import matrix_from_quaternion
+from ..physics import State
 
-__all__ = ['Reference', 'ode_reference', 'exact_reference', 'reference_rotations',
-           'rotation_angle']
+__all__ = ['Reference', 'ode_reference', 'exact_reference', 'exact_resolution',
+           'reference_rotations', 'rotation_angle']
 
 ODE_RTOL = 1e-13
 ODE_ATOL = 1e-16
@@ -36,8 +37,8 @@ ODE_ATOL = 1e-16
 # the ODE's own estimated error; a larger gap is a defect in one of them and the case falls
 # back to the ODE reference (reported).
 CROSS_CHECK_FLOOR = 1e-11
-# Round-off of an exact orientation after ~10^3 rad of rotation (rad): the resolution floor.
-EXACT_ROUND_OFF = 1e-13
+# The least error (rad) ever claimed resolvable: a few ulp of an angle.
+EXACT_FLOOR = 1e-15
 
 
 def rotation_angle(rotation_a, rotation_b):
@@ -119,6 +120,33 @@ def exact_reference(body, state, times):
             for t in times}
 
 
+def exact_resolution(body, state, time):
+    """
+    Return how far (rad) the exact flow's R(time) can be trusted: its round-off level.
+
+    The largest of: the gap between one step to `time` and 2 or 10 equal steps (the flow's
+    group property, which an exact flow keeps up to round-off), and the change of R(time)
+    when L(0) is perturbed by one ulp of |L| in three fixed directions (the problem's own
+    conditioning: no double-precision method can resolve less).  Never below 1e-15 rad.
+    """
+    exact = INTEGRATORS['exact']
+    one_step = exact(body, state, 0.0, time, None).rotation
+    gaps = [EXACT_FLOOR]
+    for pieces in (2, 10):
+        piecewise = state
+        for k in range(pieces):
+            piecewise = exact(body, piecewise, k * time / pieces, time / pieces, None)
+        gaps.append(rotation_angle(one_step, piecewise.rotation))
+    magnitude = np.linalg.norm(state.angular_momentum)
+    ulp = np.spacing(magnitude)
+    for direction in np.eye(3):
+        perturbed = State._from_arrays(
+            np.array(state.quaternion), np.array(state.position),
+            np.array(state.linear_momentum), state.angular_momentum + ulp * direction)
+        gaps.append(rotation_angle(one_step, exact(body, perturbed, 0.0, time, None).rotation))
+    return max(gaps)
+
+
 @dataclass
 class Reference:
     """
@@ -134,7 +162,7 @@ class Reference:
         time (s) -> estimated error of the reference (rad); errors below it are not
         resolved.  For the ODE: the gap between the solves at rtol 1e-12 and 1e-13 (the
         error of the looser one, an upper estimate of the tighter one's).  For the exact
-        flow, which agreed with the ODE within its own uncertainty: 1e-13 rad (round-off).
+        flow, which agreed with the ODE within that: :func:`exact_resolution`.
     cross_check : float or None
         Max angle (rad) between the exact flow and the DOP853 solve over all the times,
         when the exact flow is registered.
@@ -168,7 +196,7 @@ def reference_rotations(body, state, times):
     times = sorted({float(t) for t in times})
     ode = ode_reference(body, state, times)
     looser = ode_reference(body, state, times, rtol=10.0 * ODE_RTOL)
-    ode_uncertainty = {t: max(rotation_angle(ode[t], looser[t]), EXACT_ROUND_OFF)
+    ode_uncertainty = {t: max(rotation_angle(ode[t], looser[t]), EXACT_FLOOR)
                        for t in times}
     worst = max(ode_uncertainty.values())
     if 'exact' not in INTEGRATORS:
@@ -182,6 +210,7 @@ def reference_rotations(body, state, times):
         return Reference(ode, 'ode', ode_uncertainty, gap, worst,
                          f'the exact flow DISAGREES with the DOP853 solve by up to {gap:.1e} '
                          f'rad (its estimated error: {worst:.1e} rad): DOP853 used')
-    return Reference(exact, 'exact', {t: EXACT_ROUND_OFF for t in times}, gap, worst,
+    resolution = {t: exact_resolution(body, state, t) for t in times}
+    return Reference(exact, 'exact', resolution, gap, worst,
                      f'exact flow; DOP853 agrees within {gap:.1e} rad (its estimated '
                      f'error: {worst:.1e} rad)')
