@@ -2,8 +2,8 @@
 The default body and initial state: a T-handle spun near its intermediate axis.
 
 Shared by ``rigid-body-sim run`` and the node, so a newcomer sees the same thing in both:
-the Dzhanibekov flip, which with these numbers first happens after about 7.5 s and then
-repeats every ~12 s of simulated time.
+the Dzhanibekov flip, which with these numbers first happens after about 7.2 s and then
+repeats every ~14.4 s of simulated time (half the 28.7 s period of the body rates).
 """
 
 import numpy as np
