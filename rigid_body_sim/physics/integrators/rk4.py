@@ -1,8 +1,9 @@
 """
 Classical fourth-order Runge-Kutta on (quaternion, position, momenta), re-normalised.
 
-A baseline, not a geometric method: it conserves neither world L nor |q| by construction
-(|q| is restored after each step), but it is fourth order.
+A baseline, not a geometric method: it conserves neither the energy nor |q| by construction
+(|q| is restored after each step), but it is fourth order.  World L is exact torque-free only
+because its rate, the torque, is then zero.
 """
 
 import numpy as np
