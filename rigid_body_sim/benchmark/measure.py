@@ -261,8 +261,8 @@ def run_benchmark(config, with_mujoco=True, progress=None):
     -------
     dict
         'methods' (list of str), 'mujoco' (str status), 'references' (per case: source,
-        cross_check, ode_uncertainty, note, uncertainty {time: rad}), 'records' (list of
-        dict, see RunRecord).
+        cross_check, ode_uncertainty, note, and uncertainty and ode_gap as {time: rad}),
+        'records' (list of dict, see RunRecord).
 
     """
     methods = our_integrators()
@@ -282,6 +282,8 @@ def run_benchmark(config, with_mujoco=True, progress=None):
             'source': reference.source, 'cross_check': reference.cross_check,
             'ode_uncertainty': reference.ode_uncertainty, 'note': reference.note,
             'uncertainty': {repr(t): u for t, u in reference.uncertainty.items()},
+            'ode_gap': None if reference.gaps is None else {
+                repr(t): g for t, g in reference.gaps.items()},
         }
         if progress is not None:
             progress(f'{case.name}: reference')

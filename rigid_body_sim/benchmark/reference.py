@@ -166,6 +166,8 @@ class Reference:
     cross_check : float or None
         Max angle (rad) between the exact flow and the DOP853 solve over all the times,
         when the exact flow is registered.
+    gaps : dict or None
+        time (s) -> angle (rad) between the exact flow and the DOP853 solve.
     ode_uncertainty : float
         Max over the times of the ODE's estimated error (rad).
     note : str
@@ -179,6 +181,7 @@ class Reference:
     cross_check: float = None
     ode_uncertainty: float = None
     note: str = ''
+    gaps: dict = None
 
     def angle_error(self, time, rotation):
         """Return the rotation angle (rad) between `rotation` and the reference at `time`."""
@@ -209,8 +212,8 @@ def reference_rotations(body, state, times):
     if not agree:
         return Reference(ode, 'ode', ode_uncertainty, gap, worst,
                          f'the exact flow DISAGREES with the DOP853 solve by up to {gap:.1e} '
-                         f'rad (its estimated error: {worst:.1e} rad): DOP853 used')
+                         f'rad (its estimated error: {worst:.1e} rad): DOP853 used', gaps)
     resolution = {t: exact_resolution(body, state, t) for t in times}
     return Reference(exact, 'exact', resolution, gap, worst,
                      f'exact flow; DOP853 agrees within {gap:.1e} rad (its estimated '
-                     f'error: {worst:.1e} rad)')
+                     f'error: {worst:.1e} rad)', gaps)
