@@ -280,15 +280,19 @@ class Simulator:
         return self._state
 
     def _advance(self, steps, dt):
-        constraint = self._constraint
-        if self._runs_fast():
-            state = self._advance_fast(steps, dt)
+        constraint, flows = self._constraint, self._flows
+        state = self._integrated_state
+        fast = self._runs_fast()
+        if fast and not flows:
+            state = self._kernel_steps(state, steps, dt)
         else:
-            wrench = self.wrench_function()
-            if constraint is not None:
-                wrench = constraint.wrench(wrench)
-            body, step, flows = self._integrated_body, self._step, self._flows
-            state, time, half = self._integrated_state, self._time, 0.5 * dt
+            if fast:
+                step, wrench = self._kernel_step, None
+            else:
+                step, wrench = self._step, self.wrench_function()
+                if constraint is not None:
+                    wrench = constraint.wrench(wrench)
+            body, time, half = self._integrated_body, self._time, 0.5 * dt
             for k in range(steps):
                 for effect in flows:
                     state = effect.flow(body, state, half)
@@ -304,17 +308,21 @@ class Simulator:
         Return True when the compiled kernel can take the steps: a held wrench only.
 
         Constant forces (gravity) are held too, except under a constraint, where a force at
-        the COM has a torque about the pivot that turns with the body.
+        the COM has a torque about the pivot that turns with the body.  Flows do not stop
+        it: they are composed with single kernel steps.
         """
-        if self._kernel is None or self._pushing_effects or self._flows:
+        if self._kernel is None or self._pushing_effects:
             return False
         if self._constraint is None:
             return True
         force_world, _, force_body, _ = self._held
         return not (np.any(force_world) or np.any(force_body) or np.any(self._constant_force))
 
-    def _advance_fast(self, steps, dt):
-        state = self._integrated_state
+    def _kernel_step(self, body, state, time, dt, wrench):
+        # The step-function form of one kernel step; the held wrench is the kernel's own.
+        return self._kernel_steps(state, 1, dt)
+
+    def _kernel_steps(self, state, steps, dt):
         body = self._integrated_body
         quaternion = np.array(state.quaternion)
         position = np.array(state.position)

@@ -26,15 +26,14 @@ gyroscopic one, |eps m x (m x Omega)| / |m x Omega| = damping; 0.01 to 0.1 gives
 migration over tens to hundreds of spin periods.
 """
 
+import math
+
+import numba
 import numpy as np
 
-from ._vector import cross
 from .registry import check_number
 from .registry import Effect
 from .registry import register_effect
-from ..rotations import matrix_from_quaternion
-from ..rotations import quaternion_from_rotation_vector
-from ..rotations import quaternion_multiply
 from ..state import State
 
 
@@ -56,34 +55,64 @@ class Dissipation(Effect):
 
     def flow(self, body, state, dt):
         """Return the state after dt s of dissipation alone: R turned, x, p and L unchanged."""
-        momentum_norm = np.sqrt(state.angular_momentum @ state.angular_momentum)
-        if momentum_norm == 0.0:
-            return state
-        eps = self.damping / momentum_norm
-        quaternion = state.quaternion
-        rate = self._turn_rate(body, state.rotation, state.angular_momentum, eps)
-        half = _turned(quaternion, 0.5 * dt * rate)
-        rate = self._turn_rate(body, matrix_from_quaternion(half), state.angular_momentum, eps)
-        return State._from_arrays(_turned(quaternion, dt * rate), state.position,
-                                  state.linear_momentum, state.angular_momentum)
-
-    @staticmethod
-    def _turn_rate(body, rotation, angular_momentum, eps):
-        # u = eps m x Omega in the body frame (rad/s), m = R^T L, Omega = I_b^{-1} m.
-        momentum_body = rotation.T @ angular_momentum
-        return eps * cross(momentum_body, body.inertia_inverse @ momentum_body)
+        quaternion = _dissipation_flow(state.quaternion, state.angular_momentum,
+                                       body.inertia_inverse, self.damping, dt)
+        return State._from_arrays(quaternion, state.position, state.linear_momentum,
+                                  state.angular_momentum)
 
     def energy_rate(self, body, state):
         """Return dE/dt = -eps |m x Omega|^2 in W (<= 0) of the dissipation law."""
-        momentum_norm = np.sqrt(state.angular_momentum @ state.angular_momentum)
+        momentum_norm = math.sqrt(state.angular_momentum @ state.angular_momentum)
         if momentum_norm == 0.0:
             return 0.0
         momentum_body = state.rotation.T @ state.angular_momentum
-        turning = cross(momentum_body, body.inertia_inverse @ momentum_body)
+        turning = np.cross(momentum_body, body.inertia_inverse @ momentum_body)
         return -self.damping / momentum_norm * float(turning @ turning)
 
 
-def _turned(quaternion, rotation_vector_body):
-    # R exp([v]x): a body-frame turn multiplies on the right.
-    q = quaternion_multiply(quaternion, quaternion_from_rotation_vector(rotation_vector_body))
-    return q / np.sqrt(q @ q)
+@numba.njit(cache=True, nogil=True)
+def _turn_rate(q, angular_momentum, inertia_inverse, eps):
+    """Return u = eps m x Omega (rad/s, body frame): m = R^T L, Omega = I_b^{-1} m."""
+    x, y, z, w = q[0], q[1], q[2], q[3]
+    lx, ly, lz = angular_momentum[0], angular_momentum[1], angular_momentum[2]
+    # m = R^T L with R the matrix of q (columns: the body axes in the world).
+    m0 = ((1.0 - 2.0 * (y * y + z * z)) * lx + 2.0 * (x * y + z * w) * ly
+          + 2.0 * (x * z - y * w) * lz)
+    m1 = (2.0 * (x * y - z * w) * lx + (1.0 - 2.0 * (x * x + z * z)) * ly
+          + 2.0 * (y * z + x * w) * lz)
+    m2 = (2.0 * (x * z + y * w) * lx + 2.0 * (y * z - x * w) * ly
+          + (1.0 - 2.0 * (x * x + y * y)) * lz)
+    o0 = inertia_inverse[0, 0] * m0 + inertia_inverse[0, 1] * m1 + inertia_inverse[0, 2] * m2
+    o1 = inertia_inverse[1, 0] * m0 + inertia_inverse[1, 1] * m1 + inertia_inverse[1, 2] * m2
+    o2 = inertia_inverse[2, 0] * m0 + inertia_inverse[2, 1] * m1 + inertia_inverse[2, 2] * m2
+    return eps * (m1 * o2 - m2 * o1), eps * (m2 * o0 - m0 * o2), eps * (m0 * o1 - m1 * o0)
+
+
+@numba.njit(cache=True, nogil=True)
+def _turned(q, vx, vy, vz):
+    """Return q * exp(v): R turned by the body-frame rotation vector v (rad), normalised."""
+    angle = math.sqrt(vx * vx + vy * vy + vz * vz)
+    # sin(t/2)/t by its series below 1e-4 rad (next term ~t^4/3840, below round-off).
+    s = 0.5 - angle * angle / 48.0 if angle < 1e-4 else math.sin(0.5 * angle) / angle
+    bx, by, bz, bw = s * vx, s * vy, s * vz, math.cos(0.5 * angle)
+    ax, ay, az, aw = q[0], q[1], q[2], q[3]
+    out = np.empty(4)
+    out[0] = aw * bx + ax * bw + ay * bz - az * by
+    out[1] = aw * by - ax * bz + ay * bw + az * bx
+    out[2] = aw * bz + ax * by - ay * bx + az * bw
+    out[3] = aw * bw - ax * bx - ay * by - az * bz
+    return out / math.sqrt(out[0] ** 2 + out[1] ** 2 + out[2] ** 2 + out[3] ** 2)
+
+
+@numba.njit(cache=True, nogil=True)
+def _dissipation_flow(q, angular_momentum, inertia_inverse, damping, dt):
+    """Return the quaternion after dt s of the dissipation flow (explicit midpoint on SO(3))."""
+    momentum_norm = math.sqrt(angular_momentum[0] ** 2 + angular_momentum[1] ** 2
+                              + angular_momentum[2] ** 2)
+    if momentum_norm == 0.0:
+        return q.copy()
+    eps = damping / momentum_norm
+    ux, uy, uz = _turn_rate(q, angular_momentum, inertia_inverse, eps)
+    half = _turned(q, 0.5 * dt * ux, 0.5 * dt * uy, 0.5 * dt * uz)
+    ux, uy, uz = _turn_rate(half, angular_momentum, inertia_inverse, eps)
+    return _turned(q, dt * ux, dt * uy, dt * uz)
