@@ -1,0 +1,612 @@
+"""
+Scenes: a body, its initial state, the effects on it, how to run it and how to draw it.
+
+A scene is a YAML file (schema: the comment block of ``config/scenes/default.yaml`` and the
+README's "Scenes" section; units SI).  :func:`load_scene` reads a built-in scene by name
+(``config/scenes/<name>.yaml``, found with :func:`rigid_body_sim.paths.scenes_dir`) or any
+file by path, validates it strictly and returns a :class:`Scene` value: unknown keys, wrong
+types, missing values and non-physical bodies are ValueErrors whose message names the file,
+the key path and what is wrong, e.g.
+``scenes/heavy_top.yaml: effects[0].pivot.point: expected 3 numbers, got 2``.
+
+For the node: ``scene = load_scene(name_or_path)``, then
+``scene = scene.with_overrides(...)`` with the body and initial-state parameters the user
+set (they win over the scene's values, and are validated the same way), then
+``simulator = scene.simulator()``.  Subscribe to the torque and wrench topics only if
+``scene.accepts_external_wrench``, and pass the input through
+``scene.external_wrench.limit(force, torque)`` before ``simulator.set_wrench``.
+"""
+
+import copy
+from dataclasses import dataclass
+from dataclasses import field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .paths import scenes_dir
+from .physics import INTEGRATORS
+from .physics import RigidBody
+from .physics import Simulator
+from .physics import State
+from .physics.effects import create_effect
+from .physics.effects import EFFECTS
+from .physics.effects import ParameterError
+from .physics.effects.registry import check_number
+from .physics.effects.registry import check_vector
+from .physics.rotations import quaternion_from_matrix
+
+__all__ = [
+    'DEFAULT_SCENE',
+    'Drawing',
+    'Scene',
+    'find_scene',
+    'load_scene',
+    'parse_scene',
+    'scene_names',
+]
+
+DEFAULT_SCENE = 'default'
+"""The node's default scene: the T-handle with external_wrench, so a newcomer can push it."""
+
+DEFAULT_INTEGRATOR = 'buss'
+DEFAULT_RATE = 100.0
+DEFAULT_COLOR = (0.8, 0.5, 0.2, 1.0)
+SHAPES = ('box', 'cylinder', 'sphere', 'ellipsoid')
+
+# The keys each part of a scene may have; anything else is an error.
+_TOP_KEYS = ('name', 'description', 'body', 'initial', 'effects', 'integrator', 'rate', 'draw')
+_SHAPE_KEYS = {
+    'box': ('size',),
+    'cylinder': ('radius', 'height'),
+    'sphere': ('radius',),
+    'ellipsoid': ('semi_axes',),
+}
+_INITIAL_KEYS = ('orientation', 'angular_velocity_body', 'angular_velocity_world', 'position',
+                 'velocity')
+_DRAW_KEYS = ('shape', 'size', 'color')
+# A flat body (I1 + I2 = I3) has an equivalent box of zero thickness: draw it this thin
+# relative to its largest extent instead, so that it stays visible.
+_THINNEST_DRAWING = 0.01
+# How far a scene's orientation quaternion may be from unit norm before it is an error.
+_QUATERNION_NORM_TOLERANCE = 1e-6
+
+
+@dataclass(frozen=True)
+class Drawing:
+    """
+    How to draw the body: a shape in the body frame, sized like visualization_msgs/Marker.
+
+    Attributes
+    ----------
+    shape : str
+        'box', 'cylinder' (axis along the drawing's z), 'sphere' or 'ellipsoid'.
+    size : tuple of 3 floats
+        Extents in m along the drawing's x, y, z: box edges; cylinder (2 r, 2 r, height);
+        sphere and ellipsoid the diameters.  This is a Marker's ``scale``.
+    color : tuple of 4 floats
+        (r, g, b, a), each 0..1.
+    orientation : tuple of 4 floats
+        Quaternion (x, y, z, w) of the drawing's axes in the body frame: identity, except
+        for a box drawn from a non-diagonal inertia, which lies along the principal axes.
+    derived : bool
+        True if the drawing was derived from the body (no ``draw.size`` in the scene), so
+        it follows a body override.
+
+    """
+
+    shape: str
+    size: tuple
+    color: tuple = DEFAULT_COLOR
+    orientation: tuple = (0.0, 0.0, 0.0, 1.0)
+    derived: bool = True
+
+
+@dataclass(frozen=True)
+class Scene:
+    """
+    A validated scene: everything needed to simulate and show one experiment.
+
+    Attributes
+    ----------
+    name : str
+        The scene's name (for a built-in scene, its file name without ``.yaml``).
+    description : str
+        One line saying what the scene shows.
+    body : RigidBody
+        Mass (kg) and inertia about the COM (kg m^2, body frame).
+    state : State
+        Initial state, world frame; in a pivot scene already on the constraint (the COM
+        position and velocity derived from the pivot).
+    effects : tuple
+        The effect instances, in the scene's order.
+    integrator : str
+        Name of the default integrator (a key of INTEGRATORS).
+    rate : float
+        Default step rate in Hz: the node's tick and the step dt = 1 / rate.
+    drawing : Drawing
+        How to draw the body.
+    source : str
+        Where the scene came from (the file, for messages).
+    data : dict
+        The scene's validated mapping, as in the file (used by :meth:`with_overrides`).
+
+    """
+
+    name: str
+    description: str
+    body: RigidBody
+    state: State
+    effects: tuple
+    integrator: str
+    rate: float
+    drawing: Drawing
+    source: str = '<scene>'
+    data: dict = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def dt(self):
+        """Return the default step in s: 1 / rate."""
+        return 1.0 / self.rate
+
+    @property
+    def external_wrench(self):
+        """Return the scene's external_wrench effect, or None if it takes no outside input."""
+        return self._effect('external_wrench')
+
+    @property
+    def accepts_external_wrench(self):
+        """Return True if the scene takes a wrench from outside (the node's topics)."""
+        return any(getattr(e, 'accepts_external_wrench', False) for e in self.effects)
+
+    @property
+    def pivot(self):
+        """Return the scene's pivot effect, or None if the body is free."""
+        return self._effect('pivot')
+
+    def effect_names(self):
+        """Return the names of the scene's effects, in order."""
+        return [getattr(effect, 'effect_name', type(effect).__name__) for effect in self.effects]
+
+    def simulator(self, body=None, state=None, integrator=None, fast=True):
+        """
+        Return a Simulator of this scene, with its effects.
+
+        Parameters
+        ----------
+        body : RigidBody, optional
+            Replaces the scene's body (prefer :meth:`with_overrides`, which also rebuilds
+            the state for it).
+        state : State, optional
+            Replaces the initial state (projected onto a pivot, if the scene has one).
+        integrator : str, optional
+            Replaces the scene's integrator.
+        fast : bool
+            Passed to Simulator: use the compiled kernels where they apply.
+
+        """
+        return Simulator(self.body if body is None else body,
+                         self.state if state is None else state,
+                         integrator=self.integrator if integrator is None else integrator,
+                         effects=self.effects, fast=fast)
+
+    def with_overrides(self, mass=None, inertia=None, orientation=None,
+                       angular_velocity_body=None, angular_velocity_world=None,
+                       position=None, velocity=None, integrator=None, rate=None):
+        """
+        Return the scene with some body, initial-state or run values replaced.
+
+        What is None keeps the scene's value.  The new values are validated like the file
+        (messages name ``<source> (overrides): <key path>``), and the scene is rebuilt:
+
+        - mass: a body given by shape keeps its shape (its inertia scales with the mass); a
+          body given by inertia keeps it.
+        - inertia (3 diagonal entries, 9 row-major entries or 3x3; kg m^2): replaces the
+          shape; a drawing derived from the body follows it.
+        - orientation (quaternion x, y, z, w), angular_velocity_body or
+          angular_velocity_world (rad/s; one replaces the other), position (m), velocity
+          (m/s): the initial state is rebuilt from these velocities, so a new body keeps the
+          scene's angular velocity, not its angular momentum.  In a pivot scene position and
+          velocity follow from the pivot and may not be given.
+        - integrator (name), rate (Hz).
+
+        """
+        data = copy.deepcopy(self.data)
+        body = data.setdefault('body', {})
+        if inertia is not None:
+            body_mass = body.get('mass')
+            body.clear()
+            body['mass'] = body_mass
+            body['inertia'] = _plain(inertia)
+        if mass is not None:
+            body['mass'] = _plain(mass)
+        initial = data.get('initial') or {}
+        for key, value in (('orientation', orientation), ('position', position),
+                           ('velocity', velocity)):
+            if value is not None:
+                initial[key] = _plain(value)
+        for key, value, other in (
+                ('angular_velocity_body', angular_velocity_body, 'angular_velocity_world'),
+                ('angular_velocity_world', angular_velocity_world, 'angular_velocity_body')):
+            if value is not None:
+                initial.pop(other, None)
+                initial[key] = _plain(value)
+        if initial:
+            data['initial'] = initial
+        if integrator is not None:
+            data['integrator'] = integrator
+        if rate is not None:
+            data['rate'] = _plain(rate)
+        return parse_scene(data, f'{self.source} (overrides)')
+
+    def _effect(self, name):
+        for effect in self.effects:
+            if getattr(effect, 'effect_name', None) == name:
+                return effect
+        return None
+
+
+def scene_names():
+    """Return the names of the built-in scenes (``config/scenes/*.yaml``), sorted."""
+    return sorted(path.stem for path in Path(scenes_dir()).glob('*.yaml'))
+
+
+def find_scene(name_or_path):
+    """
+    Return the file of a scene given by built-in name or by path.
+
+    A value with a path separator or a ``.yaml``/``.yml`` ending is a path; anything else
+    is a built-in name.  ValueError if there is no such file (listing the built-ins).
+    """
+    text = str(name_or_path)
+    if not text:
+        raise ValueError(f'scene: empty name; built-in scenes: {", ".join(scene_names())}')
+    if '/' in text or text.endswith(('.yaml', '.yml')):
+        path = Path(text).expanduser()
+        if not path.is_file():
+            raise ValueError(f'scene file {text!r} does not exist')
+        return path
+    path = Path(scenes_dir()) / f'{text}.yaml'
+    if not path.is_file():
+        raise ValueError(f'unknown scene {text!r}; built-in scenes: {", ".join(scene_names())}'
+                         ' (or give a path to a .yaml file)')
+    return path
+
+
+def load_scene(name_or_path=DEFAULT_SCENE):
+    """
+    Read, validate and return a scene, by built-in name or by path.
+
+    Raises
+    ------
+    ValueError
+        If the file is missing or is not valid YAML, or for any problem of the scene; the
+        message names the file, the key path and what is wrong.
+
+    """
+    path = find_scene(name_or_path)
+    builtin = path.parent.resolve() == Path(scenes_dir()).resolve()
+    source = f'scenes/{path.name}' if builtin else str(name_or_path)
+    try:
+        with open(path, encoding='utf-8') as stream:
+            data = yaml.safe_load(stream)
+    except yaml.YAMLError as error:
+        problem = ' '.join(str(error).split())
+        raise ValueError(f'{source}: not valid YAML: {problem}') from None
+    except OSError as error:
+        raise ValueError(f'{source}: cannot read: {error.strerror}') from None
+    return parse_scene(data, source)
+
+
+def parse_scene(data, source='<scene>'):
+    """
+    Validate a scene's mapping (as from YAML) and return the :class:`Scene`.
+
+    `source` names the scene in error messages.  The schema: see the module docstring.
+    """
+    return _SceneReader(source).read(data)
+
+
+class _SceneReader:
+    """Validates one scene mapping; every error names the source and the key path."""
+
+    def __init__(self, source):
+        self.source = source
+
+    def error(self, path, problem):
+        prefix = f'{self.source}: {path}: ' if path else f'{self.source}: '
+        return ValueError(prefix + problem)
+
+    def read(self, data):
+        mapping = self.mapping(data, '', _TOP_KEYS, required=('name', 'description', 'body'))
+        name = self.text(mapping['name'], 'name')
+        description = self.text(mapping['description'], 'description')
+        body, body_shape = self.body(mapping['body'])
+        effects = self.effects(mapping.get('effects', []))
+        pivot = next((e for e in effects if getattr(e, 'effect_name', None) == 'pivot'), None)
+        state = self.initial(mapping.get('initial', {}), body, pivot)
+        integrator = mapping.get('integrator', DEFAULT_INTEGRATOR)
+        if integrator not in INTEGRATORS:
+            valid = ', '.join(sorted(INTEGRATORS))
+            raise self.error('integrator', f'unknown integrator {integrator!r}; valid: {valid}')
+        rate = self.number(mapping.get('rate', DEFAULT_RATE), 'rate', 'Hz', positive=True)
+        drawing = self.drawing(mapping.get('draw', {}), body, body_shape, mapping['body'])
+        return Scene(name=name, description=description, body=body, state=state,
+                     effects=tuple(effects), integrator=integrator, rate=rate,
+                     drawing=drawing, source=self.source, data=copy.deepcopy(mapping))
+
+    # -- generic checks
+
+    def mapping(self, value, path, keys, required=()):
+        where = path or 'the scene'
+        if not isinstance(value, dict):
+            raise self.error(path, f'expected a mapping of keys, got {_describe(value)}')
+        for key in value:
+            if key not in keys:
+                raise self.error(_join(path, str(key)),
+                                 f'unknown key; {where} takes: {", ".join(keys)}')
+        for key in required:
+            if key not in value or value[key] is None:
+                raise self.error(_join(path, key), f'missing; {where} requires it')
+        return value
+
+    def text(self, value, path):
+        if not isinstance(value, str) or not value.strip():
+            raise self.error(path, f'expected a non-empty string, got {_describe(value)}')
+        if '\n' in value.strip():
+            raise self.error(path, 'expected one line')
+        return value.strip()
+
+    def number(self, value, path, unit='', positive=False):
+        try:
+            return check_number(value, 'value', unit, positive=positive)
+        except ParameterError as error:
+            raise self.error(path, error.problem) from None
+
+    def vector(self, value, path, unit=''):
+        try:
+            return check_vector(value, 'value', unit)
+        except ParameterError as error:
+            raise self.error(path, error.problem) from None
+
+    # -- sections
+
+    def body(self, value):
+        """Return (RigidBody, shape or None) of the body section."""
+        shape = value.get('shape') if isinstance(value, dict) else None
+        shape_keys = _SHAPE_KEYS.get(shape, ())
+        keys = ('mass', 'shape', 'inertia') + tuple(k for s in SHAPES for k in _SHAPE_KEYS[s])
+        body = self.mapping(value, 'body', keys, required=('mass',))
+        mass = self.number(body['mass'], 'body.mass', 'kg', positive=True)
+        if 'shape' in body and 'inertia' in body:
+            raise self.error('body', 'give shape (with its sizes) or inertia, not both')
+        if 'inertia' in body:
+            for key in body:
+                if key not in ('mass', 'inertia'):
+                    raise self.error(f'body.{key}', 'is a shape size; a body given by inertia '
+                                                    'takes only mass and inertia')
+            return self.inertia_body(mass, body['inertia']), None
+        if 'shape' not in body:
+            raise self.error('body', f'missing shape ({", ".join(SHAPES)}) or inertia')
+        if shape not in SHAPES:
+            raise self.error('body.shape', f'expected one of {", ".join(SHAPES)}, got '
+                                           f'{_describe(shape)}')
+        for key in body:
+            if key not in ('mass', 'shape') + shape_keys:
+                raise self.error(f'body.{key}', f'not a size of shape {shape}; it takes: '
+                                                f'{", ".join(shape_keys)}')
+        for key in shape_keys:
+            if key not in body:
+                raise self.error(f'body.{key}', f'missing; shape {shape} requires it')
+        sizes = {}
+        for key in shape_keys:
+            path = f'body.{key}'
+            if key in ('size', 'semi_axes'):
+                sizes[key] = self.vector(body[key], path, 'm')
+                if np.any(sizes[key] <= 0.0):
+                    raise self.error(path, f'must be > 0 m, got {sizes[key].tolist()}')
+            else:
+                sizes[key] = self.number(body[key], path, 'm', positive=True)
+        if shape == 'box':
+            return RigidBody.box(mass, sizes['size']), shape
+        if shape == 'ellipsoid':
+            return RigidBody.ellipsoid(mass, sizes['semi_axes']), shape
+        if shape == 'sphere':
+            return RigidBody.sphere(mass, sizes['radius']), shape
+        return RigidBody.cylinder(mass, sizes['radius'], sizes['height']), shape
+
+    def inertia_body(self, mass, value):
+        path = 'body.inertia'
+        if isinstance(value, np.ndarray):
+            value = value.tolist()
+        if not isinstance(value, (list, tuple)):
+            raise self.error(path, f'expected 3 numbers (the diagonal) or 3 rows of 3, got '
+                                   f'{_describe(value)}')
+        if len(value) == 3 and all(isinstance(row, (list, tuple)) for row in value):
+            tensor = np.array([self.vector(row, f'{path}[{i}]', 'kg m^2')
+                               for i, row in enumerate(value)])
+        elif len(value) == 9:
+            tensor = np.array([self.number(x, f'{path}[{i}]', 'kg m^2')
+                               for i, x in enumerate(value)]).reshape(3, 3)
+        else:
+            tensor = np.diag(self.vector(value, path, 'kg m^2'))
+        try:
+            return RigidBody(mass, tensor)
+        except ValueError as error:
+            raise self.error(path, str(error)) from None
+
+    def effects(self, value):
+        if value is None:
+            return []
+        if not isinstance(value, list):
+            raise self.error('effects', f'expected a list of effects, got {_describe(value)}')
+        effects, seen = [], set()
+        for index, item in enumerate(value):
+            path = f'effects[{index}]'
+            if isinstance(item, str):
+                name, parameters = item, {}
+            elif isinstance(item, dict) and len(item) == 1:
+                (name, parameters), = item.items()
+                if parameters is None:
+                    parameters = {}
+                if not isinstance(parameters, dict):
+                    raise self.error(f'{path}.{name}', 'expected a mapping of parameters, got '
+                                                       f'{_describe(parameters)}')
+            else:
+                raise self.error(path, 'expected an effect name or {name: {parameters}}, got '
+                                       f'{_describe(item)}')
+            if name not in EFFECTS:
+                raise self.error(path, f'unknown effect {name!r}; valid effects: '
+                                       f'{", ".join(sorted(EFFECTS))}')
+            if name in seen:
+                raise self.error(path, f'effect {name!r} is named twice')
+            seen.add(name)
+            try:
+                effects.append(create_effect(name, parameters))
+            except ParameterError as error:
+                raise self.error(f'{path}.{name}.{error.key}', error.problem) from None
+            except ValueError as error:
+                raise self.error(f'{path}.{name}', str(error)) from None
+        return effects
+
+    def initial(self, value, body, pivot):
+        if value is None:
+            value = {}
+        initial = self.mapping(value, 'initial', _INITIAL_KEYS)
+        if 'angular_velocity_body' in initial and 'angular_velocity_world' in initial:
+            raise self.error('initial', 'give angular_velocity_body or angular_velocity_world, '
+                                        'not both')
+        if pivot is not None:
+            for key in ('position', 'velocity'):
+                if key in initial:
+                    raise self.error(f'initial.{key}', 'not allowed with a pivot: the COM '
+                                                       'follows from the pivot; remove it')
+        vectors = {key: self.vector(initial[key], f'initial.{key}', unit)
+                   for key, unit in (('angular_velocity_body', 'rad/s'),
+                                     ('angular_velocity_world', 'rad/s'),
+                                     ('position', 'm'), ('velocity', 'm/s'))
+                   if key in initial}
+        rotation = None
+        if 'orientation' in initial:
+            rotation = self.orientation(initial['orientation'])
+        state = State.from_velocity(body, rotation=rotation, **vectors)
+        if pivot is not None:
+            state = pivot.constrain(body).project(state)
+        return state
+
+    def orientation(self, value):
+        path = 'initial.orientation'
+        if isinstance(value, (list, tuple)) and len(value) != 4:
+            raise self.error(path, f'expected 4 numbers (quaternion x, y, z, w), got '
+                                   f'{len(value)}')
+        try:
+            quaternion = check_vector(value, 'value', size=4)
+        except ParameterError as error:
+            raise self.error(path, error.problem + ' (quaternion x, y, z, w)') from None
+        norm = float(np.linalg.norm(quaternion))
+        if abs(norm - 1.0) > _QUATERNION_NORM_TOLERANCE:
+            raise self.error(path, f'expected a unit quaternion (x, y, z, w), got norm '
+                                   f'{norm:.9g}')
+        return quaternion / norm
+
+    def drawing(self, value, body, body_shape, body_data):
+        draw = self.mapping(value if value is not None else {}, 'draw', _DRAW_KEYS)
+        shape = draw.get('shape', body_shape or 'box')
+        if shape not in SHAPES:
+            raise self.error('draw.shape', f'expected one of {", ".join(SHAPES)}, got '
+                                           f'{_describe(shape)}')
+        color = DEFAULT_COLOR
+        if 'color' in draw:
+            color = self.color(draw['color'])
+        if 'size' in draw:
+            size = self.vector(draw['size'], 'draw.size', 'm')
+            if np.any(size <= 0.0):
+                raise self.error('draw.size', f'must be > 0 m, got {size.tolist()}')
+            return Drawing(shape, tuple(size.tolist()), color, derived=False)
+        if shape == body_shape:
+            size = _shape_extents(body_data, body_shape)
+            return Drawing(shape, size, color)
+        if shape not in ('box', 'ellipsoid'):
+            raise self.error('draw.size', f'missing: a {shape} cannot be derived from this '
+                                          'body; give draw.size (m)')
+        size, orientation = _equivalent_extents(body, shape)
+        return Drawing(shape, size, color, orientation)
+
+    def color(self, value):
+        path = 'draw.color'
+        if isinstance(value, (list, tuple)) and len(value) == 3:
+            value = list(value) + [1.0]
+        if isinstance(value, (list, tuple)) and len(value) != 4:
+            raise self.error(path, f'expected 3 or 4 numbers (r, g, b[, a]), got {len(value)}')
+        try:
+            color = check_vector(value, 'value', size=4)
+        except ParameterError as error:
+            raise self.error(path, error.problem + ' (r, g, b[, a])') from None
+        if np.any(color < 0.0) or np.any(color > 1.0):
+            raise self.error(path, f'each of r, g, b, a must be in 0..1, got {color.tolist()}')
+        return tuple(color.tolist())
+
+
+def _shape_extents(body_data, shape):
+    """Return the Marker scale (m) of a body's own shape from its sizes."""
+    if shape == 'box':
+        return tuple(float(x) for x in body_data['size'])
+    if shape == 'ellipsoid':
+        return tuple(2.0 * float(x) for x in body_data['semi_axes'])
+    diameter = 2.0 * float(body_data['radius'])
+    if shape == 'sphere':
+        return (diameter, diameter, diameter)
+    return (diameter, diameter, float(body_data['height']))
+
+
+def _equivalent_extents(body, shape):
+    """
+    Return the extents and orientation of the box or ellipsoid with the body's inertia.
+
+    A solid box of edges (a, b, c) has I1 = m/12 (b^2 + c^2) and cyclic, so
+    a^2 = 6 (I2 + I3 - I1) / m; a solid ellipsoid of semi-axes (a, b, c) has
+    I1 = m/5 (b^2 + c^2), so its diameter (2a)^2 = 10 (I2 + I3 - I1) / m.  The triangle
+    inequality makes these real; a flat body gets a small thickness.
+    """
+    inertia = body.inertia
+    if np.count_nonzero(inertia - np.diag(np.diag(inertia))) == 0:
+        moments, orientation = np.diag(inertia), (0.0, 0.0, 0.0, 1.0)
+    else:
+        moments = body.principal_moments
+        orientation = tuple(float(x) for x in quaternion_from_matrix(body.principal_axes))
+    factor = 6.0 if shape == 'box' else 10.0
+    total = float(np.sum(moments))
+    squared = factor * (total - 2.0 * np.asarray(moments)) / body.mass
+    extents = np.sqrt(np.clip(squared, 0.0, None))
+    extents = np.maximum(extents, _THINNEST_DRAWING * float(np.max(extents)))
+    return tuple(float(x) for x in extents), orientation
+
+
+def _join(path, key):
+    return f'{path}.{key}' if path else key
+
+
+def _describe(value):
+    if isinstance(value, str):
+        return f'the string {value!r}'
+    if isinstance(value, bool):
+        return f'the boolean {str(value).lower()}'
+    if value is None:
+        return 'nothing'
+    if isinstance(value, dict):
+        return 'a mapping'
+    if isinstance(value, list):
+        return f'a list of {len(value)}'
+    return f'{type(value).__name__} {value!r}'
+
+
+def _plain(value):
+    """Return an override as plain Python data (lists and floats), like YAML gives."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (list, tuple)):
+        return [_plain(item) for item in value]
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    return value
