@@ -14,6 +14,7 @@ import sys
 TOOLS = {
     'run': 'summary',
     'bench': 'bench',
+    'scenes': 'scenes',
 }
 
 _EPILOG = """\

@@ -1,0 +1,84 @@
+"""
+List the built-in scenes with a one-line description each, or check and describe one.
+
+A scene is a YAML file naming a body, its initial state, the effects on it (gravity, a
+pivot, drag, dissipation, external pushes), the default integrator and rate, and how to
+draw it.  Give a built-in name or a path to check a scene and print what it holds; an
+invalid file is reported with its key path and what is wrong (exit code 2).  --effects
+lists the effects a scene may name, with their parameters.
+"""
+
+import inspect
+
+import numpy as np
+
+from ..paths import scenes_dir
+from ..physics.effects import effect_parameters
+from ..physics.effects import EFFECTS
+from ..scenes import DEFAULT_SCENE
+from ..scenes import load_scene
+from ..scenes import scene_names
+
+
+def add_arguments(parser):
+    """Add the options of ``rigid-body-sim scenes``."""
+    parser.add_argument('scene', nargs='?',
+                        help='a built-in scene name or a path to a .yaml file: check it and '
+                             'print what it holds')
+    parser.add_argument('--effects', action='store_true',
+                        help='list the effects a scene may name, with their parameters')
+
+
+def main(args):
+    """List the scenes (or effects), or describe one scene; return 0."""
+    if args.effects:
+        _print_effects()
+    elif args.scene is not None:
+        _print_scene(load_scene(args.scene))
+    else:
+        _print_scenes()
+    return 0
+
+
+def _print_scenes():
+    names = scene_names()
+    width = max(len(name) for name in names)
+    print(f'built-in scenes ({scenes_dir()}):')
+    for name in names:
+        marker = '*' if name == DEFAULT_SCENE else ' '
+        print(f' {marker}{name:<{width}}  {load_scene(name).description}')
+    print(f'* the node\'s default.  Details: rigid-body-sim scenes NAME; '
+          f'ros2 run rigid_body_sim rigid_body_node --ros-args -p scene:=NAME')
+
+
+def _print_scene(scene):
+    body, state = scene.body, scene.state
+
+    def vector(values):
+        return np.array2string(np.asarray(values), precision=6, separator=', ')
+
+    print(f'{scene.name}: {scene.description}')
+    print(f'  source:      {scene.source}')
+    print(f'  body:        mass {body.mass:g} kg, principal moments '
+          f'{vector(body.principal_moments)} kg m^2')
+    print(f'  orientation: {vector(state.quaternion)} (x, y, z, w)')
+    print(f'  omega body:  {vector(state.angular_velocity_body(body))} rad/s')
+    print(f'  position:    {vector(state.position)} m, velocity {vector(state.velocity(body))} '
+          'm/s')
+    effects = ', '.join(repr(effect) for effect in scene.effects) or 'none (torque-free)'
+    print(f'  effects:     {effects}')
+    print(f'  integrator:  {scene.integrator} at {scene.rate:g} Hz (dt {scene.dt:g} s)')
+    drawing = scene.drawing
+    print(f'  drawing:     {drawing.shape} {vector(drawing.size)} m, color '
+          f'{vector(drawing.color)}')
+    print(f'  outside push (torque/wrench topics): '
+          f'{"yes" if scene.accepts_external_wrench else "no"}')
+
+
+def _print_effects():
+    for name in sorted(EFFECTS):
+        doc = inspect.getdoc(EFFECTS[name]) or ''
+        print(f'{name}: {doc.splitlines()[0] if doc else ""}')
+        for key, default in effect_parameters(name).items():
+            value = 'required' if default is inspect.Parameter.empty else f'default {default}'
+            print(f'    {key} ({value})')
