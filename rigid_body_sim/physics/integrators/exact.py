@@ -41,6 +41,9 @@ Fasso, Safstrom & Zanna, SIAM J. Sci. Comput. 30:2084, 2008), with L = |L|, E2 =
 3. Arguments are reduced to |u| <= K with the quasi-periodicity of sn, cn, dn, Theta and Pi;
    the Jacobi functions come from k^2 and k'^2 separately (descending Landen), so nothing is
    lost near the separatrix (k'^2 -> 0); on it (k'^2 = 0) sn, cn, dn are tanh, sech, sech.
+   The terms of I grow like K ~ ln(4/k') near the unstable axis and cancel to O(1), so a
+   step carries a round-off of ~eps K: about 1e-15 at k'^2 = 1e-8, 1e-14 for a state within
+   1e-16 of the unstable axis (K ~ 38).
 
 Symmetric and spherical tops (two or three principal moments exactly equal) use the closed
 form R(t) = exp(t [L]x / I_t) R(0) exp(t nu_a [a]x), nu_a = m_a (1/I_a - 1/I_t): a steady
@@ -216,6 +219,9 @@ def _asymmetric_top_rotation(frame, quaternion, angular_momentum, duration):
     coefficients = (amplitude_c / a, momentum_norm / (a * alpha),
                     momentum_norm ** 2 * amplitude_c * parameter / (3.0 * a * a), alpha,
                     characteristic, complete_rj)
+    # Both ends are evaluated at the arguments actually used (u1 as rounded), so that the
+    # O(K) terms of I cancel consistently: the rounding of u1 then enters only through
+    # I'(u1) = dn / (L + C dn), small where K is large (near the unstable axis).
     integral = (_precession_integral(u1, s1, c1, d1, turns, *coefficients)
                 - _precession_integral(u0, s0, c0, d0, 0, *coefficients))
     precession = (duration * twice_energy / momentum_norm

@@ -1,0 +1,535 @@
+"""
+The exact torque-free flow (integrator 'exact') and the elliptic functions it is built on.
+
+References: scipy's DOP853 on the quaternion ODE (test/reference.py's equations, here for the
+torque-free orientation alone at rtol 2.5e-14, atol 1e-16, the tightest scipy accepts) and
+scipy.special for the elliptic functions.  Errors are rotation angles of R^T R_ref (rad).
+
+What sets the tolerances:
+- the reference's own error, which scales with its rtol (measured: the exact-vs-DOP853 gap
+  falls 10x per decade of rtol), ~1e-13 per rad turned at rtol 2.5e-14;
+- the conditioning of the motion: an error of 1 ulp in the state grows by the factor A(t)
+  (up to ~1e3-1e4 over 10 s near the separatrix, where the period depends on the energy
+  logarithmically), for the exact flow and the reference alike.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from reference import random_rotation
+from reference import reference_solution
+from reference import rotation_angle_between
+from rigid_body_sim.physics import FAST_KERNELS
+from rigid_body_sim.physics import INTEGRATORS
+from rigid_body_sim.physics import RigidBody
+from rigid_body_sim.physics import Simulator
+from rigid_body_sim.physics import State
+from rigid_body_sim.physics.elliptic import carlson_rf
+from rigid_body_sim.physics.elliptic import carlson_rf_compiled
+from rigid_body_sim.physics.elliptic import carlson_rj
+from rigid_body_sim.physics.elliptic import carlson_rj_compiled
+from rigid_body_sim.physics.elliptic import jacobi_elliptic
+from rigid_body_sim.physics.elliptic import jacobi_elliptic_compiled
+from rigid_body_sim.physics.integrators.exact import _circulation_frame
+from rigid_body_sim.physics.integrators.exact import exact_free_flow
+from rigid_body_sim.physics.integrators.principal import principal_frame
+from rigid_body_sim.physics.rotations import quaternion_from_rotation_vector
+from rigid_body_sim.physics.rotations import quaternion_multiply
+from scipy.integrate import solve_ivp
+from scipy.special import ellipj
+
+EPS = np.finfo(float).eps
+# scipy's DOP853 floor: rtol below 100 eps is raised to it.
+TIGHT_RTOL = 2.5e-14
+TIGHT_ATOL = 1e-16
+
+
+def _tight_reference(body, state, times):
+    """Return the orientations R(t) (list) of the torque-free motion, by DOP853 at rtol 2.5e-14."""
+    inertia_inverse = body.inertia_inverse
+    momentum = np.array(state.angular_momentum)
+
+    def rate(time, q):
+        x, y, z, w = q / np.linalg.norm(q)
+        rotation = np.array([
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+        omega = rotation @ (inertia_inverse @ (rotation.T @ momentum))
+        qx, qy, qz, qw = q
+        return 0.5 * np.array([omega[0] * qw + omega[1] * qz - omega[2] * qy,
+                               -omega[0] * qz + omega[1] * qw + omega[2] * qx,
+                               omega[0] * qy - omega[1] * qx + omega[2] * qw,
+                               -omega[0] * qx - omega[1] * qy - omega[2] * qz])
+
+    solution = solve_ivp(rate, (0.0, max(times)), np.array(state.quaternion),
+                         method='DOP853', rtol=TIGHT_RTOL, atol=TIGHT_ATOL, t_eval=times)
+    assert solution.success, solution.message
+    return [State(solution.y[:, k] / np.linalg.norm(solution.y[:, k])).rotation
+            for k in range(len(times))]
+
+
+def _stepped(body, state, dt, steps):
+    step = INTEGRATORS['exact']
+    for k in range(steps):
+        state = step(body, state, k * dt, dt, None)
+    return state
+
+
+# -- the elliptic functions -------------------------------------------------------------
+
+
+def test_compiled_carlson_integrals_equal_scipy_on_the_arguments_the_flow_uses():
+    # The flow calls R_F(c^2, d^2, 1) and R_J(c^2, d^2, 1, 1 - n s^2) with c^2 in [0, 1],
+    # d^2 = c^2 + k'^2 s^2, n <= 0; and the complete R_F(0, k'^2, 1), R_J(0, k'^2, 1, 1 - n).
+    rng = np.random.default_rng(11)
+    worst_rf = worst_rj = 0.0
+    for _ in range(3000):
+        c2 = rng.uniform(0.0, 1.0) if rng.uniform() < 0.8 else 0.0
+        complement = 10.0 ** rng.uniform(-16.0, 0.0)
+        d2 = c2 + complement * (1.0 - c2)
+        p = 1.0 + 10.0 ** rng.uniform(-8.0, 4.0) * (1.0 - c2)
+        worst_rf = max(worst_rf, abs(carlson_rf_compiled(c2, d2, 1.0) / carlson_rf(c2, d2, 1.0)
+                                     - 1.0))
+        worst_rj = max(worst_rj, abs(carlson_rj_compiled(c2, d2, 1.0, p)
+                                     / carlson_rj(c2, d2, 1.0, p) - 1.0))
+    # Carlson's truncation bound is 1e-16; a few ulps of round-off on top.
+    assert worst_rf < 8 * EPS
+    assert worst_rj < 16 * EPS
+
+
+def test_jacobi_functions_equal_scipy_where_its_parameter_is_exact():
+    # Away from m = 1 scipy's ellipj (which forms 1 - m itself) is accurate: both versions
+    # must match it, including the Landen descent used above m = 1/2.  scipy's own error
+    # reaches ~8 ulp here (measured against an 80-bit evaluation), ours ~4-8 ulp.
+    rng = np.random.default_rng(12)
+    worst = 0.0
+    for _ in range(3000):
+        m = rng.uniform(0.0, 0.99)
+        quarter = carlson_rf(0.0, 1.0 - m, 1.0)
+        u = rng.uniform(-quarter, quarter)
+        expected = np.array(ellipj(u, m)[:3])
+        for function in (jacobi_elliptic, jacobi_elliptic_compiled):
+            worst = max(worst, np.max(np.abs(np.array(function(u, m, 1.0 - m)) - expected)))
+    assert worst < 16 * EPS
+
+
+def test_jacobi_functions_keep_full_accuracy_next_to_m_equal_1():
+    # A&S 16.5: sn(K/2) = 1/sqrt(1 + k'), cn(K/2) = sqrt(k'/(1 + k')), dn(K/2) = sqrt(k'),
+    # and dn(K) = k'.  These hinge on m1 = k'^2 itself: with 1 - m formed from a rounded m
+    # the relative error of m1 is eps/m1 (1e-6 at m1 = 1e-10), of dn(K) half that.  Allowed:
+    # the rounding of the argument u ~ K (absolute eps K, relative to dn ~ 1 here) and a few
+    # ulp per Landen level.
+    for m1 in (1e-4, 1e-8, 1e-10, 1e-14, 1e-20, 1e-40):
+        quarter = carlson_rf(0.0, m1, 1.0)
+        k = math.sqrt(m1)
+        half_values = (1.0 / math.sqrt(1.0 + k), math.sqrt(k / (1.0 + k)), math.sqrt(k))
+        for function in (jacobi_elliptic, jacobi_elliptic_compiled):
+            got = function(0.5 * quarter, 1.0 - m1, m1)
+            for value, expected in zip(got, half_values):
+                assert value == pytest.approx(expected, rel=16 * EPS * (1.0 + quarter))
+            assert function(quarter, 1.0 - m1, m1)[2] == pytest.approx(
+                k, rel=16 * EPS * (1.0 + quarter))
+
+
+def test_compiled_jacobi_functions_equal_the_readable_ones_for_every_parameter():
+    # Both round the argument on its way down the Landen levels and back up, an absolute
+    # error of (a few ulp per level) x |u|; against an 80-bit evaluation both stay within
+    # ~100 ulp per unit of |u| for m1 >= 1e-32 (where scipy's ellipj, forming 1 - m, is off
+    # by up to 6e5 ulp).  Below m1 = 1e-32 (a state within round-off of the separatrix,
+    # K up to 350) more levels are taken and the allowance is 8x larger.
+    rng = np.random.default_rng(13)
+    for lowest, allowed in ((-32.0, 128 * EPS), (-300.0, 1024 * EPS)):
+        worst = 0.0
+        for _ in range(2000):
+            m1 = 10.0 ** rng.uniform(lowest, 0.0) if rng.uniform() < 0.7 else rng.uniform()
+            quarter = carlson_rf(0.0, m1, 1.0)
+            u = rng.uniform(-quarter, quarter)
+            readable = np.array(jacobi_elliptic(u, 1.0 - m1, m1))
+            compiled = np.array(jacobi_elliptic_compiled(u, 1.0 - m1, m1))
+            worst = max(worst, np.max(np.abs(readable - compiled)) / (1.0 + abs(u)))
+        assert worst < allowed
+
+
+# -- random bodies and states for the property tests -------------------------------------
+
+
+def _oblique_body(rng, moments):
+    """Return a body with the given principal moments along random axes (non-diagonal)."""
+    axes = random_rotation(rng)
+    return RigidBody(rng.uniform(0.5, 2.0), axes @ np.diag(moments) @ axes.T)
+
+
+def _state_with_principal_momentum(rng, body, momentum_principal):
+    """Return a random-orientation state whose principal-frame angular momentum is given."""
+    rotation = random_rotation(rng)
+    frame = principal_frame(body.inertia)
+    angular_momentum = rotation @ (frame.axes @ np.asarray(momentum_principal))
+    return State(rotation, rng.normal(size=3), rng.normal(size=3), angular_momentum)
+
+
+def _random_moments(rng):
+    while True:
+        moments = np.sort(rng.uniform(0.5, 3.0, 3))
+        if moments[0] + moments[1] >= moments[2]:
+            return moments
+
+
+def _near_separatrix_momentum(rng, moments, complement):
+    """Return m with |m| ~ 1..3 whose elliptic parameter is 1 - complement (either side)."""
+    i1, i2, i3 = moments
+    m2 = rng.uniform(-1.0, 1.0)
+    m3 = rng.uniform(0.5, 2.0) * rng.choice([-1.0, 1.0])
+    # On the separatrix m1^2 (I2 - I1)/I1 = m3^2 (I3 - I2)/I3; k'^2 = (I3 - I1) D /
+    # ((I3 - I2) G), D = L^2 - I2 E2 = m3^2 (I3 - I2)/I3 - m1^2 (I2 - I1)/I1, G = L^2 - I1 E2.
+    g = m2 * m2 * (i2 - i1) / i2 + m3 * m3 * (i3 - i1) / i3
+    distance = rng.choice([-1.0, 1.0]) * complement * (i3 - i2) * g / (i3 - i1)
+    m1_squared = (m3 * m3 * (i3 - i2) / i3 - distance) * i1 / (i2 - i1)
+    return np.array([math.sqrt(m1_squared) * rng.choice([-1.0, 1.0]), m2, m3])
+
+
+def _case(rng, kind):
+    """Return (body, state) of the given kind, inertia tensor oblique in the body frame."""
+    if kind == 'asymmetric':
+        body = _oblique_body(rng, _random_moments(rng))
+        return body, State(random_rotation(rng), rng.normal(size=3), rng.normal(size=3),
+                           rng.normal(size=3) * rng.uniform(0.3, 3.0))
+    if kind == 'near_separatrix':
+        moments = _random_moments(rng)
+        body = _oblique_body(rng, moments)
+        momentum = _near_separatrix_momentum(rng, moments, 10.0 ** rng.uniform(-9.0, -8.0))
+        return body, _state_with_principal_momentum(rng, body, momentum)
+    base = rng.uniform(1.0, 2.0)
+    moments = {
+        'prolate': (base, base, base * rng.uniform(1.1, 2.0)),
+        'oblate': (base * rng.uniform(0.55, 0.9), base, base),
+        'spherical': (base, base, base),
+        'prolate_1e-12': (base, base * (1 + 1e-12), base * rng.uniform(1.1, 2.0)),
+        'oblate_1e-12': (base * rng.uniform(0.55, 0.9), base, base * (1 + 1e-12)),
+        'spherical_1e-12': (base, base * (1 + 1e-12), base * (1 + 2e-12)),
+    }[kind]
+    if kind in ('prolate', 'oblate', 'spherical'):
+        # Exactly equal moments need exact arithmetic: principal axes = body axes (a
+        # rotated tensor's eigenvalues differ in the last bits and make it nearly symmetric).
+        body = RigidBody(rng.uniform(0.5, 2.0), np.diag(moments))
+    else:
+        body = _oblique_body(rng, moments)
+    return body, State(random_rotation(rng), rng.normal(size=3), rng.normal(size=3),
+                       rng.normal(size=3) * rng.uniform(0.3, 3.0))
+
+
+KINDS = ('asymmetric', 'near_separatrix', 'prolate', 'oblate', 'spherical', 'prolate_1e-12',
+         'oblate_1e-12', 'spherical_1e-12')
+
+
+def test_the_cases_are_of_the_kinds_they_claim():
+    # The property tests below are only as good as their cases: the symmetric ones take the
+    # closed form, the nearly symmetric ones the elliptic solution, and the near-separatrix
+    # ones have 1 - m within 1e-8 of 0.
+    rng = np.random.default_rng(21)
+    kinds = {}
+    for kind in KINDS:
+        body, state = _case(rng, kind)
+        frame = principal_frame(body.inertia)
+        kinds[kind] = frame.kind
+        if kind == 'near_separatrix':
+            assert 1e-10 < _elliptic_complement(body, state)[0] < 1e-8 * 1.01
+    assert kinds == {'asymmetric': 0, 'near_separatrix': 0, 'prolate': 2, 'oblate': 3,
+                     'spherical': 1, 'prolate_1e-12': 0, 'oblate_1e-12': 0,
+                     'spherical_1e-12': 0}
+
+
+# -- accuracy against the ODE reference --------------------------------------------------
+
+
+def _issue_bodies():
+    """Bodies of issue 5 whose 10 s reference is good to < 5e-13 rad at rtol 2.5e-14."""
+    rng = np.random.default_rng(31)
+    tilted = ((2.0, -0.3, 0.2), (-0.3, 3.0, 0.4), (0.2, 0.4, 4.0))
+    cases = {
+        't_handle': (RigidBody(1.0, (1.0, 2.0, 3.0)), (0.001, 2.0, 0.001)),
+        'fast_spin': (RigidBody(1.0, (1.0, 2.0, 3.0)), (0.3, 0.2, 5.0)),
+        'near_symmetric': (RigidBody(1.0, (1.0, 1.0 + 1e-6, 2.0)), (1.0, 0.5, 3.0)),
+        'non_diagonal': (RigidBody(1.0, tilted), (1.5, -1.0, 2.0)),
+    }
+    return {name: (body, State.from_velocity(body, rotation=random_rotation(rng),
+                                             angular_velocity_body=omega))
+            for name, (body, omega) in cases.items()}
+
+
+@pytest.mark.parametrize('name', ['t_handle', 'fast_spin', 'near_symmetric', 'non_diagonal'])
+def test_exact_orientation_error_is_below_1e_12_rad_at_dt_0_1_over_10_s(name):
+    body, state = _issue_bodies()[name]
+    times = [0.1 * k for k in range(1, 101)]
+    reference = _tight_reference(body, state, times)
+    worst = 0.0
+    for k, expected in enumerate(reference):
+        state = INTEGRATORS['exact'](body, state, k * 0.1, 0.1, None)
+        worst = max(worst, rotation_angle_between(state.rotation, expected))
+    assert worst <= 1e-12
+
+
+def test_exact_is_the_limit_of_the_ode_solution_for_van_zon_schofield():
+    # I = (10, 20, 26), Omega0 = (1, 15, 1): 150 rad of tumbling in 10 s next to the
+    # separatrix.  No double-precision ODE solve reaches 1e-12 here; instead the DOP853
+    # solution must converge to the exact one as its tolerance shrinks (its error ~ rtol,
+    # measured 10x per decade), and stepping the exact flow in 0.1 s steps must agree with
+    # one 10 s step to the round-off that the conditioning allows: a 1-ulp (1e-16 rad) change
+    # of the state at time t moves R(10 s) by up to ~4e3 ulp (measured by perturbing), so 100
+    # rounded steps of a few ulp each stay below ~100 * 4e3 * 1e-16 * 5 = 2e-10; measured 9e-12.
+    body = RigidBody(1.0, (10.0, 20.0, 26.0))
+    rng = np.random.default_rng(32)
+    state = State.from_velocity(body, rotation=random_rotation(rng),
+                                angular_velocity_body=(1.0, 15.0, 1.0))
+    exact = exact_free_flow(body, state, 10.0).rotation
+    gaps = []
+    for rtol in (1e-11, 1e-12, 1e-13):
+        solution = solve_ivp(
+            lambda t, q: _quaternion_rate(body, state.angular_momentum, q), (0.0, 10.0),
+            np.array(state.quaternion), method='DOP853', rtol=rtol, atol=TIGHT_ATOL)
+        gaps.append(rotation_angle_between(State(solution.y[:, -1] / np.linalg.norm(
+            solution.y[:, -1])).rotation, exact))
+    assert gaps[0] / gaps[1] > 5.0 and gaps[1] / gaps[2] > 5.0, gaps
+    assert gaps[2] < 1e-8
+    stepped = _stepped(body, state, 0.1, 100)
+    assert rotation_angle_between(stepped.rotation, exact) < 2e-10
+
+
+def _quaternion_rate(body, angular_momentum, q):
+    x, y, z, w = q / np.linalg.norm(q)
+    rotation = State((x, y, z, w)).rotation
+    omega = rotation @ (body.inertia_inverse @ (rotation.T @ angular_momentum))
+    qx, qy, qz, qw = q
+    return 0.5 * np.array([omega[0] * qw + omega[1] * qz - omega[2] * qy,
+                           -omega[0] * qz + omega[1] * qw + omega[2] * qx,
+                           omega[0] * qy - omega[1] * qx + omega[2] * qw,
+                           -omega[0] * qx - omega[1] * qy - omega[2] * qz])
+
+
+PROPERTY_CASES_PER_KIND = 6
+PROPERTY_DURATION = 3.0
+
+
+@pytest.mark.parametrize('kind', KINDS)
+def test_exact_flow_matches_the_ode_reference_on_random_bodies_and_states(kind):
+    # Random bodies (inertia tensors oblique in the body frame unless exactly symmetric),
+    # random orientations and momenta, one 3 s step and thirty 0.1 s steps.  The reference
+    # is good to ~1e-14 per rad turned (rtol 2.5e-14); allow 1e-13 per rad plus 1e-13.
+    rng = np.random.default_rng(100 + KINDS.index(kind))
+    for _ in range(PROPERTY_CASES_PER_KIND):
+        body, state = _case(rng, kind)
+        turned = np.linalg.norm(state.angular_velocity(body)) * PROPERTY_DURATION
+        expected = _tight_reference(body, state, [PROPERTY_DURATION])[0]
+        tolerance = 1e-13 * (1.0 + turned)
+        one_step = exact_free_flow(body, state, PROPERTY_DURATION)
+        stepped = _stepped(body, state, 0.1, 30)
+        assert rotation_angle_between(one_step.rotation, expected) < tolerance
+        assert rotation_angle_between(stepped.rotation, expected) < tolerance
+        # Force-free translation and constant momenta come along exactly.
+        assert np.array_equal(one_step.angular_momentum, state.angular_momentum)
+        assert np.allclose(one_step.position, state.position + PROPERTY_DURATION
+                           * state.linear_momentum / body.mass, rtol=1e-15, atol=1e-15)
+
+
+def _separatrix_cases():
+    """
+    Return (body, state) pairs exactly on the separatrix, in exact arithmetic.
+
+    I = s (1.5, 3, 4) has (I2 - I1)/I1 = 1 and (I3 - I2)/I3 = 1/4 exactly, so with R = E and
+    m = (a, m2, +-2a) (powers of two) L^2 - I2 E2 = -a^2 + 4 a^2 / 4 = 0 exactly.
+    """
+    rng = np.random.default_rng(33)
+    cases = []
+    for scale in (0.5, 1.0, 4.0):
+        body = RigidBody(1.0, np.diag([1.5, 3.0, 4.0]) * scale)
+        for a in (0.25, 1.0, 2.0):
+            for signs in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+                momentum = (signs[0] * a, rng.uniform(-2.0, 2.0) * a, signs[1] * 2.0 * a)
+                cases.append((body, State(angular_momentum=momentum)))
+    return cases
+
+
+def test_exact_flow_on_the_separatrix_uses_the_hyperbolic_closed_form_and_is_exact():
+    worst = 0.0
+    for body, state in _separatrix_cases():
+        frame = principal_frame(body.inertia)
+        momentum = frame.axes.T @ state.angular_momentum
+        assert _circulation_frame(frame, momentum)[3] == 0.0
+        turned = np.linalg.norm(state.angular_velocity(body)) * 3.0
+        expected = _tight_reference(body, state, [3.0])[0]
+        for final in (exact_free_flow(body, state, 3.0), _stepped(body, state, 0.1, 30)):
+            error = rotation_angle_between(final.rotation, expected)
+            worst = max(worst, error / (1.0 + turned))
+    assert worst < 1e-13
+
+
+def test_steady_spins_about_principal_axes_are_uniform_rotations_about_l():
+    # m along a principal axis: omega = L / I_i, R(t) = exp(t [L]x / I_i) R0.  Exactly along
+    # it (R0 = E, diagonal tensor) the steady branch is taken and only the turn is rounded.
+    # At an oblique R0 the rounding of R0^T L leaves m ~1e-16 off the axis: the stable axes
+    # stay steady to round-off, and on the unstable one the elliptic solution with
+    # k'^2 ~ 1e-32 (K ~ 38, the largest in double precision) carries ~eps K of round-off per
+    # Carlson term (exact.py, note 3): allow 64 eps K.
+    body = RigidBody(1.0, (1.0, 2.0, 3.0))
+    duration = 2.5
+    for axis in range(3):
+        momentum = np.zeros(3)
+        momentum[axis] = 1.7
+        turned = duration * 1.7 / body.principal_moments[axis]
+        for rotation in (np.eye(3), random_rotation(np.random.default_rng(axis))):
+            state = State(rotation, angular_momentum=rotation @ momentum)
+            final = exact_free_flow(body, state, duration)
+            turn = quaternion_from_rotation_vector(duration * state.angular_momentum
+                                                   / body.principal_moments[axis])
+            expected = State(quaternion_multiply(turn, state.quaternion)).rotation
+            error = rotation_angle_between(final.rotation, expected)
+            if axis == 1 and not np.array_equal(rotation, np.eye(3)):
+                assert error < 64 * EPS * 38.0
+            else:
+                assert error < 8 * EPS * (1.0 + turned)
+
+
+# -- structure: the group property, invariants, frames -------------------------------------
+
+
+@pytest.mark.parametrize('kind', KINDS)
+def test_exact_flow_has_the_group_property_and_keeps_the_energy(kind):
+    # Phi(t1 + t2) = Phi(t2) o Phi(t1) and Phi(-t) o Phi(t) = identity, for any t (here up to
+    # many periods), to round-off; the kinetic energy 1/2 L . I_w^{-1} L is invariant.  No
+    # reference needed, so many cases: 40 per kind.
+    #
+    # Near the separatrix the rounding of the intermediate state is amplified: it changes k'^2
+    # by ~eps absolute, eps/k'^2 relative, hence K ~ 1/2 ln(16/k'^2) by eps/(2 k'^2), and the
+    # motion's phase by that fraction dK/K of the angle turned.  Allowed: 1e-14 per rad
+    # (a few ulp per Carlson term) plus eps/(2 k'^2 K) per rad.
+    rng = np.random.default_rng(200 + KINDS.index(kind))
+    worst_group = worst_energy = 0.0
+    for _ in range(40):
+        body, state = _case(rng, kind)
+        t1, t2 = rng.uniform(-20.0, 20.0, 2)
+        turned = np.linalg.norm(state.angular_velocity(body)) * (abs(t1) + abs(t2))
+        direct = exact_free_flow(body, state, t1 + t2)
+        composed = exact_free_flow(body, exact_free_flow(body, state, t1), t2)
+        back = exact_free_flow(body, exact_free_flow(body, state, t1), -t1)
+        per_rad = 1e-14
+        if kind == 'near_separatrix':
+            complement, quarter_period = _elliptic_complement(body, state)
+            per_rad += EPS / (2.0 * complement * quarter_period)
+        worst_group = max(worst_group,
+                          rotation_angle_between(direct.rotation, composed.rotation)
+                          / ((1.0 + turned) * per_rad),
+                          rotation_angle_between(back.rotation, state.rotation)
+                          / ((1.0 + turned) * per_rad))
+        energy = state.kinetic_energy(body)
+        worst_energy = max(worst_energy, abs(direct.kinetic_energy(body) / energy - 1.0))
+    assert worst_group < 1.0
+    assert worst_energy < 64 * EPS
+
+
+def _elliptic_complement(body, state):
+    """Return (k'^2, K) of the torque-free motion from `state` (Landau-Lifshitz s. 37)."""
+    frame = principal_frame(body.inertia)
+    m = frame.axes.T @ (state.rotation.T @ state.angular_momentum)
+    i1, i2, i3 = frame.moments
+    distance = m[0] ** 2 * (i1 - i2) / i1 + m[2] ** 2 * (i3 - i2) / i3
+    g = m[1] ** 2 * (i2 - i1) / i2 + m[2] ** 2 * (i3 - i1) / i3
+    if distance < 0.0:
+        i1, i3 = i3, i1
+        g = m[1] ** 2 * (i2 - i1) / i2 + m[0] ** 2 * (i3 - i1) / i3
+    complement = (i3 - i1) * distance / ((i3 - i2) * g)
+    return complement, carlson_rf(0.0, complement, 1.0)
+
+
+def test_exact_flow_does_not_depend_on_the_body_frame():
+    # A body with inertia P D P^T in state R moves like the body D in state R P.
+    rng = np.random.default_rng(34)
+    for _ in range(20):
+        moments = _random_moments(rng)
+        axes = random_rotation(rng)
+        oblique = RigidBody(1.0, axes @ np.diag(moments) @ axes.T)
+        diagonal = RigidBody(1.0, np.diag(moments))
+        rotation = random_rotation(rng)
+        momentum = rng.normal(size=3)
+        a = exact_free_flow(oblique, State(rotation, angular_momentum=momentum), 4.0)
+        b = exact_free_flow(diagonal, State(rotation @ axes, angular_momentum=momentum), 4.0)
+        turned = 4.0 * np.linalg.norm(momentum) / moments[0]
+        assert rotation_angle_between(a.rotation @ axes, b.rotation) < 1e-14 * (1.0 + turned)
+
+
+# -- the compiled fast path equals the readable definition -------------------------------
+
+
+@pytest.mark.parametrize('kind', KINDS)
+def test_fast_path_equals_the_readable_exact_step(kind):
+    rng = np.random.default_rng(300 + KINDS.index(kind))
+    kernel = FAST_KERNELS['exact']
+    for _ in range(25):
+        body, state = _case(rng, kind)
+        dt = rng.uniform(-10.0, 10.0)
+        q, x = np.array(state.quaternion), np.array(state.position)
+        p, momentum = np.array(state.linear_momentum), np.array(state.angular_momentum)
+        zero = np.zeros(3)
+        kernel(q, x, p, momentum, body.inertia, body.inertia_inverse, body.mass, dt, 1,
+               zero, zero, zero, zero)
+        readable = INTEGRATORS['exact'](body, state, 0.0, dt, None)
+        turned = np.linalg.norm(state.angular_velocity(body)) * abs(dt)
+        assert rotation_angle_between(State(q).rotation, readable.rotation) \
+            < 1e-14 * (1.0 + turned)
+        assert np.array_equal(momentum, readable.angular_momentum)
+        assert np.allclose(x, readable.position, rtol=1e-15, atol=1e-15)
+
+
+def test_fast_path_equals_the_readable_exact_step_under_a_held_wrench():
+    # Simulator.run takes the kernel; stepping INTEGRATORS['exact'] with the simulator's
+    # wrench function is the readable definition.  World- and body-fixed parts, 20 steps.
+    rng = np.random.default_rng(35)
+    for kind in KINDS:
+        body, state = _case(rng, kind)
+        simulator = Simulator(body, state, integrator='exact')
+        assert simulator._kernel is FAST_KERNELS['exact']
+        simulator.hold_wrench(force_world=rng.normal(size=3), torque_world=rng.normal(size=3),
+                              force_body=rng.normal(size=3), torque_body=rng.normal(size=3))
+        simulator.run(1.0, 0.05)
+        wrench = simulator.wrench_function()
+        readable = state
+        for k in range(20):
+            readable = INTEGRATORS['exact'](body, readable, 0.05 * k, 0.05, wrench)
+        fast = simulator.state
+        assert rotation_angle_between(fast.rotation, readable.rotation) < 1e-13
+        for a, b in ((fast.angular_momentum, readable.angular_momentum),
+                     (fast.linear_momentum, readable.linear_momentum),
+                     (fast.position, readable.position)):
+            assert np.allclose(a, b, rtol=1e-13, atol=1e-13)
+
+
+# -- with a torque: second order, exact without -------------------------------------------
+
+
+def test_exact_with_a_torque_is_second_order_and_exact_without_it():
+    # tau = k (R e3) x e_z (a restoring torque, like gravity on an offset COM) plus a force
+    # along body x: the kicks are exact for a configuration-dependent wrench, so the error is
+    # the O(h^2) of the splitting alone; the observed order must be 2 +- 0.3.
+    rng = np.random.default_rng(36)
+    axes = random_rotation(rng)
+    body = RigidBody(2.0, axes @ np.diag([1.0, 2.0, 2.5]) @ axes.T)
+    state = State.from_velocity(body, rotation=random_rotation(rng), velocity=(0.3, 0.1, 0.0),
+                                angular_velocity_body=(0.4, 1.0, 0.6))
+
+    def wrench(state, time):
+        rotation = state.rotation
+        return 0.5 * rotation[:, 0], 2.0 * np.cross(rotation[:, 2], (0.0, 0.0, 1.0))
+
+    duration = 1.0
+    expected = reference_solution(body, state, duration, wrench)
+    errors = []
+    for steps in (20, 40):
+        final = state
+        for k in range(steps):
+            final = INTEGRATORS['exact'](body, final, k * duration / steps, duration / steps,
+                                         wrench)
+        errors.append(rotation_angle_between(final.rotation, expected.rotation)
+                      + np.linalg.norm(final.angular_momentum - expected.angular_momentum))
+    assert 1e-9 < errors[1] < errors[0] < 0.05
+    assert abs(math.log2(errors[0] / errors[1]) - 2.0) < 0.3
+    assert INTEGRATORS['exact'].order == 2
