@@ -35,6 +35,7 @@ from .physics.effects import EFFECTS
 from .physics.effects import ParameterError
 from .physics.effects.registry import check_number
 from .physics.effects.registry import check_vector
+from .physics.effects.registry import describe_value
 from .physics.rotations import quaternion_from_matrix
 
 __all__ = [
@@ -341,7 +342,7 @@ class _SceneReader:
     def mapping(self, value, path, keys, required=()):
         where = path or 'the scene'
         if not isinstance(value, dict):
-            raise self.error(path, f'expected a mapping of keys, got {_describe(value)}')
+            raise self.error(path, f'expected a mapping of keys, got {describe_value(value)}')
         for key in value:
             if key not in keys:
                 raise self.error(_join(path, str(key)),
@@ -353,7 +354,7 @@ class _SceneReader:
 
     def text(self, value, path):
         if not isinstance(value, str) or not value.strip():
-            raise self.error(path, f'expected a non-empty string, got {_describe(value)}')
+            raise self.error(path, f'expected a non-empty string, got {describe_value(value)}')
         if '\n' in value.strip():
             raise self.error(path, 'expected one line')
         return value.strip()
@@ -391,7 +392,7 @@ class _SceneReader:
             raise self.error('body', f'missing shape ({", ".join(SHAPES)}) or inertia')
         if shape not in SHAPES:
             raise self.error('body.shape', f'expected one of {", ".join(SHAPES)}, got '
-                                           f'{_describe(shape)}')
+                                           f'{describe_value(shape)}')
         for key in body:
             if key not in ('mass', 'shape') + shape_keys:
                 raise self.error(f'body.{key}', f'not a size of shape {shape}; it takes: '
@@ -422,7 +423,7 @@ class _SceneReader:
             value = value.tolist()
         if not isinstance(value, (list, tuple)):
             raise self.error(path, f'expected 3 numbers (the diagonal) or 3 rows of 3, got '
-                                   f'{_describe(value)}')
+                                   f'{describe_value(value)}')
         if len(value) == 3 and all(isinstance(row, (list, tuple)) for row in value):
             tensor = np.array([self.vector(row, f'{path}[{i}]', 'kg m^2')
                                for i, row in enumerate(value)])
@@ -440,7 +441,7 @@ class _SceneReader:
         if value is None:
             return []
         if not isinstance(value, list):
-            raise self.error('effects', f'expected a list of effects, got {_describe(value)}')
+            raise self.error('effects', f'expected a list of effects, got {describe_value(value)}')
         effects, seen = [], set()
         for index, item in enumerate(value):
             path = f'effects[{index}]'
@@ -452,10 +453,10 @@ class _SceneReader:
                     parameters = {}
                 if not isinstance(parameters, dict):
                     raise self.error(f'{path}.{name}', 'expected a mapping of parameters, got '
-                                                       f'{_describe(parameters)}')
+                                                       f'{describe_value(parameters)}')
             else:
                 raise self.error(path, 'expected an effect name or {name: {parameters}}, got '
-                                       f'{_describe(item)}')
+                                       f'{describe_value(item)}')
             if name not in EFFECTS:
                 raise self.error(path, f'unknown effect {name!r}; valid effects: '
                                        f'{", ".join(sorted(EFFECTS))}')
@@ -515,7 +516,7 @@ class _SceneReader:
         shape = draw.get('shape', body_shape or 'box')
         if shape not in SHAPES:
             raise self.error('draw.shape', f'expected one of {", ".join(SHAPES)}, got '
-                                           f'{_describe(shape)}')
+                                           f'{describe_value(shape)}')
         color = DEFAULT_COLOR
         if 'color' in draw:
             color = self.color(draw['color'])
@@ -585,20 +586,6 @@ def _equivalent_extents(body, shape):
 
 def _join(path, key):
     return f'{path}.{key}' if path else key
-
-
-def _describe(value):
-    if isinstance(value, str):
-        return f'the string {value!r}'
-    if isinstance(value, bool):
-        return f'the boolean {str(value).lower()}'
-    if value is None:
-        return 'nothing'
-    if isinstance(value, dict):
-        return 'a mapping'
-    if isinstance(value, list):
-        return f'a list of {len(value)}'
-    return f'{type(value).__name__} {value!r}'
 
 
 def _plain(value):

@@ -39,6 +39,7 @@ __all__ = [
     'check_number',
     'check_vector',
     'create_effect',
+    'describe_value',
     'effect_parameters',
     'register_effect',
 ]
@@ -136,11 +137,12 @@ class Effect:
 
 # -- parameter checks (the loader's messages come from here, prefixed with the key path)
 
-def _describe(value):
+def describe_value(value):
+    """Return how a (YAML) value reads in a message: "the string '0.3'", "a list of 2"."""
     if isinstance(value, str):
-        return f'a string {value!r}'
-    if isinstance(value, bool):
-        return f'a boolean ({value})'
+        return f'the string {value!r}'
+    if isinstance(value, (bool, np.bool_)):
+        return f'the boolean {str(bool(value)).lower()}'
     if value is None:
         return 'nothing (null)'
     if isinstance(value, dict):
@@ -163,7 +165,7 @@ def check_number(value, key, unit='', minimum=None, positive=False):
     minimum: the smallest allowed value (inclusive); positive=True requires > 0.
     """
     if not _is_number(value):
-        raise ParameterError(key, f'expected a number{_unit(unit)}, got {_describe(value)}')
+        raise ParameterError(key, f'expected a number{_unit(unit)}, got {describe_value(value)}')
     number = float(value)
     if not math.isfinite(number):
         raise ParameterError(key, f'expected a finite number, got {number}')
@@ -179,13 +181,14 @@ def check_vector(value, key, unit='', size=3):
     if isinstance(value, np.ndarray):
         value = value.tolist()
     if not isinstance(value, (list, tuple)):
-        raise ParameterError(key, f'expected {size} numbers{_unit(unit)}, got {_describe(value)}')
+        raise ParameterError(
+            key, f'expected {size} numbers{_unit(unit)}, got {describe_value(value)}')
     if len(value) != size:
         raise ParameterError(key, f'expected {size} numbers, got {len(value)}')
     for index, item in enumerate(value):
         if not _is_number(item):
             raise ParameterError(key, f'expected {size} numbers, item {index} is '
-                                      f'{_describe(item)}')
+                                      f'{describe_value(item)}')
     array = np.array(value, dtype=float)
     if not np.all(np.isfinite(array)):
         raise ParameterError(key, f'expected finite numbers, got {array.tolist()}')

@@ -1,0 +1,350 @@
+"""
+Scene files: loading, strict validation with messages naming file and key path, overrides.
+
+The physics of each built-in scene is tested in test_scene_physics.py.
+"""
+
+import copy
+
+import numpy as np
+import pytest
+from reference import random_rotation
+from rigid_body_sim import cli
+from rigid_body_sim.defaults import default_body
+from rigid_body_sim.defaults import default_state
+from rigid_body_sim.paths import scenes_dir
+from rigid_body_sim.physics import INTEGRATORS
+from rigid_body_sim.physics import RigidBody
+from rigid_body_sim.physics.effects import EFFECTS
+from rigid_body_sim.physics.rotations import matrix_from_quaternion
+from rigid_body_sim.scenes import DEFAULT_SCENE
+from rigid_body_sim.scenes import find_scene
+from rigid_body_sim.scenes import load_scene
+from rigid_body_sim.scenes import parse_scene
+from rigid_body_sim.scenes import scene_names
+import yaml
+
+BUILTIN_SCENES = ('bike_wheel', 'default', 'driven', 'flat_spin', 'heavy_top', 'stable_spin',
+                  't_handle', 'tennis_racket', 'thrown_box', 'van_zon')
+SOURCE = 'scenes/heavy_top.yaml'
+
+
+def _heavy_top_data():
+    with open(find_scene('heavy_top'), encoding='utf-8') as stream:
+        return yaml.safe_load(stream)
+
+
+# -- built-in scenes
+
+
+def test_every_builtin_scene_loads_under_its_file_name():
+    assert set(scene_names()) == set(BUILTIN_SCENES)
+    for name in BUILTIN_SCENES:
+        scene = load_scene(name)
+        assert scene.name == name
+        assert scene.source == f'scenes/{name}.yaml'
+        assert scene.description and '\n' not in scene.description
+        assert scene.integrator in INTEGRATORS
+        assert scene.rate > 0.0
+
+
+def test_default_scene_is_the_t_handle_with_external_wrench():
+    default, t_handle = load_scene(DEFAULT_SCENE), load_scene('t_handle')
+    body = default_body()
+    assert default.accepts_external_wrench and default.external_wrench is not None
+    assert not t_handle.accepts_external_wrench and t_handle.external_wrench is None
+    for scene in (default, t_handle):
+        # The same body and state as `rigid-body-sim run`.
+        assert scene.body.mass == body.mass
+        np.testing.assert_array_equal(scene.body.inertia, body.inertia)
+        assert scene.state == default_state(body)
+    assert default.integrator == t_handle.integrator and default.rate == t_handle.rate
+
+
+def test_only_scenes_naming_external_wrench_accept_outside_input():
+    accepting = {name for name in BUILTIN_SCENES if load_scene(name).accepts_external_wrench}
+    assert accepting == {'default', 'driven'}
+
+
+def test_torque_free_scenes_build_simulators_without_any_wrench():
+    for name in ('t_handle', 'stable_spin', 'tennis_racket', 'van_zon', 'default', 'driven',
+                 'flat_spin'):
+        simulator = load_scene(name).simulator()
+        assert simulator.wrench_function() is None, name
+    for name in ('heavy_top', 'bike_wheel', 'thrown_box'):
+        assert load_scene(name).simulator().wrench_function() is not None, name
+
+
+def test_scene_simulator_carries_the_scene_effects_integrator_and_state():
+    scene = load_scene('heavy_top')
+    simulator = scene.simulator()
+    assert simulator.effects == scene.effects
+    assert simulator.integrator == scene.integrator
+    assert simulator.state == scene.state
+    assert scene.simulator(integrator='rk4').integrator == 'rk4'
+    assert scene.pivot is scene.effects[0]
+    assert scene.dt == pytest.approx(1e-3)
+
+
+def test_pivot_scene_state_starts_on_the_constraint():
+    for name in ('heavy_top', 'bike_wheel'):
+        scene = load_scene(name)
+        state, pivot = scene.state, scene.pivot
+        np.testing.assert_allclose(state.position + state.rotation @ pivot.point, pivot.anchor,
+                                   atol=1e-15)
+
+
+def test_the_schema_comment_documents_every_effect_and_key():
+    text = find_scene(DEFAULT_SCENE).read_text(encoding='utf-8')
+    schema = '\n'.join(line for line in text.splitlines() if line.startswith('#'))
+    for name in EFFECTS:
+        assert f'- {name}' in schema, name
+    for key in ('name:', 'description:', 'body:', 'mass:', 'shape:', 'size:', 'radius:',
+                'height:', 'semi_axes:', 'inertia:', 'initial:', 'orientation:',
+                'angular_velocity_body:', 'angular_velocity_world:', 'position:', 'velocity:',
+                'effects:', 'integrator:', 'rate:', 'draw:', 'color:'):
+        assert key in schema, key
+
+
+# -- strict validation: every error names the file, the key path and the problem
+
+
+def _set(data, path, value):
+    keys = path.split('.')
+    target = data
+    for key in keys[:-1]:
+        target = target[int(key)] if isinstance(target, list) else target.setdefault(key, {})
+    last = int(keys[-1]) if isinstance(target, list) else keys[-1]
+    if value is _DELETE:
+        del target[last]
+    else:
+        target[last] = value
+
+
+_DELETE = object()
+
+
+@pytest.mark.parametrize('path, value, message', [
+    ('colour', 'red', 'colour: unknown key; the scene takes: name, description'),
+    ('name', _DELETE, 'name: missing'),
+    ('description', 3, 'description: expected a non-empty string, got int 3'),
+    ('description', 'two\nlines', 'description: expected one line'),
+    ('body.mass', '0.3', "body.mass: expected a number in kg, got the string '0.3'"),
+    ('body.mass', -1.0, 'body.mass: must be > 0 in kg, got -1'),
+    ('body.mass', True, 'body.mass: expected a number in kg, got the boolean true'),
+    ('body.mass', _DELETE, 'body.mass: missing'),
+    ('body.shape', 'cone', 'body.shape: expected one of box, cylinder, sphere, ellipsoid'),
+    ('body.size', [1, 2, 3], 'body.size: not a size of shape cylinder; it takes: radius, height'),
+    ('body.height', _DELETE, 'body.height: missing; shape cylinder requires it'),
+    ('body.radius', 0.0, 'body.radius: must be > 0 in m, got 0'),
+    ('body.inertia', [1, 2, 3], 'body: give shape (with its sizes) or inertia, not both'),
+    ('body.density', 1.0, 'body.density: unknown key'),
+    ('initial.spin', 1.0, 'initial.spin: unknown key'),
+    ('initial.orientation', [0, 0, 0, 2], 'initial.orientation: expected a unit quaternion'),
+    ('initial.orientation', [0, 0, 1], 'initial.orientation: expected 4 numbers'),
+    ('initial.angular_velocity_world', [0, 0, 1],
+     'initial: give angular_velocity_body or angular_velocity_world, not both'),
+    ('initial.angular_velocity_body', [0, 'fast', 1],
+     'initial.angular_velocity_body: expected 3 numbers, item 1 is the string'),
+    ('initial.position', [0, 0, 1], 'initial.position: not allowed with a pivot'),
+    ('effects.0.pivot.point', [0, 0], 'effects[0].pivot.point: expected 3 numbers, got 2'),
+    ('effects.0.pivot.place', [0, 0, 1], 'effects[0].pivot.place: unknown parameter'),
+    ('effects.0.pivot', [0, 0, 1], 'effects[0].pivot: expected a mapping of parameters'),
+    ('effects.1', 'gravitation', "effects[1]: unknown effect 'gravitation'; valid effects:"),
+    ('effects.1', 'pivot', "effects[1]: effect 'pivot' is named twice"),
+    ('effects.1', {'gravity': {}, 'drag': {}}, 'effects[1]: expected an effect name or'),
+    ('effects', 'gravity', 'effects: expected a list of effects'),
+    ('integrator', 'verlet', "integrator: unknown integrator 'verlet'; valid: "),
+    ('rate', 0, 'rate: must be > 0 in Hz, got 0'),
+    ('draw.color', [1, 0, 2], 'draw.color: each of r, g, b, a must be in 0..1'),
+    ('draw.shape', 'cone', 'draw.shape: expected one of'),
+    ('draw.size', [1, -1, 1], 'draw.size: must be > 0 m'),
+])
+def test_scene_errors_name_the_file_the_key_path_and_the_problem(path, value, message):
+    data = _heavy_top_data()
+    _set(data, path, value)
+    with pytest.raises(ValueError) as caught:
+        parse_scene(data, SOURCE)
+    assert str(caught.value).startswith(f'{SOURCE}: {message}'), str(caught.value)
+
+
+def test_non_physical_bodies_are_errors_naming_the_rule():
+    data = _heavy_top_data()
+    data['body'] = {'mass': 1.0, 'inertia': [1.0, 1.0, 3.0]}
+    with pytest.raises(ValueError, match=r'^scenes/heavy_top.yaml: body.inertia: principal '
+                                         r'moments must satisfy the triangle inequality'):
+        parse_scene(data, SOURCE)
+    data['body'] = {'mass': 1.0, 'inertia': [[1, 0.5, 0], [0, 1, 0], [0, 0, 1]]}
+    with pytest.raises(ValueError, match=r'body.inertia: inertia tensor must be symmetric'):
+        parse_scene(data, SOURCE)
+    data['body'] = {'mass': 1.0, 'inertia': [1.0, -2.0, 2.0]}
+    with pytest.raises(ValueError, match=r'body.inertia: inertia tensor must be positive '):
+        parse_scene(data, SOURCE)
+
+
+def test_a_full_inertia_tensor_is_accepted_as_rows_or_nine_numbers():
+    data = _heavy_top_data()
+    tensor = [[2.0, 0.1, 0.0], [0.1, 3.0, 0.2], [0.0, 0.2, 4.0]]
+    data['body'] = {'mass': 1.0, 'inertia': tensor}
+    np.testing.assert_array_equal(parse_scene(data, SOURCE).body.inertia, tensor)
+    data['body']['inertia'] = sum(tensor, [])
+    np.testing.assert_array_equal(parse_scene(data, SOURCE).body.inertia, tensor)
+
+
+def test_files_that_are_not_scenes_are_errors_naming_the_file(tmp_path):
+    broken = tmp_path / 'broken.yaml'
+    broken.write_text('name: [unclosed\n', encoding='utf-8')
+    with pytest.raises(ValueError, match=f'^{broken}: not valid YAML'):
+        load_scene(str(broken))
+    listing = tmp_path / 'list.yaml'
+    listing.write_text('- a\n- b\n', encoding='utf-8')
+    with pytest.raises(ValueError, match=f'^{listing}: expected a mapping of keys, got a list'):
+        load_scene(str(listing))
+    with pytest.raises(ValueError, match='does not exist'):
+        load_scene(str(tmp_path / 'missing.yaml'))
+    with pytest.raises(ValueError, match="unknown scene 'nope'; built-in scenes: bike_wheel"):
+        load_scene('nope')
+
+
+def test_a_scene_file_anywhere_loads_by_path(tmp_path):
+    path = tmp_path / 'mine.yaml'
+    path.write_text(
+        'name: mine\n'
+        'description: a sphere falling with drag\n'
+        'body: {mass: 2.0, shape: sphere, radius: 0.1}\n'
+        'initial: {position: [0, 0, 10]}\n'
+        'effects: [gravity, {drag: {quadratic: 0.01}}]\n', encoding='utf-8')
+    scene = load_scene(str(path))
+    assert scene.name == 'mine' and scene.source == str(path)
+    assert scene.effect_names() == ['gravity', 'drag']
+    assert scene.integrator == 'buss' and scene.rate == 100.0
+    assert scene.drawing.shape == 'sphere' and scene.drawing.size == (0.2, 0.2, 0.2)
+    np.testing.assert_array_equal(scene.state.position, [0.0, 0.0, 10.0])
+
+
+# -- overrides (the node's body and initial-state parameters win over the scene)
+
+
+def test_mass_override_keeps_the_shape_and_scales_its_inertia():
+    scene = load_scene('thrown_box')
+    heavier = scene.with_overrides(mass=2.0 * scene.body.mass)
+    np.testing.assert_allclose(heavier.body.inertia, 2.0 * scene.body.inertia, rtol=1e-15)
+    # The initial velocities are kept, so the momenta double.
+    np.testing.assert_allclose(heavier.state.linear_momentum,
+                               2.0 * scene.state.linear_momentum, rtol=1e-15)
+    assert heavier.drawing == scene.drawing
+
+
+def test_inertia_override_replaces_the_shape_and_keeps_the_angular_velocity():
+    scene = load_scene('thrown_box')
+    changed = scene.with_overrides(inertia=[1.0, 2.0, 2.5])
+    np.testing.assert_array_equal(np.diag(changed.body.inertia), [1.0, 2.0, 2.5])
+    assert changed.body.mass == scene.body.mass
+    np.testing.assert_allclose(changed.state.angular_velocity_body(changed.body),
+                               scene.state.angular_velocity_body(scene.body), rtol=1e-14)
+    # A drawing derived from the body follows it: now the box of that inertia.
+    assert changed.drawing.shape == 'box' and changed.drawing.size != scene.drawing.size
+    assert changed.effects[0].effect_name == 'gravity'
+
+
+def test_state_overrides_rebuild_the_initial_state():
+    scene = load_scene('driven')
+    q = [0.0, 0.0, np.sin(0.3), np.cos(0.3)]
+    changed = scene.with_overrides(orientation=q, angular_velocity_world=[0.0, 0.0, 2.0],
+                                   position=[1.0, 2.0, 3.0], velocity=[0.5, 0.0, 0.0])
+    np.testing.assert_allclose(changed.state.quaternion, q, atol=1e-15)
+    np.testing.assert_allclose(changed.state.angular_velocity(changed.body), [0, 0, 2.0],
+                               atol=1e-14)
+    np.testing.assert_array_equal(changed.state.position, [1.0, 2.0, 3.0])
+    again = changed.with_overrides(angular_velocity_body=np.array([1.0, 0.0, 0.0]))
+    np.testing.assert_allclose(again.state.angular_velocity_body(again.body), [1.0, 0, 0],
+                               atol=1e-14)
+
+
+def test_overrides_are_validated_like_the_file():
+    scene = load_scene('heavy_top')
+    with pytest.raises(ValueError, match=r'^scenes/heavy_top.yaml \(overrides\): '
+                                         r'initial.position: not allowed with a pivot'):
+        scene.with_overrides(position=[0.0, 0.0, 1.0])
+    with pytest.raises(ValueError, match=r'body.inertia: principal moments must satisfy'):
+        scene.with_overrides(inertia=[1.0, 1.0, 5.0])
+    with pytest.raises(ValueError, match=r'body.mass: must be > 0'):
+        scene.with_overrides(mass=0.0)
+    with pytest.raises(ValueError, match=r'integrator: unknown integrator'):
+        scene.with_overrides(integrator='euler')
+    assert scene.with_overrides(rate=250).dt == pytest.approx(0.004)
+
+
+def test_no_override_gives_the_same_scene():
+    for name in BUILTIN_SCENES:
+        scene = load_scene(name)
+        same = scene.with_overrides()
+        assert same.state == scene.state
+        np.testing.assert_array_equal(same.body.inertia, scene.body.inertia)
+
+
+# -- drawing
+
+
+@pytest.mark.parametrize('shape, factor', [('box', 12.0), ('ellipsoid', 20.0)])
+def test_a_body_given_by_inertia_is_drawn_with_that_inertia(shape, factor):
+    # A solid box of edges s has I1 = m (s2^2 + s3^2) / 12; a solid ellipsoid of diameters
+    # s has I1 = m (s2^2 + s3^2) / 20: the drawing must reproduce the body's inertia.
+    rng = np.random.default_rng(8)
+    for _ in range(10):
+        moments = np.sort(rng.uniform(1.0, 2.0, size=3))
+        rotation = random_rotation(rng)
+        mass = rng.uniform(0.5, 5.0)
+        data = {'name': 'x', 'description': 'x',
+                'body': {'mass': float(mass),
+                         'inertia': (rotation @ np.diag(moments) @ rotation.T).tolist()},
+                'draw': {'shape': shape}}
+        drawing = parse_scene(data).drawing
+        size = np.array(drawing.size)
+        squared = size ** 2
+        drawn = mass / factor * np.array([squared[1] + squared[2], squared[0] + squared[2],
+                                          squared[0] + squared[1]])
+        axes = matrix_from_quaternion(drawing.orientation)
+        body = RigidBody(mass, rotation @ np.diag(moments) @ rotation.T)
+        np.testing.assert_allclose(axes @ np.diag(drawn) @ axes.T, body.inertia, rtol=1e-12)
+
+
+def test_a_flat_body_is_drawn_thin_but_visible():
+    drawing = load_scene('t_handle').drawing
+    assert drawing.shape == 'box'
+    assert min(drawing.size) == pytest.approx(0.01 * max(drawing.size))
+
+
+def test_a_cylinder_cannot_be_drawn_from_an_inertia_without_a_size():
+    data = {'name': 'x', 'description': 'x', 'body': {'mass': 1.0, 'inertia': [1, 1, 1]},
+            'draw': {'shape': 'cylinder'}}
+    with pytest.raises(ValueError, match=r'draw.size: missing: a cylinder cannot be derived'):
+        parse_scene(data, 'mine.yaml')
+
+
+# -- the command line
+
+
+def test_scenes_command_lists_every_builtin_scene_with_its_description(capsys):
+    assert cli.main(['scenes']) == 0
+    out = capsys.readouterr().out
+    assert str(scenes_dir()) in out
+    for name in BUILTIN_SCENES:
+        line = next(line for line in out.splitlines() if line[2:].startswith(name + ' '))
+        assert load_scene(name).description in line
+
+
+def test_scenes_command_describes_one_scene_and_reports_bad_files(capsys, tmp_path):
+    assert cli.main(['scenes', 'heavy_top']) == 0
+    out = capsys.readouterr().out
+    assert 'Pivot(point=[0.0, 0.0, -0.04]' in out and 'buss at 1000 Hz' in out
+    bad = tmp_path / 'bad.yaml'
+    data = copy.deepcopy(_heavy_top_data())
+    data['effects'][0]['pivot']['point'] = [0, 0]
+    bad.write_text(yaml.safe_dump(data), encoding='utf-8')
+    assert cli.main(['scenes', str(bad)]) == 2
+    assert f'{bad}: effects[0].pivot.point: expected 3 numbers, got 2' in capsys.readouterr().err
+    assert cli.main(['scenes', '--effects']) == 0
+    out = capsys.readouterr().out
+    for name in EFFECTS:
+        assert f'{name}: ' in out
