@@ -363,8 +363,18 @@ def _markdown(result, goal_rows, augmentation_rows):
     ]
     holds = sum(1 for row in goal_rows if row['verdict'] == 'holds')
     compared = sum(1 for row in goal_rows if row['verdict'] in ('holds', 'fails'))
+    bounded = sum(1 for row in goal_rows
+                  if row['verdict'] == 'holds' and row['mujoco_upper_bound'])
+    ratios = [row['ratio'] for row in goal_rows if row['ratio'] is not None]
     lines.append(f'The goal holds at **{holds} of {compared}** (body, level) pairs that '
-                 'either side reaches.')
+                 'either side reaches' + (
+                     f'; ours / MuJoCo is {min(ratios):.3f} to {max(ratios):.2f} where both '
+                     'reach the level' if ratios else '') + '.')
+    if bounded:
+        lines.append(f"At {bounded} of them (marked `holds*`) MuJoCo's cost is that of its "
+                     'coarsest measured step, which already reaches the level: a larger '
+                     'step, not measured, could be cheaper, so there the verdict holds for '
+                     'the measured steps only.')
     lines.append('')
     for case in result['references']:
         lines += [f'### {case}', '',
@@ -378,7 +388,7 @@ def _markdown(result, goal_rows, augmentation_rows):
                 f'{_cost(row["ours_cost"], row["ours_upper_bound"])} | '
                 f'{row["mujoco"] or "-"} | '
                 f'{_cost(row["mujoco_cost"], row["mujoco_upper_bound"])} | {ratio} | '
-                f'{row["verdict"]} |')
+                f'{row["verdict"]}{"*" if row["mujoco_upper_bound"] else ""} |')
         lines.append('')
     if augmentation_rows:
         lines += [
