@@ -15,14 +15,14 @@ class Gravity(Effect):
     """
     Uniform gravity: force m g through the COM, no torque about it; potential -m g . x.
 
+    The force is constant in the world and in time, so the Simulator folds it into the held
+    wrench (:meth:`constant_force`) and the compiled fast path still runs; :meth:`wrench`
+    is the same force for callers that sum effects themselves.
+
     Parameters
     ----------
     acceleration : array_like, shape (3,)
         The field g in m/s^2, world frame (default (0, 0, -9.81)).
-
-    The force is constant in the world and in time, so the Simulator folds it into the held
-    wrench (:meth:`constant_force`) and the compiled fast path still runs; :meth:`wrench`
-    is the same force for callers that sum effects themselves.
 
     """
 

@@ -34,6 +34,10 @@ class Pivot(Effect):
     """
     Fix the body point `point` at the world point `anchor`; the body turns about it.
 
+    A pivot is a constraint: the Simulator advances the body about it (see the module
+    docstring) and projects every state it is given onto it (rotation and angular velocity
+    kept, the COM position and velocity derived).
+
     Parameters
     ----------
     point : array_like, shape (3,)
@@ -41,10 +45,6 @@ class Pivot(Effect):
         pivot).
     anchor : array_like, shape (3,)
         Where the pivot is held, m, world frame (default the origin).
-
-    A pivot is a constraint: the Simulator advances the body about it (see the module
-    docstring) and projects every state it is given onto it (rotation and angular velocity
-    kept, the COM position and velocity derived).
 
     """
 
