@@ -1,0 +1,481 @@
+"""
+The rigid_body_sim ROS 2 node: a timer-driven simulation of one rigid body.
+
+Each tick of a timer at ``rate`` Hz applies the queued inputs, service requests and
+parameter changes in the order they came, expires inputs older than ``input_timeout``,
+advances the simulation by the nominal period 1/rate in ``substeps`` equal steps (simulated
+time follows the nominal period, not wall-clock jitter), then publishes the state, stamped
+with the node's clock.
+
+The timer is a thread of its own on the steady clock, not an rclpy timer: rclpy's executor
+costs ~0.4 ms of CPU per timer callback on the reference machine, which alone would take 40%
+of a core at 1 kHz.  The executor thread only runs the subscription, service and parameter
+callbacks, and they only queue work, so the simulation is touched by the tick thread alone.
+
+Topics (relative names, so ``--ros-args -r __ns:=/sat1`` namespaces them):
+
+- published: ``pose``, ``twist``, ``angular_momentum``, ``odom``, ``marker`` (see
+  :func:`rigid_body_sim.ros.conversions.state_messages`), and ``/diagnostics`` at 1 Hz;
+- subscribed: ``torque`` (Vector3Stamped) and ``wrench`` (WrenchStamped).  The header's
+  frame_id chooses world-fixed (``world_frame`` or empty) or body-fixed (``body_frame``).
+  Each topic holds its latest input until replaced or timed out; the two topics' inputs
+  add up.
+
+Services: ``reset`` (std_srvs/Trigger) and ``pause`` (std_srvs/SetBool).  Parameters: see
+:mod:`rigid_body_sim.ros.parameters`.  The model is :class:`rigid_body_sim.physics.Simulator`;
+this module only converts between it and ROS.
+"""
+
+import collections
+import math
+import sys
+import threading
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticStatus
+from diagnostic_msgs.msg import KeyValue
+from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import Twist
+from geometry_msgs.msg import Vector3Stamped
+from geometry_msgs.msg import WrenchStamped
+from nav_msgs.msg import Odometry
+import numpy as np
+from rcl_interfaces.msg import SetParametersResult
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from std_srvs.srv import SetBool
+from std_srvs.srv import Trigger
+from visualization_msgs.msg import Marker
+
+from .conversions import RejectedInput
+from .conversions import STATE_TOPICS
+from .conversions import StateSerializer
+from .conversions import wrench_input_from_message
+from .parameters import body_and_state_from_parameters
+from .parameters import check_integrator
+from .parameters import declare_parameters
+from .parameters import marker_geometry_from_parameters
+from .parameters import PARAMETERS
+from .qos import DIAGNOSTICS_QOS
+from .qos import INPUT_QOS
+from .qos import STATE_QOS
+from ..physics import Simulator
+
+__all__ = ['RigidBodyNode', 'ConfigurationError', 'main', 'NODE_NAME']
+
+NODE_NAME = 'rigid_body_sim'
+"""Default node name."""
+
+_MESSAGE_TYPES = {'pose': PoseStamped, 'twist': Twist, 'angular_momentum': Vector3Stamped,
+                  'odom': Odometry, 'marker': Marker}
+_INPUT_TOPICS = {'torque': Vector3Stamped, 'wrench': WrenchStamped}
+_DIAGNOSTICS_PERIOD = 1.0  # s
+_WARNING_PERIOD = 1.0  # s between two warnings of the same kind
+# Ring of the latest tick durations: 65536 ticks is over a minute at 1 kHz, enough for the
+# percentiles in the shutdown summary, and bounded memory for a node that runs for days.
+_HISTORY = 1 << 16
+# Below this fraction of the requested rate the diagnostics report a warning.
+_RATE_WARNING_FRACTION = 0.9
+
+
+class ConfigurationError(ValueError):
+    """The node's configuration describes no valid simulation (already logged)."""
+
+
+class RigidBodyNode(Node):
+    """
+    Simulate one rigid body and publish its state; see the module docstring.
+
+    The tick thread starts with :meth:`start` and ends with :meth:`stop`; :func:`main` does
+    both around spinning the node.
+
+    Raises
+    ------
+    ConfigurationError
+        If the parameters are invalid: one clear error is logged first, and the node is
+        destroyed.
+
+    """
+
+    def __init__(self, node_name=NODE_NAME, **kwargs):
+        super().__init__(node_name, **kwargs)
+        self._ticker = None
+        self._ticks = 0
+        try:
+            self._configure()
+        except ValueError as error:
+            self.get_logger().error(f'invalid configuration: {error}')
+            self.destroy_node()
+            raise ConfigurationError(str(error)) from None
+
+    # -- set-up
+
+    def _configure(self):
+        values = declare_parameters(self)
+        self._warn_unknown_overrides()
+        reason = check_integrator(values['integrator'])
+        if reason is not None:
+            raise ValueError(f"parameter 'integrator': {reason}")
+        body, state = body_and_state_from_parameters(values)
+        self._initial_state = state
+        self._simulator = Simulator(body, state, integrator=values['integrator'])
+        self._rate = values['rate']
+        self._period = 1.0 / self._rate
+        self._substeps = values['substeps']
+        self._input_timeout_ns = int(values['input_timeout'] * 1e9)
+        self._max_wrench = values['max_wrench']
+        self._world_frame = values['world_frame']
+        self._body_frame = values['body_frame']
+        if self._world_frame == self._body_frame:
+            raise ValueError(f'world_frame and body_frame must differ; both are '
+                             f'{self._world_frame!r}')
+
+        self._serializer = StateSerializer(
+            body, self._world_frame, self._body_frame,
+            geometry=marker_geometry_from_parameters(body, values))
+        self._state_publishers = [
+            (topic, self.create_publisher(_MESSAGE_TYPES[topic], topic, STATE_QOS))
+            for topic in STATE_TOPICS]
+        self._diagnostics_publisher = self.create_publisher(
+            DiagnosticArray, '/diagnostics', DIAGNOSTICS_QOS)
+
+        # Work queued by the callbacks (executor thread), done in order by the tick thread;
+        # deque.append and popleft are atomic, so no lock is needed.
+        self._queue = collections.deque()
+        self._inputs = dict.fromkeys(_INPUT_TOPICS)  # topic -> (WrenchInput, received ns)
+        self._paused = False
+        self._last_warning = {}
+        self._rejected = 0
+        for topic, message_type in _INPUT_TOPICS.items():
+            self.create_subscription(
+                message_type, topic,
+                lambda message, topic=topic: self._input_callback(topic, message), INPUT_QOS)
+        self.create_service(Trigger, 'reset', self._reset_callback)
+        self.create_service(SetBool, 'pause', self._pause_callback)
+        self.add_on_set_parameters_callback(self._validate_parameters_callback)
+        self.add_post_set_parameters_callback(self._parameters_set_callback)
+
+        self._missed_ticks = 0
+        self._tick_durations = np.zeros(_HISTORY)
+        self._step_durations = np.zeros(_HISTORY)
+        self._window = (time.monotonic(), 0, 0)  # start, ticks and missed ticks then
+        self._next_diagnostics = time.monotonic() + _DIAGNOSTICS_PERIOD
+        self._set_drift_reference()
+        moments = ', '.join(f'{m:.4g}' for m in body.principal_moments)
+        self.get_logger().info(
+            f'simulating a body of {body.mass:g} kg, principal moments ({moments}) kg m^2, '
+            f'with {self._simulator.integrator} at {self._rate:g} Hz x {self._substeps} '
+            f'substep(s); publishing pose, twist, angular_momentum, odom, marker in frame '
+            f'{self._world_frame!r}')
+
+    def _warn_unknown_overrides(self):
+        # rclpy ignores overrides of undeclared parameters: a typo in a params file would
+        # silently leave the default in place.  (No public accessor exists in Jazzy.)
+        overrides = getattr(self, '_parameter_overrides', {})
+        known = {spec.name for spec in PARAMETERS} | {'use_sim_time'}
+        unknown = sorted(set(overrides) - known)
+        if unknown:
+            self.get_logger().warning(
+                f'ignoring unknown parameter(s): {", ".join(unknown)}; known parameters: '
+                f'{", ".join(spec.name for spec in PARAMETERS)}')
+
+    # -- the tick thread
+
+    def start(self):
+        """Start ticking at `rate` Hz in a thread of its own."""
+        if self._ticker is None:
+            self._stop = threading.Event()
+            self._ticker = threading.Thread(target=self._tick_loop, name='tick', daemon=True)
+            self._ticker.start()
+
+    def stop(self):
+        """Stop ticking; return after the tick in progress, if any, has finished."""
+        if self._ticker is not None:
+            self._stop.set()
+            self._ticker.join()
+            self._ticker = None
+
+    def _tick_loop(self):
+        # Deadlines on the steady clock at whole multiples of the period: the rate is exact
+        # on average whatever each tick's jitter.  A tick more than a period late skips the
+        # missed deadlines (as rcl timers do) instead of bursting to catch up.
+        period = self._period
+        deadline = time.monotonic()
+        stop = self._stop
+        while True:
+            deadline += period
+            delay = deadline - time.monotonic()
+            if delay > 0.0:
+                if stop.wait(delay):
+                    return
+            elif stop.is_set():
+                return
+            elif delay < -period:
+                missed = int(-delay / period)
+                self._missed_ticks += missed
+                deadline += missed * period
+            try:
+                self._tick()
+            except Exception as error:  # noqa: B902 (a dying tick thread must not be silent)
+                if not self.context.ok():
+                    return  # shut down (SIGTERM) while publishing: nothing to report
+                self.get_logger().fatal(f'the simulation tick failed: {error!r}')
+                self.tick_error = error
+                self.context.try_shutdown()
+                return
+
+    def _tick(self):
+        started = time.perf_counter()
+        now = self.get_clock().now().nanoseconds
+        inputs_changed = self._apply_queue() if self._queue else False
+        if self._input_timeout_ns > 0 and self._expire_inputs(now):
+            inputs_changed = True
+        if inputs_changed:
+            self._hold_inputs()
+        simulator = self._simulator
+        stepped = time.perf_counter()
+        if not self._paused:
+            simulator.run(self._period, self._period / self._substeps)
+        step_duration = time.perf_counter() - stepped
+        serialized = self._serializer.serialize(simulator.state, now)
+        for topic, publisher in self._state_publishers:
+            publisher.publish(serialized[topic])
+        index = self._ticks % _HISTORY
+        self._step_durations[index] = step_duration
+        self._tick_durations[index] = time.perf_counter() - started
+        self._ticks += 1
+        if time.monotonic() >= self._next_diagnostics:
+            self._next_diagnostics += _DIAGNOSTICS_PERIOD
+            self._publish_diagnostics()
+
+    tick_error = None
+    """The exception that stopped the tick thread, if one did."""
+
+    def _apply_queue(self):
+        inputs_changed = False
+        queue = self._queue
+        while queue:
+            item = queue.popleft()
+            kind = item[0]
+            if kind == 'input':
+                _, topic, wrench, received = item
+                self._inputs[topic] = (wrench, received)
+                inputs_changed = True
+            elif kind == 'reset':
+                self._simulator.reset(self._initial_state, time=0.0)
+                self._inputs = dict.fromkeys(_INPUT_TOPICS)
+                inputs_changed = True
+            elif kind == 'pause':
+                self._paused = item[1]
+            elif kind == 'parameter':
+                self._apply_parameter(item[1], item[2])
+        return inputs_changed
+
+    def _apply_parameter(self, name, value):
+        if name == 'integrator':
+            # The simulator keeps its state: the switch is continuous.
+            self._simulator.integrator = value
+            self.get_logger().info(f'integrator is now {value}')
+        elif name == 'substeps':
+            self._substeps = value
+        elif name == 'input_timeout':
+            self._input_timeout_ns = int(value * 1e9)
+
+    def _expire_inputs(self, now):
+        expired = False
+        for topic, held in self._inputs.items():
+            if held is not None and now - held[1] > self._input_timeout_ns:
+                self._inputs[topic] = None
+                expired = True
+        return expired
+
+    def _hold_inputs(self):
+        # Inputs from both topics add up; body-fixed parts are held as such so that they
+        # turn with the body during the substeps.
+        parts = {'world': [np.zeros(3), np.zeros(3)], 'body': [np.zeros(3), np.zeros(3)]}
+        for held in self._inputs.values():
+            if held is not None:
+                wrench = held[0]
+                part = parts[wrench.frame]
+                part[0] = part[0] + wrench.force
+                part[1] = part[1] + wrench.torque
+        self._simulator.hold_wrench(force_world=parts['world'][0],
+                                    torque_world=parts['world'][1],
+                                    force_body=parts['body'][0],
+                                    torque_body=parts['body'][1])
+        self._set_drift_reference()
+
+    def _set_drift_reference(self):
+        self._reference_energy = self._simulator.energy()
+        self._reference_momentum = float(np.linalg.norm(
+            self._simulator.state.angular_momentum))
+
+    # -- callbacks (executor thread): they only queue work for the tick
+
+    def _input_callback(self, topic, message):
+        received = self.get_clock().now().nanoseconds
+        try:
+            wrench = wrench_input_from_message(message, self._world_frame, self._body_frame,
+                                               self._max_wrench)
+        except RejectedInput as error:
+            self._rejected += 1
+            self._warn_throttled((topic, error.kind),
+                                 f'rejected a {topic} input, state unchanged: {error}')
+            return
+        self._queue.append(('input', topic, wrench, received))
+
+    def _reset_callback(self, request, response):
+        self._queue.append(('reset',))
+        response.success = True
+        response.message = 'reset to the initial state and time 0 at the next tick'
+        return response
+
+    def _pause_callback(self, request, response):
+        self._queue.append(('pause', bool(request.data)))
+        response.success = True
+        response.message = 'paused' if request.data else 'running'
+        return response
+
+    def _validate_parameters_callback(self, parameters):
+        # Types, ranges and read-only flags are checked by rclpy from the descriptors.
+        for parameter in parameters:
+            if parameter.name == 'integrator':
+                reason = check_integrator(parameter.value)
+                if reason is not None:
+                    return SetParametersResult(successful=False, reason=reason)
+        return SetParametersResult(successful=True)
+
+    def _parameters_set_callback(self, parameters):
+        for parameter in parameters:
+            if parameter.name == 'max_wrench':
+                self._max_wrench = parameter.value  # read by the input callbacks
+            else:
+                self._queue.append(('parameter', parameter.name, parameter.value))
+
+    def _warn_throttled(self, key, text):
+        now = time.monotonic()
+        if now - self._last_warning.get(key, -math.inf) >= _WARNING_PERIOD:
+            self._last_warning[key] = now
+            self.get_logger().warning(text)
+
+    # -- diagnostics and statistics
+
+    def _recent(self, durations, count):
+        count = min(count, _HISTORY, self._ticks)
+        end = self._ticks % _HISTORY
+        if count <= end:
+            return durations[end - count:end]
+        return np.concatenate((durations[end - count:], durations[:end]))
+
+    def _publish_diagnostics(self):
+        now = time.monotonic()
+        window_start, window_ticks, window_missed = self._window
+        ticks = self._ticks - window_ticks
+        self._window = (now, self._ticks, self._missed_ticks)
+        achieved = ticks / (now - window_start) if now > window_start else 0.0
+        tick = self._recent(self._tick_durations, ticks)
+        step = self._recent(self._step_durations, ticks)
+        simulator = self._simulator
+        energy = simulator.energy()
+        momentum = float(np.linalg.norm(simulator.state.angular_momentum))
+        wrench_active = any(held is not None for held in self._inputs.values())
+
+        status = DiagnosticStatus()
+        status.name = f'{self.get_name()}: simulation'
+        status.hardware_id = self.get_fully_qualified_name()
+        if self._paused:
+            status.level, status.message = DiagnosticStatus.OK, 'paused'
+        elif achieved < _RATE_WARNING_FRACTION * self._rate:
+            status.level = DiagnosticStatus.WARN
+            status.message = f'falling behind: {achieved:.1f} of {self._rate:g} Hz'
+        else:
+            status.level, status.message = DiagnosticStatus.OK, 'running'
+        values = [
+            ('integrator', simulator.integrator),
+            ('requested rate [Hz]', f'{self._rate:g}'),
+            ('achieved rate [Hz]', f'{achieved:.2f}'),
+            ('missed ticks', str(self._missed_ticks - window_missed)),
+            ('substeps', str(self._substeps)),
+            ('step [s]', f'{self._period / self._substeps:.6g}'),
+            ('step time p50 [ms]', _milliseconds(step, 50)),
+            ('step time max [ms]', _milliseconds(step, 100)),
+            ('tick duration p50 [ms]', _milliseconds(tick, 50)),
+            ('tick duration p99 [ms]', _milliseconds(tick, 99)),
+            ('simulated time [s]', f'{simulator.time:.6f}'),
+            ('paused', str(self._paused)),
+            ('external wrench active', str(wrench_active)),
+            ('energy [J]', f'{energy:.12g}'),
+            ('energy drift since last input', _relative(energy, self._reference_energy)),
+            ('|L| [kg m^2/s]', f'{momentum:.12g}'),
+            ('|L| drift since last input', _relative(momentum, self._reference_momentum)),
+            ('inputs rejected', str(self._rejected)),
+        ]
+        status.values = [KeyValue(key=key, value=value) for key, value in values]
+        array = DiagnosticArray()
+        array.header.stamp = self.get_clock().now().to_msg()
+        array.status = [status]
+        self._diagnostics_publisher.publish(array)
+
+    def statistics(self):
+        """Return a one-line summary: ticks, missed ticks, tick duration percentiles."""
+        if self._ticks == 0:
+            return 'no ticks'
+        tick = self._recent(self._tick_durations, self._ticks)
+        return (f'{self._ticks} ticks, {self._missed_ticks} missed; tick duration over the '
+                f'last {tick.size}: p50 {_milliseconds(tick, 50)} ms, p99 '
+                f'{_milliseconds(tick, 99)} ms, max {_milliseconds(tick, 100)} ms')
+
+
+def _milliseconds(durations, percentile):
+    if durations.size == 0:
+        return 'n/a'
+    return f'{1e3 * float(np.percentile(durations, percentile)):.4f}'
+
+
+def _relative(value, reference):
+    if reference == 0.0:
+        return f'{value - reference:+.3e} (absolute)'
+    return f'{(value - reference) / abs(reference):+.3e}'
+
+
+def main(args=None):
+    """
+    Run the node until SIGINT or SIGTERM; return the exit code.
+
+    0 after a clean shutdown; 1 if the configuration is invalid (one error is logged) or the
+    simulation failed; 2 if the ROS arguments cannot be parsed.
+    """
+    try:
+        rclpy.init(args=args)
+    except (RuntimeError, ValueError) as error:
+        print(f'rigid_body_node: error: {error}'.replace('\n', ' '), file=sys.stderr)
+        return 2
+    node = None
+    code = 0
+    try:
+        node = RigidBodyNode()
+        node.start()
+        rclpy.spin(node)
+    except ConfigurationError:
+        code = 1
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.stop()
+            if node.tick_error is not None:
+                code = 1
+            summary = node.statistics()
+            logger = node.get_logger()
+            # Destroyed first: after a SIGTERM the context is gone and logging through the
+            # node would also try its /rosout publisher and fail.
+            node.destroy_node()
+            logger.info(summary)
+        rclpy.try_shutdown()
+    return code
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,28 @@
+"""
+The quality of service of every topic of the node, defined in one place.
+
+Reliable, keep-last 10, volatile: a subscriber that keeps up (``ros2 bag record``, a test, a
+controller) receives every message, and nobody receives stale state from before it joined.
+"""
+
+from rclpy.qos import DurabilityPolicy
+from rclpy.qos import HistoryPolicy
+from rclpy.qos import QoSProfile
+from rclpy.qos import ReliabilityPolicy
+
+__all__ = ['STATE_QOS', 'INPUT_QOS', 'DIAGNOSTICS_QOS']
+
+_DEPTH = 10
+
+STATE_QOS = QoSProfile(
+    reliability=ReliabilityPolicy.RELIABLE,
+    history=HistoryPolicy.KEEP_LAST,
+    depth=_DEPTH,
+    durability=DurabilityPolicy.VOLATILE)
+"""QoS of the state publishers (pose, twist, angular_momentum, odom, marker)."""
+
+INPUT_QOS = STATE_QOS
+"""QoS of the torque and wrench subscriptions (matches ``ros2 topic pub``'s default)."""
+
+DIAGNOSTICS_QOS = STATE_QOS
+"""QoS of /diagnostics (what diagnostic_aggregator expects)."""
