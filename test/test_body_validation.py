@@ -372,3 +372,12 @@ def test_simulator_rejects_a_state_that_is_not_a_state():
     simulator = _simulator()
     with pytest.raises(ValueError, match='state must be a State; got dict'):
         simulator.reset({})
+
+
+@pytest.mark.parametrize('time', [float('nan'), float('inf'), 'soon'])
+def test_simulator_reset_rejects_a_time_that_is_not_a_finite_number(time):
+    body = RigidBody(1.0, (1.0, 2.0, 3.0))
+    simulator = Simulator(body, State())
+    with pytest.raises(ValueError, match='time must be'):
+        simulator.reset(State(), time=time)
+    assert simulator.time == 0.0

@@ -195,9 +195,15 @@ class Simulator:
         return self._time
 
     def reset(self, state, time=0.0):
-        """Set the state and the time (s)."""
+        """Set the state and the time (s, finite)."""
+        try:
+            time = float(time)
+        except (TypeError, ValueError):
+            raise ValueError(f'time must be a number of seconds; got {time!r}') from None
+        if not math.isfinite(time):
+            raise ValueError(f'time must be finite; got {time!r}')
         self.state = state
-        self._time = float(time)
+        self._time = time
         self._time_compensation = 0.0
 
     def energy(self):
