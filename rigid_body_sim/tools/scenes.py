@@ -47,8 +47,8 @@ def _print_scenes():
     for name in names:
         marker = '*' if name == DEFAULT_SCENE else ' '
         print(f' {marker}{name:<{width}}  {load_scene(name).description}')
-    print(f'* the node\'s default.  Details: rigid-body-sim scenes NAME; '
-          f'ros2 run rigid_body_sim rigid_body_node --ros-args -p scene:=NAME')
+    print("* the node's default.  Details: rigid-body-sim scenes NAME; run one: "
+          'ros2 run rigid_body_sim rigid_body_node --ros-args -p scene:=NAME')
 
 
 def _print_scene(scene):
