@@ -204,7 +204,8 @@ class Scene:
         - mass: a body given by shape keeps its shape (its inertia scales with the mass); a
           body given by inertia keeps it.
         - inertia (3 diagonal entries, 9 row-major entries or 3x3; kg m^2): replaces the
-          shape; a drawing derived from the body follows it.
+          shape; a drawing derived from the body follows it.  An inertia equal to the
+          body's own is no override (so a node may pass back the values it showed).
         - orientation (quaternion x, y, z, w), angular_velocity_body or
           angular_velocity_world (rad/s; one replaces the other), position (m), velocity
           (m/s): the initial state is rebuilt from these velocities, so a new body keeps the
@@ -215,6 +216,8 @@ class Scene:
         """
         data = copy.deepcopy(self.data)
         body = data.setdefault('body', {})
+        if inertia is not None and _same_tensor(inertia, self.body.inertia):
+            inertia = None
         if inertia is not None:
             body_mass = body.get('mass')
             body.clear()
@@ -586,6 +589,19 @@ def _equivalent_extents(body, shape):
 
 def _join(path, key):
     return f'{path}.{key}' if path else key
+
+
+def _same_tensor(value, tensor):
+    """Return True if `value` (3, 9 or 3x3 numbers) is exactly the 3x3 `tensor`."""
+    try:
+        array = np.array(_plain(value), dtype=float)
+    except (TypeError, ValueError):
+        return False
+    if array.shape == (3,):
+        array = np.diag(array)
+    elif array.shape == (9,):
+        array = array.reshape(3, 3)
+    return array.shape == (3, 3) and np.array_equal(array, tensor)
 
 
 def _plain(value):
