@@ -194,13 +194,16 @@ class Scene:
 
     def with_overrides(self, mass=None, inertia=None, orientation=None,
                        angular_velocity_body=None, angular_velocity_world=None,
-                       position=None, velocity=None, integrator=None, rate=None):
+                       position=None, velocity=None, integrator=None, rate=None, body=None):
         """
         Return the scene with some body, initial-state or run values replaced.
 
         What is None keeps the scene's value.  The new values are validated like the file
         (messages name ``<source> (overrides): <key path>``), and the scene is rebuilt:
 
+        - body: a mapping in the scene's body schema (e.g. ``{'shape': 'cylinder',
+          'radius': 0.1, 'height': 0.05}``) replacing the body section; its mass defaults
+          to the scene's.  mass and inertia below apply on top of it.
         - mass: a body given by shape keeps its shape (its inertia scales with the mass); a
           body given by inertia keeps it.
         - inertia (3 diagonal entries, 9 row-major entries or 3x3; kg m^2): replaces the
@@ -215,16 +218,18 @@ class Scene:
 
         """
         data = copy.deepcopy(self.data)
-        body = data.setdefault('body', {})
-        if inertia is not None and _same_tensor(inertia, self.body.inertia):
+        if body is not None:
+            replaced = _plain(dict(body)) if isinstance(body, dict) else body
+            if isinstance(replaced, dict):
+                replaced.setdefault('mass', data['body'].get('mass'))
+            data['body'] = replaced
+        elif inertia is not None and _same_tensor(inertia, self.body.inertia):
             inertia = None
-        if inertia is not None:
-            body_mass = body.get('mass')
-            body.clear()
-            body['mass'] = body_mass
-            body['inertia'] = _plain(inertia)
-        if mass is not None:
-            body['mass'] = _plain(mass)
+        section = data['body']
+        if inertia is not None and isinstance(section, dict):
+            section = data['body'] = {'mass': section.get('mass'), 'inertia': _plain(inertia)}
+        if mass is not None and isinstance(section, dict):
+            section['mass'] = _plain(mass)
         initial = data.get('initial') or {}
         for key, value in (('orientation', orientation), ('position', position),
                            ('velocity', velocity)):
@@ -608,6 +613,8 @@ def _plain(value):
     """Return an override as plain Python data (lists and floats), like YAML gives."""
     if isinstance(value, np.ndarray):
         return value.tolist()
+    if isinstance(value, dict):
+        return {key: _plain(item) for key, item in value.items()}
     if isinstance(value, (list, tuple)):
         return [_plain(item) for item in value]
     if isinstance(value, (np.floating, np.integer)):

@@ -247,6 +247,19 @@ def test_inertia_override_replaces_the_shape_and_keeps_the_angular_velocity():
     assert changed.effects[0].effect_name == 'gravity'
 
 
+def test_body_override_replaces_the_body_section_and_is_validated():
+    scene = load_scene('heavy_top')
+    wider = scene.with_overrides(body={'shape': 'cylinder', 'radius': 0.05,
+                                       'height': np.float64(0.01)})
+    assert wider.body.mass == scene.body.mass
+    assert wider.body.inertia[2, 2] == pytest.approx(0.5 * 0.3 * 0.05 ** 2)
+    assert wider.drawing.size == (0.1, 0.1, 0.01)
+    assert wider.with_overrides(mass=0.6).body.mass == 0.6
+    with pytest.raises(ValueError, match=r'\(overrides\): body.height: missing; shape '
+                                         r'cylinder requires it'):
+        scene.with_overrides(body={'shape': 'cylinder', 'radius': 0.05})
+
+
 def test_state_overrides_rebuild_the_initial_state():
     scene = load_scene('driven')
     q = [0.0, 0.0, np.sin(0.3), np.cos(0.3)]
