@@ -336,7 +336,7 @@ class _SceneReader:
         pivot = next((e for e in effects if getattr(e, 'effect_name', None) == 'pivot'), None)
         state = self.initial(mapping.get('initial', {}), body, pivot)
         integrator = mapping.get('integrator', DEFAULT_INTEGRATOR)
-        if integrator not in INTEGRATORS:
+        if not isinstance(integrator, str) or integrator not in INTEGRATORS:
             valid = ', '.join(sorted(INTEGRATORS))
             raise self.error('integrator', f'unknown integrator {integrator!r}; valid: {valid}')
         rate = self.number(mapping.get('rate', DEFAULT_RATE), 'rate', 'Hz', positive=True)

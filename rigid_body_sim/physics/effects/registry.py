@@ -169,10 +169,11 @@ def check_number(value, key, unit='', minimum=None, positive=False):
     number = float(value)
     if not math.isfinite(number):
         raise ParameterError(key, f'expected a finite number, got {number}')
+    unit = f' {unit}' if unit else ''
     if positive and number <= 0.0:
-        raise ParameterError(key, f'must be > 0{_unit(unit)}, got {number:g}')
+        raise ParameterError(key, f'must be > 0{unit}, got {number:g}')
     if minimum is not None and number < minimum:
-        raise ParameterError(key, f'must be >= {minimum:g}{_unit(unit)}, got {number:g}')
+        raise ParameterError(key, f'must be >= {minimum:g}{unit}, got {number:g}')
     return number
 
 
