@@ -61,13 +61,15 @@ def test_first_flip_comes_after_a_quarter_period_even_with_buss(name):
     # At t = 0 Omega3 = 0: the rates start at the extremum of sn, so the first flip is at
     # T / 4.  The seed's buss gets this right at the default step; its energy drift shows
     # only in later flips (see t_handle.yaml).  The thrown box's flip is torque-free too:
-    # gravity acts at the COM.
+    # gravity acts at the COM.  Both methods are second order: 2 (|Omega| dt)^2.
     scene = load_scene(name)
     expected = _elliptic_period(scene) / 4.0
+    omega = np.linalg.norm(scene.state.angular_velocity_body(scene.body))
     for integrator in (scene.integrator, 'buss'):
         simulator = scene.simulator(integrator=integrator)
         flips = _flip_times(simulator, scene.body, 1.2 * expected, scene.dt)
-        assert flips[0] == pytest.approx(expected, rel=0.005), integrator
+        assert flips[0] == pytest.approx(expected, rel=2.0 * (omega * scene.dt) ** 2), \
+            integrator
 
 
 def _widest_cone(scene, axis, duration):
