@@ -78,6 +78,8 @@ _WARNING_PERIOD = 1.0  # s between two warnings of the same kind
 _HISTORY = 1 << 16
 # Below this fraction of the requested rate the diagnostics report a warning.
 _RATE_WARNING_FRACTION = 0.9
+# Ticks held up by longer than this (s) are dropped rather than caught up with.
+_MAX_LAG = 0.5
 
 
 class ConfigurationError(ValueError):
@@ -199,9 +201,11 @@ class RigidBodyNode(Node):
 
     def _tick_loop(self):
         # Deadlines on the steady clock at whole multiples of the period: the rate is exact
-        # on average whatever each tick's jitter.  A tick more than a period late skips the
-        # missed deadlines (as rcl timers do) instead of bursting to catch up.
+        # on average whatever each tick's jitter.  A tick that comes late (the process was
+        # not scheduled) is followed at once by the ticks it held up, so simulated time keeps
+        # pace with the clock; beyond _MAX_LAG the missed ticks are dropped instead.
         period = self._period
+        max_lag = max(_MAX_LAG, 2.0 * period)
         deadline = time.monotonic()
         stop = self._stop
         while True:
@@ -212,7 +216,7 @@ class RigidBodyNode(Node):
                     return
             elif stop.is_set():
                 return
-            elif delay < -period:
+            elif delay < -max_lag:
                 missed = int(-delay / period)
                 self._missed_ticks += missed
                 deadline += missed * period
@@ -246,8 +250,11 @@ class RigidBodyNode(Node):
         self._step_durations[index] = step_duration
         self._tick_durations[index] = time.perf_counter() - started
         self._ticks += 1
-        if time.monotonic() >= self._next_diagnostics:
-            self._next_diagnostics += _DIAGNOSTICS_PERIOD
+        steady = time.monotonic()
+        if steady >= self._next_diagnostics:
+            # At 1 Hz on average; a late one does not make the next one early.
+            self._next_diagnostics = max(self._next_diagnostics + _DIAGNOSTICS_PERIOD,
+                                         steady + 0.5 * _DIAGNOSTICS_PERIOD)
             self._publish_diagnostics()
 
     tick_error = None

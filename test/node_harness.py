@@ -1,0 +1,269 @@
+"""
+Run the rigid_body_sim node as a subprocess and talk to it over real DDS.
+
+Each test process gets a ROS domain of its own (:func:`isolate_ros_environment`) and every
+node a namespace of its own, so concurrent test runs on one machine never hear each other.
+:class:`NodeProcess` starts and stops the node; :class:`Client` is an rclpy node in the test
+process that records what the node publishes and calls its services.
+"""
+
+import itertools
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import Twist
+from geometry_msgs.msg import Vector3Stamped
+from geometry_msgs.msg import WrenchStamped
+from nav_msgs.msg import Odometry
+from rcl_interfaces.srv import SetParameters
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from rigid_body_sim.ros.qos import STATE_QOS
+from std_srvs.srv import SetBool
+from std_srvs.srv import Trigger
+from visualization_msgs.msg import Marker
+
+PACKAGE_ROOT = Path(__file__).resolve().parent.parent
+NODE_NAME = 'rigid_body_sim'
+STATE_TYPES = {'pose': PoseStamped, 'twist': Twist, 'angular_momentum': Vector3Stamped,
+               'odom': Odometry, 'marker': Marker}
+# Discovery on the loopback takes well under a second; a loaded CI machine may take longer.
+DISCOVERY_TIMEOUT = 20.0
+_namespaces = itertools.count()
+
+
+def isolate_ros_environment():
+    """
+    Give this process a ROS domain of its own and keep discovery on the loopback.
+
+    The domain id (1..100) is derived from the pytest-xdist worker and the process id, so
+    the workers of one run differ; namespaces (:func:`unique_namespace`) keep even two runs
+    that happen to share a domain apart.
+
+    :returns: the domain id, also set in ``os.environ`` for this process and its children.
+    """
+    worker = os.environ.get('PYTEST_XDIST_WORKER', 'gw0')
+    index = int(''.join(c for c in worker if c.isdigit()) or 0)
+    domain = 1 + (os.getpid() + 37 * index) % 100
+    os.environ['ROS_DOMAIN_ID'] = str(domain)
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    return domain
+
+
+def unique_namespace():
+    """Return a namespace no other node of this or another test process uses."""
+    return f'/test_{os.getpid()}_{next(_namespaces)}'
+
+
+class NodeProcess:
+    """
+    The node running as a subprocess, its output captured in a file.
+
+    :param namespace: the node's namespace (``-r __ns:=``), or None for the root.
+    :param parameters: ``{name: value}`` passed as ``-p name:=value`` (values as ROS
+        writes them: ``'100.0'``, ``'[1.0, 2.0, 3.0]'``).
+    :param extra_arguments: more ``--ros-args`` arguments (``--params-file``, ...).
+    :param command: the command that starts the node, default
+        ``python -m rigid_body_sim.ros.node``.
+    :param log_path: the file for its stdout and stderr.
+    """
+
+    def __init__(self, log_path, namespace=None, parameters=None, extra_arguments=(),
+                 command=None):
+        arguments = ['--ros-args']
+        if namespace is not None:
+            arguments += ['-r', f'__ns:={namespace}']
+        for name, value in (parameters or {}).items():
+            arguments += ['-p', f'{name}:={value}']
+        arguments += list(extra_arguments)
+        command = command or [sys.executable, '-m', 'rigid_body_sim.ros.node']
+        self.log_path = Path(log_path)
+        self.namespace = namespace
+        self._log = open(self.log_path, 'w')
+        environment = dict(os.environ)
+        environment['PYTHONUNBUFFERED'] = '1'
+        environment['RCUTILS_LOGGING_BUFFERED_STREAM'] = '0'
+        self.process = subprocess.Popen(
+            list(command) + arguments, stdout=self._log, stderr=subprocess.STDOUT,
+            cwd=PACKAGE_ROOT, env=environment)
+
+    @property
+    def pid(self):
+        """Return the process id."""
+        return self.process.pid
+
+    def alive(self):
+        """Return True while the process runs."""
+        return self.process.poll() is None
+
+    def output(self):
+        """Return everything the node printed so far."""
+        self._log.flush()
+        return self.log_path.read_text()
+
+    def wait(self, timeout=20.0):
+        """Wait for the process to exit and return its exit code (None on timeout)."""
+        try:
+            return self.process.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            return None
+
+    def send_signal(self, signal_number):
+        """Send a signal to the node."""
+        self.process.send_signal(signal_number)
+
+    def stop(self):
+        """Stop the node (SIGINT, then SIGKILL if it hangs); return its exit code."""
+        if self.alive():
+            self.process.send_signal(signal.SIGINT)
+            if self.wait(10.0) is None:
+                self.process.kill()
+                self.wait(10.0)
+        self._log.close()
+        return self.process.returncode
+
+
+class Client:
+    """
+    An rclpy node in the test process that records the simulator node's topics.
+
+    It uses a context of its own and spins in a background thread.  Received messages are
+    kept per topic with their arrival time (``time.monotonic()``).
+
+    :param namespace: the simulator node's namespace.
+    """
+
+    def __init__(self, namespace):
+        self.namespace = namespace
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node('test_client', namespace=namespace, context=self.context)
+        self._lock = threading.Lock()
+        self._received = {topic: [] for topic in list(STATE_TYPES) + ['/diagnostics']}
+        for topic, message_type in STATE_TYPES.items():
+            self.node.create_subscription(
+                message_type, topic,
+                lambda message, topic=topic: self._record(topic, message), STATE_QOS)
+        self.node.create_subscription(
+            DiagnosticArray, '/diagnostics', self._diagnostics_callback, STATE_QOS)
+        self.torque_publisher = self.node.create_publisher(Vector3Stamped, 'torque', STATE_QOS)
+        self.wrench_publisher = self.node.create_publisher(WrenchStamped, 'wrench', STATE_QOS)
+        self.reset_client = self.node.create_client(Trigger, 'reset')
+        self.pause_client = self.node.create_client(SetBool, 'pause')
+        self.parameters_client = self.node.create_client(
+            SetParameters, f'{NODE_NAME}/set_parameters')
+        self._executor = SingleThreadedExecutor(context=self.context)
+        self._executor.add_node(self.node)
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self):
+        try:
+            self._executor.spin()
+        except rclpy.executors.ExternalShutdownException:
+            pass
+
+    def _record(self, topic, message):
+        with self._lock:
+            self._received[topic].append((time.monotonic(), message))
+
+    def _diagnostics_callback(self, message):
+        # /diagnostics is shared by every node of the domain: keep only our node's status.
+        if any(status.hardware_id == f'{self.namespace}/{NODE_NAME}'
+               for status in message.status):
+            self._record('/diagnostics', message)
+
+    def close(self):
+        """Stop spinning and release the context."""
+        self._executor.shutdown(timeout_sec=5.0)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+        self._thread.join(5.0)
+
+    # -- received messages
+
+    def received(self, topic):
+        """Return a copy of [(arrival time, message)] received on `topic` so far."""
+        with self._lock:
+            return list(self._received[topic])
+
+    def messages(self, topic, since=None):
+        """Return the messages received on `topic`, those arrived after `since` if given."""
+        return [message for arrived, message in self.received(topic)
+                if since is None or arrived > since]
+
+    def wait_for(self, condition, timeout, what):
+        """Poll `condition()` until it is true; fail with `what` after `timeout` s."""
+        deadline = time.monotonic() + timeout
+        while not condition():
+            if time.monotonic() > deadline:
+                raise AssertionError(f'timed out after {timeout:g} s waiting for {what}')
+            time.sleep(0.01)
+
+    def wait_for_messages(self, topic, count, since=None, timeout=DISCOVERY_TIMEOUT):
+        """Wait until `count` messages arrived on `topic` (after `since`); return them."""
+        self.wait_for(lambda: len(self.messages(topic, since)) >= count, timeout,
+                      f'{count} messages on {topic}')
+        return self.messages(topic, since)
+
+    def wait_until_connected(self, timeout=DISCOVERY_TIMEOUT):
+        """Wait until the node publishes to us and its inputs and services are matched."""
+        self.wait_for(
+            lambda: all(self.received(topic) for topic in STATE_TYPES)
+            and self.torque_publisher.get_subscription_count() > 0
+            and self.wrench_publisher.get_subscription_count() > 0
+            and self.reset_client.service_is_ready()
+            and self.pause_client.service_is_ready()
+            and self.parameters_client.service_is_ready(),
+            timeout, 'the node to connect')
+
+    def settle(self, ticks, rate):
+        """Sleep for `ticks` periods at `rate` Hz, then return ``time.monotonic()``."""
+        time.sleep(ticks / rate)
+        return time.monotonic()
+
+    # -- inputs and services
+
+    def publish_torque(self, torque, frame_id=''):
+        """Publish a torque (N m) on ``torque`` with the given header frame id."""
+        message = Vector3Stamped()
+        message.header.frame_id = frame_id
+        message.vector.x, message.vector.y, message.vector.z = (float(t) for t in torque)
+        self.torque_publisher.publish(message)
+
+    def publish_wrench(self, force, torque, frame_id=''):
+        """Publish a wrench (N, N m) on ``wrench`` with the given header frame id."""
+        message = WrenchStamped()
+        message.header.frame_id = frame_id
+        wrench = message.wrench
+        wrench.force.x, wrench.force.y, wrench.force.z = (float(f) for f in force)
+        wrench.torque.x, wrench.torque.y, wrench.torque.z = (float(t) for t in torque)
+        self.wrench_publisher.publish(message)
+
+    def call(self, client, request, timeout=10.0):
+        """Call a service and return its response."""
+        future = client.call_async(request)
+        self.wait_for(future.done, timeout, f'a response from {client.srv_name}')
+        return future.result()
+
+    def reset(self):
+        """Call ``reset``; return the response."""
+        return self.call(self.reset_client, Trigger.Request())
+
+    def pause(self, paused):
+        """Call ``pause`` with data = `paused`; return the response."""
+        return self.call(self.pause_client, SetBool.Request(data=paused))
+
+    def set_parameter(self, name, value):
+        """Set one parameter of the node; return the rcl_interfaces SetParametersResult."""
+        request = SetParameters.Request(
+            parameters=[Parameter(name, value=value).to_parameter_msg()])
+        return self.call(self.parameters_client, request).results[0]
