@@ -34,6 +34,7 @@ import numpy as np
 from .registry import check_number
 from .registry import Effect
 from .registry import register_effect
+from ..rotations import cross
 from ..state import State
 
 
@@ -66,7 +67,7 @@ class Dissipation(Effect):
         if momentum_norm == 0.0:
             return 0.0
         momentum_body = state.rotation.T @ state.angular_momentum
-        turning = np.cross(momentum_body, body.inertia_inverse @ momentum_body)
+        turning = cross(momentum_body, body.inertia_inverse @ momentum_body)
         return -self.damping / momentum_norm * float(turning @ turning)
 
 

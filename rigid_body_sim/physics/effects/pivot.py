@@ -21,11 +21,11 @@ omega . L_pivot / 2 (Koenig), and gravity adds m g z_com.
 
 import numpy as np
 
-from ._vector import cross
 from .registry import check_vector
 from .registry import Effect
 from .registry import register_effect
 from ..body import RigidBody
+from ..rotations import cross
 from ..state import State
 
 

@@ -7,7 +7,6 @@ Simulation"); they differ in the effective angular velocity w.  World L is not t
 the rotation update, so torque-free motion conserves it exactly.
 """
 
-import numpy as np
 
 from .common import free_translation
 from .common import kick_drift_kick
@@ -16,6 +15,7 @@ from .common import world_inertia_inverse
 from .fast import buss_kernel
 from .fast import first_order_kernel
 from .registry import register_integrator
+from ..rotations import cross
 from ..state import State
 
 
@@ -55,10 +55,10 @@ def buss_free_step(body, state, dt, augmented=True):
     inertia_inverse_world = world_inertia_inverse(body, state.rotation)
     angular_momentum = state.angular_momentum
     omega = inertia_inverse_world @ angular_momentum
-    alpha = inertia_inverse_world @ (-np.cross(omega, angular_momentum))
+    alpha = inertia_inverse_world @ (-cross(omega, angular_momentum))
     effective = omega + (0.5 * dt) * alpha
     if augmented:
-        effective = effective + (dt * dt / 12.0) * np.cross(alpha, omega)
+        effective = effective + (dt * dt / 12.0) * cross(alpha, omega)
     quaternion = rotate_by_world_vector(state.quaternion, dt * effective)
     return State._from_arrays(quaternion, free_translation(state, dt, body.mass),
                               state.linear_momentum, angular_momentum)
