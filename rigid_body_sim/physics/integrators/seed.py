@@ -7,7 +7,6 @@ Simulation"); they differ in the effective angular velocity w.  World L is not t
 the rotation update, so torque-free motion conserves it exactly.
 """
 
-
 from .common import free_translation
 from .common import kick_drift_kick
 from .common import rotate_by_world_vector
