@@ -34,6 +34,7 @@ from ..physics import State
 
 __all__ = [
     'PARAMETERS',
+    'DEFAULTS',
     'ParameterSpec',
     'declare_parameters',
     'parameter_descriptor',
