@@ -17,8 +17,8 @@ from rigid_body_sim.physics import State
 from rigid_body_sim.ros.conversions import inertia_equivalent_box
 from rigid_body_sim.ros.conversions import marker_geometry
 from rigid_body_sim.ros.conversions import RejectedInput
-from rigid_body_sim.ros.conversions import STATE_TOPICS
 from rigid_body_sim.ros.conversions import state_messages
+from rigid_body_sim.ros.conversions import STATE_TOPICS
 from rigid_body_sim.ros.conversions import StateSerializer
 from rigid_body_sim.ros.conversions import wrench_input_from_message
 from visualization_msgs.msg import Marker
