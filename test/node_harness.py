@@ -74,10 +74,11 @@ class NodeProcess:
     :param command: the command that starts the node, default
         ``python -m rigid_body_sim.ros.node``.
     :param log_path: the file for its stdout and stderr.
+    :param cwd: its working directory (default: the package root).
     """
 
     def __init__(self, log_path, namespace=None, parameters=None, extra_arguments=(),
-                 command=None):
+                 command=None, cwd=PACKAGE_ROOT):
         arguments = ['--ros-args']
         if namespace is not None:
             arguments += ['-r', f'__ns:={namespace}']
@@ -93,7 +94,7 @@ class NodeProcess:
         environment['RCUTILS_LOGGING_BUFFERED_STREAM'] = '0'
         self.process = subprocess.Popen(
             list(command) + arguments, stdout=self._log, stderr=subprocess.STDOUT,
-            cwd=PACKAGE_ROOT, env=environment)
+            cwd=cwd, env=environment)
 
     @property
     def pid(self):
@@ -106,7 +107,6 @@ class NodeProcess:
 
     def output(self):
         """Return everything the node printed so far."""
-        self._log.flush()
         return self.log_path.read_text()
 
     def wait(self, timeout=20.0):

@@ -1,0 +1,157 @@
+"""
+The node's life: start-up with a configuration, shutdown on signals, the built executable.
+
+Each test starts its own node process (in a namespace of its own) and, where it needs to
+see topics, a client over real DDS.
+"""
+
+import signal
+import time
+
+from node_harness import Client
+from node_harness import isolate_ros_environment
+from node_harness import NodeProcess
+from node_harness import PACKAGE_ROOT
+from node_harness import unique_namespace
+import numpy as np
+import pytest
+from test_colcon_build import colcon_install  # noqa: F401  (the fixture: one colcon build)
+from visualization_msgs.msg import Marker
+
+pytestmark = pytest.mark.xdist_group('node')
+
+STARTED = 'simulating a body of'
+
+
+@pytest.fixture(autouse=True)
+def ros_environment():
+    """Isolate this process's ROS domain (and so its children's)."""
+    isolate_ros_environment()
+
+
+def wait_for_output(node, text, timeout=30.0):
+    """Wait until the node printed `text`; fail with its output otherwise."""
+    deadline = time.monotonic() + timeout
+    while text not in node.output():
+        assert node.alive(), f'the node exited ({node.process.returncode}):\n{node.output()}'
+        assert time.monotonic() < deadline, f'no {text!r} from the node:\n{node.output()}'
+        time.sleep(0.05)
+
+
+def run_with_client(node, check):
+    """Connect a client to a started node, run check(client), then stop both."""
+    client = Client(node.namespace)
+    try:
+        client.wait_until_connected()
+        check(client)
+    except AssertionError as error:
+        raise AssertionError(f'{error}\nnode output:\n{node.output()}') from None
+    finally:
+        client.close()
+        code = node.stop()
+    assert code == 0, node.output()
+
+
+@pytest.mark.parametrize('signal_number', [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_ends_the_node_cleanly_with_exit_code_0(tmp_path, signal_number):
+    """SIGINT (Ctrl-C) and SIGTERM (kill, launch) end it with 0 and no traceback."""
+    node = NodeProcess(tmp_path / 'node.log', namespace=unique_namespace(),
+                       parameters={'rate': '1000.0'})
+    try:
+        wait_for_output(node, STARTED)
+        time.sleep(0.5)  # ticking and publishing
+        node.send_signal(signal_number)
+        code = node.wait(15.0)
+    finally:
+        node.stop()
+    output = node.output()
+    assert code == 0, output
+    assert 'Traceback' not in output
+    assert ' ticks, ' in output  # the shutdown summary: it stopped in order
+
+
+BAD_CONFIGURATIONS = {
+    'body.inertia': ('[1.0, 1.0, 3.0]', 'triangle inequality'),
+    'integrator': ('euler', "unknown integrator 'euler'; valid integrators: "),
+    'rate': ('100', "parameter 'rate' must be a double; got 100"),
+    'body.mass': ('-2.0', 'mass must be > 0 kg'),
+    'initial.orientation': ('[0.0, 0.0, 0.0, 2.0]', 'must be a unit quaternion'),
+    'substeps': ('0', "parameter 'substeps' must be in [1, 100000]; got 0"),
+}
+
+
+def test_a_bad_configuration_exits_non_zero_with_one_clear_error(tmp_path):
+    """Each bad value: one ERROR line naming the problem, no traceback, exit code 1."""
+    nodes = {name: NodeProcess(tmp_path / f'{name}.log', namespace=unique_namespace(),
+                               parameters={name: value})
+             for name, (value, _) in BAD_CONFIGURATIONS.items()}  # started together
+    try:
+        for name, node in nodes.items():
+            code = node.wait(60.0)
+            output = node.output()
+            assert code == 1, (name, code, output)
+            errors = [line for line in output.splitlines() if 'ERROR' in line]
+            assert len(errors) == 1, output
+            assert 'invalid configuration' in errors[0]
+            assert BAD_CONFIGURATIONS[name][1] in errors[0], (name, errors[0])
+            assert 'Traceback' not in output
+    finally:
+        for node in nodes.values():
+            node.stop()
+
+
+def test_a_params_file_configures_a_namespaced_node(tmp_path):
+    """--params-file (the shipped one, then one of ours) and -r __ns: both apply."""
+    params = tmp_path / 'params.yaml'
+    params.write_text(
+        '/**/rigid_body_sim:\n'
+        '  ros__parameters:\n'
+        '    world_frame: map\n'
+        '    body_frame: satellite\n'
+        '    body:\n'
+        '      shape: box\n'
+        '      size: [0.5, 1.0, 2.0]\n')
+    namespace = unique_namespace() + '/sat1'
+    node = NodeProcess(tmp_path / 'node.log', namespace=namespace, extra_arguments=[
+        '--params-file', str(PACKAGE_ROOT / 'config' / 'rigid_body_sim.yaml'),
+        '--params-file', str(params)])
+
+    def check(client):
+        marker = client.wait_for_messages('marker', 1)[-1]
+        assert marker.header.frame_id == 'map'
+        assert marker.type == Marker.CUBE
+        np.testing.assert_array_equal([marker.scale.x, marker.scale.y, marker.scale.z],
+                                      [0.5, 1.0, 2.0])
+        odom = client.wait_for_messages('odom', 1)[-1]
+        assert (odom.header.frame_id, odom.child_frame_id) == ('map', 'satellite')
+
+    run_with_client(node, check)
+    assert 'unknown parameter' not in node.output()
+
+
+def test_an_unknown_parameter_is_reported(tmp_path):
+    """A misspelt parameter would silently do nothing: the node warns and names it."""
+    node = NodeProcess(tmp_path / 'node.log', namespace=unique_namespace(),
+                       parameters={'input_timout': '1.0'})
+    try:
+        wait_for_output(node, STARTED)
+    finally:
+        code = node.stop()
+    assert code == 0
+    assert 'ignoring unknown parameter(s): input_timout' in node.output()
+
+
+def test_colcon_built_executable_starts_and_publishes(colcon_install, tmp_path):  # noqa: F811
+    """The rigid_body_node that colcon installs (what ros2 run starts) runs and publishes."""
+    executable = colcon_install / 'rigid_body_sim' / 'lib' / 'rigid_body_sim' / 'rigid_body_node'
+    assert executable.is_file(), executable
+    command = ['bash', '-c', f'source "{colcon_install}/setup.bash" && exec "{executable}" "$@"',
+               'rigid_body_node']
+    node = NodeProcess(tmp_path / 'node.log', namespace=unique_namespace(), command=command,
+                       cwd=colcon_install.parent)
+
+    def check(client):
+        poses = client.wait_for_messages('pose', 10)
+        assert poses[-1].header.frame_id == 'world'
+
+    run_with_client(node, check)
