@@ -20,7 +20,15 @@ $(STAMP): requirements.txt setup.py setup.cfg package.xml
 	touch $@
 
 run: $(STAMP)
-	$(BIN)/rigid-body-sim run
+	@echo 'Starting rigid_body_node with the default body: a T-handle spun near its unstable'
+	@echo 'middle axis. It flips over about every 12 s (the first flip near 7.5 s). Look at it'
+	@echo 'from another terminal with ROS 2 Jazzy sourced:'
+	@echo '  ros2 topic echo /odom --field twist.twist.angular   body angular velocity: y flips sign'
+	@echo '  ros2 topic echo /angular_momentum                   world-frame L: stays constant'
+	@echo '  rviz2 -f world                                      add a Marker display on /marker'
+	@echo '  ros2 topic echo /diagnostics                        rate, step time, drift'
+	@echo 'Ctrl-C stops it. The offline summary without ROS: .venv/bin/rigid-body-sim run'
+	$(BIN)/rigid_body_node
 
 test: export ROS_AUTOMATIC_DISCOVERY_RANGE = LOCALHOST
 test: $(STAMP)
