@@ -184,9 +184,9 @@ class Client:
     def close(self):
         """Stop spinning and release the context."""
         self._executor.shutdown(timeout_sec=5.0)
+        self._thread.join(5.0)
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
-        self._thread.join(5.0)
 
     # -- received messages
 

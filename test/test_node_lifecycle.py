@@ -59,7 +59,7 @@ def test_a_signal_ends_the_node_cleanly_with_exit_code_0(tmp_path, signal_number
                        parameters={'rate': '1000.0'})
     try:
         wait_for_output(node, STARTED)
-        time.sleep(0.5)  # ticking and publishing
+        time.sleep(1.0)  # ticking and publishing
         node.send_signal(signal_number)
         code = node.wait(15.0)
     finally:

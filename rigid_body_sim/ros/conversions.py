@@ -337,14 +337,20 @@ class StateSerializer:
         self._body = body
         self._marker_axes = geometry.axes
         messages = _new_state_messages(world_frame, body_frame, geometry)
-        self._layouts = [(topic,) + _layout(messages, topic) for topic in STATE_TOPICS]
+        self._layouts = {topic: _layout(messages, topic) for topic in STATE_TOPICS}
 
-    def serialize(self, state, stamp_nanoseconds):
-        """Return topic -> serialised message (bytes) of `state`, stamped (ns)."""
+    def serialize(self, state, stamp_nanoseconds, topics=STATE_TOPICS):
+        """
+        Return topic -> serialised message (bytes) of `state`, stamped (ns).
+
+        Only the given `topics` (a subset of :data:`STATE_TOPICS`) are serialised.
+        """
         seconds, nanoseconds = divmod(int(stamp_nanoseconds), 1_000_000_000)
         values = _state_values(self._body, state, self._marker_axes)
         serialized = {}
-        for topic, buffer, stamp_packer, stamp_offset, runs in self._layouts:
+        layouts = self._layouts
+        for topic in topics:
+            buffer, stamp_packer, stamp_offset, runs = layouts[topic]
             if stamp_packer is not None:
                 stamp_packer.pack_into(buffer, stamp_offset, seconds, nanoseconds)
             topic_values = values[topic]
