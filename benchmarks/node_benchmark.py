@@ -115,10 +115,11 @@ class Probe:
 
     def close(self):
         """Stop spinning and release the context."""
-        self.executor.shutdown(timeout_sec=5.0)
-        self.thread.join(5.0)
-        self.node.destroy_node()
+        # Shutting the context down ends spin() in the other thread first.
         rclpy.try_shutdown(context=self.context)
+        self.thread.join(5.0)
+        self.executor.shutdown(timeout_sec=5.0)
+        self.node.destroy_node()
 
 
 def wait_for(condition, timeout):

@@ -183,10 +183,11 @@ class Client:
 
     def close(self):
         """Stop spinning and release the context."""
-        self._executor.shutdown(timeout_sec=5.0)
-        self._thread.join(5.0)
-        self.node.destroy_node()
+        # Shutting the context down ends spin() in the other thread first.
         rclpy.try_shutdown(context=self.context)
+        self._thread.join(5.0)
+        self._executor.shutdown(timeout_sec=5.0)
+        self.node.destroy_node()
 
     # -- received messages
 
