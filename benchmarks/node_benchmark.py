@@ -72,14 +72,15 @@ class Probe:
         self.torque = self.node.create_publisher(Vector3Stamped, 'torque', STATE_QOS)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
+        self._stopping = threading.Event()
         self.thread = threading.Thread(target=self._spin, daemon=True)
         self.thread.start()
 
     def _spin(self):
-        try:
-            self.executor.spin()
-        except rclpy.executors.ExternalShutdownException:
-            pass
+        # spin_once in a loop, not spin(): close() stops the loop and joins this thread
+        # before anything is destroyed, so no wait set is ever built on a dead context.
+        while not self._stopping.is_set():
+            self.executor.spin_once(timeout_sec=0.05)
 
     def _momentum(self, message):
         arrival = time.monotonic()
@@ -115,11 +116,11 @@ class Probe:
 
     def close(self):
         """Stop spinning and release the context."""
-        # Shutting the context down ends spin() in the other thread first.
-        rclpy.try_shutdown(context=self.context)
+        self._stopping.set()
         self.thread.join(5.0)
         self.executor.shutdown(timeout_sec=5.0)
         self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
 
 
 def wait_for(condition, timeout):

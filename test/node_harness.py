@@ -162,14 +162,15 @@ class Client:
             SetParameters, f'{NODE_NAME}/set_parameters')
         self._executor = SingleThreadedExecutor(context=self.context)
         self._executor.add_node(self.node)
+        self._stopping = threading.Event()
         self._thread = threading.Thread(target=self._spin, daemon=True)
         self._thread.start()
 
     def _spin(self):
-        try:
-            self._executor.spin()
-        except rclpy.executors.ExternalShutdownException:
-            pass
+        # spin_once in a loop, not spin(): close() stops the loop and joins this thread
+        # before anything is destroyed, so no wait set is ever built on a dead context.
+        while not self._stopping.is_set():
+            self._executor.spin_once(timeout_sec=0.05)
 
     def _record(self, topic, message):
         with self._lock:
@@ -183,11 +184,11 @@ class Client:
 
     def close(self):
         """Stop spinning and release the context."""
-        # Shutting the context down ends spin() in the other thread first.
-        rclpy.try_shutdown(context=self.context)
+        self._stopping.set()
         self._thread.join(5.0)
         self._executor.shutdown(timeout_sec=5.0)
         self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
 
     # -- received messages
 
