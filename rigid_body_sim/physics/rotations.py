@@ -6,6 +6,8 @@ x_world = R x_body.  Quaternions are stored (x, y, z, w) as in geometry_msgs and
 with the Hamilton product, so that matrix_from_quaternion(a * b) = R(a) R(b).
 """
 
+import math
+
 import numpy as np
 
 __all__ = [
@@ -92,7 +94,10 @@ def quaternion_multiply(a, b):
 
 def matrix_from_quaternion(quaternion):
     """Return the rotation matrix of a quaternion (x, y, z, w); it is normalised first."""
-    x, y, z, w = np.asarray(quaternion, dtype=float) / np.linalg.norm(quaternion)
+    # Python floats: for one 3x3 matrix, scalar arithmetic beats numpy's per-call overhead.
+    x, y, z, w = (float(c) for c in quaternion)
+    norm = math.sqrt(x * x + y * y + z * z + w * w)
+    x, y, z, w = x / norm, y / norm, z / norm, w / norm
     return np.array([
         [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w)],
         [2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w)],

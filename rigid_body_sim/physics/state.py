@@ -10,6 +10,8 @@ Velocities are derived with the body's mass properties:
 I_w = R I_b R^T, omega = I_w^{-1} L (world), Omega = R^T omega (body), v = p / m.
 """
 
+import math
+
 import numpy as np
 
 from .rotations import check_quaternion
@@ -82,7 +84,7 @@ class State:
 
     def _set(self, quaternion, matrix, position, linear_momentum, angular_momentum):
         object.__setattr__(self, '_quaternion', _frozen(quaternion))
-        object.__setattr__(self, '_rotation', _frozen(matrix))
+        object.__setattr__(self, '_rotation', None if matrix is None else _frozen(matrix))
         object.__setattr__(self, '_position', position)
         object.__setattr__(self, '_linear_momentum', linear_momentum)
         object.__setattr__(self, '_angular_momentum', angular_momentum)
@@ -93,11 +95,13 @@ class State:
         Build a state from trusted float arrays (integrator output): no validation.
 
         The quaternion is normalised here, so R is orthonormal to round-off.  Callers own the
-        arrays they pass; they are frozen, not copied.
+        arrays they pass; they are frozen, not copied.  R is built on first use: a node tick
+        or a kernel run makes one state and often publishes only the quaternion.
         """
         state = object.__new__(cls)
-        q = quaternion / np.sqrt(quaternion @ quaternion)
-        state._set(q, matrix_from_quaternion(q), _frozen(position), _frozen(linear_momentum),
+        x, y, z, w = quaternion.tolist()
+        q = quaternion * (1.0 / math.sqrt(x * x + y * y + z * z + w * w))
+        state._set(q, None, _frozen(position), _frozen(linear_momentum),
                    _frozen(angular_momentum))
         return state
 
@@ -152,6 +156,9 @@ class State:
     @property
     def rotation(self):
         """Rotation matrix R, body to world (3x3, read-only)."""
+        if self._rotation is None:
+            object.__setattr__(self, '_rotation', _frozen(matrix_from_quaternion(
+                self._quaternion)))
         return self._rotation
 
     @property
@@ -178,7 +185,7 @@ class State:
 
     def inertia_world(self, body):
         """Return I_w = R I_b R^T, the inertia about the COM in world axes (kg m^2)."""
-        return self._rotation @ body.inertia @ self._rotation.T
+        return self.rotation @ body.inertia @ self.rotation.T
 
     def velocity(self, body):
         """Return the COM velocity v = p / m in m/s, world frame."""
@@ -186,11 +193,11 @@ class State:
 
     def angular_velocity_body(self, body):
         """Return Omega = I_b^{-1} R^T L in rad/s, body frame."""
-        return body.inertia_inverse @ (self._rotation.T @ self._angular_momentum)
+        return body.inertia_inverse @ (self.rotation.T @ self._angular_momentum)
 
     def angular_velocity(self, body):
         """Return omega = R Omega = I_w^{-1} L in rad/s, world frame."""
-        return self._rotation @ self.angular_velocity_body(body)
+        return self.rotation @ self.angular_velocity_body(body)
 
     def kinetic_energy(self, body):
         """Return T = |p|^2 / (2 m) + omega . L / 2 in J."""
