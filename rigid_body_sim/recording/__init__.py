@@ -1,0 +1,15 @@
+"""
+Recording and analysis: rosbag2 bags of the simulation, offline or live, and their plots.
+
+- :mod:`.bag_writer`: rosbag2 bags (MCAP or sqlite3) written with the ``rosbags`` library,
+  with the publishers' QoS profiles in the form rosbag2 Jazzy records them, and made
+  readable at every flush (a recorder killed with SIGKILL leaves a readable bag).
+- :mod:`.simulate`: a scene simulated faster than real time straight into a bag holding
+  exactly the topics, types, frame ids and stamps the node publishes.
+- :mod:`.recorder`: a live recorder for machines without rosbag2.
+- :mod:`.recovery`: turn a bag left by a killed recorder into a complete one.
+- :mod:`.plot`: the motion in a bag, plotted from the messages alone.
+
+Importing this package imports none of them; import the module you need (the recorder
+needs rclpy, the plot needs matplotlib).
+"""

@@ -1,0 +1,418 @@
+"""
+Simulate a scene faster than real time, straight into a rosbag2 bag, without DDS.
+
+The bag holds what the node (:mod:`rigid_body_sim.ros.node`) publishes while it simulates
+the same body at the same rate: the topics ``pose``, ``twist``, ``angular_momentum``,
+``odom``, ``marker`` (relative names, under ``namespace``), with their types, frame ids and
+QoS, serialised by the node's own :class:`~rigid_body_sim.ros.conversions.StateSerializer`;
+``/diagnostics`` once per simulated second with the node's status keys; and, on request,
+``/clock`` (rosgraph_msgs/Clock) at every tick, for ``ros2 bag play --clock``-free sim-time
+playback.
+
+Time.  As in the node, tick k (k = 1 .. duration x rate) advances the simulation by the
+nominal period 1/rate and then publishes the state, so the first message is the state
+after one period.  Its stamp, which is also its bag (log) time, is
+``start_time + round(k * 1e9 / rate)`` ns: simulated time counted from ``start_time``.
+The default start is 0, so that stamps read as simulated time (the bag starts at
+1970-01-01T00:00:00 in tools that show dates); give the wall clock (``--start-time now``)
+for a bag that looks like a live recording.  Successive stamps are exactly 1e9/rate ns
+apart when that is a whole number of ns, else within 1 ns of it.
+"""
+
+import math
+import time
+
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticStatus
+from diagnostic_msgs.msg import KeyValue
+import numpy as np
+from rclpy.qos import DurabilityPolicy
+from rclpy.qos import HistoryPolicy
+from rclpy.qos import QoSProfile
+from rclpy.qos import ReliabilityPolicy
+from rclpy.serialization import serialize_message
+from rosgraph_msgs.msg import Clock
+
+from .bag_writer import BagWriter
+from .bag_writer import offered_qos
+from .state_batch import BatchSerializer
+from .state_batch import StateBatch
+from ..ros import qos
+from ..ros.conversions import marker_geometry
+from ..ros.conversions import state_messages
+from ..ros.conversions import STATE_TOPICS
+from ..ros.node import NODE_NAME
+
+__all__ = [
+    'CLOCK_TOPIC',
+    'DIAGNOSTICS_TOPIC',
+    'SimulationSummary',
+    'message_type_name',
+    'node_marker_geometry',
+    'simulate_to_bag',
+    'stamp_nanoseconds',
+    'topic_names',
+]
+
+DIAGNOSTICS_TOPIC = '/diagnostics'
+CLOCK_TOPIC = '/clock'
+
+# The QoS of /clock as every ROS 2 clock publisher has it (rclcpp::ClockQoS): best effort,
+# keep last 1.  The node's own, if qos.py defines one, takes precedence.
+_CLOCK_QOS = getattr(qos, 'CLOCK_QOS', QoSProfile(
+    reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST, depth=1,
+    durability=DurabilityPolicy.VOLATILE))
+
+# Ticks serialised and written at once (at most; a batch also ends with each simulated
+# second): a few hundred rows amortise numpy's per-call cost, and 1024 ticks of all
+# topics are about a megabyte.
+_BATCH_TICKS = 1024
+# Custom data keys in metadata.yaml (read by the plot).
+CUSTOM_DATA_PREFIX = 'rigid_body_sim.'
+
+
+class SimulationSummary:
+    """What :func:`simulate_to_bag` did: ticks, messages per topic, wall time, speed."""
+
+    def __init__(self, bag, ticks, duration, message_counts, wall_time):
+        self.bag = bag
+        self.ticks = ticks
+        self.duration = duration
+        self.message_counts = message_counts
+        self.wall_time = wall_time
+
+    @property
+    def speed(self):
+        """Return simulated seconds per wall-clock second (the multiple of real time)."""
+        return self.duration / self.wall_time if self.wall_time > 0.0 else math.inf
+
+    def __str__(self):
+        total = sum(self.message_counts.values())
+        return (f'{self.bag}: {self.duration:g} s simulated in {self.wall_time:.2f} s '
+                f'({self.speed:.1f}x real time), {self.ticks} ticks, {total} messages on '
+                f'{len(self.message_counts)} topics')
+
+
+def message_type_name(message_class):
+    """Return the ROS 2 type name of a message class, e.g. 'geometry_msgs/msg/PoseStamped'."""
+    package = message_class.__module__.split('.')[0]
+    return f'{package}/msg/{message_class.__name__}'
+
+
+def topic_names(namespace=''):
+    """Return relative state topic -> absolute name under `namespace` ('' or '/ns')."""
+    namespace = _checked_namespace(namespace)
+    return {topic: f'{namespace}/{topic}' for topic in STATE_TOPICS}
+
+
+def _checked_namespace(namespace):
+    namespace = (namespace or '').rstrip('/')
+    if namespace and not namespace.startswith('/'):
+        namespace = '/' + namespace
+    return namespace
+
+
+def stamp_nanoseconds(start_nanoseconds, tick, rate):
+    """
+    Return the stamp (ns) of tick `tick` (an int or an integer array): start + tick/rate.
+
+    tick * 1e9 / rate is rounded to the nearest ns; for a whole number of Hz in exact
+    integer arithmetic, so no rounding error accumulates however long the run.
+    """
+    if float(rate).is_integer():
+        whole = int(rate)
+        return start_nanoseconds + (tick * 1_000_000_000 + whole // 2) // whole
+    nanoseconds = np.rint(np.asarray(tick) * 1e9 / rate).astype(np.int64)
+    return start_nanoseconds + (nanoseconds if nanoseconds.ndim else int(nanoseconds))
+
+
+def node_marker_geometry(scene):
+    """
+    Return the MarkerGeometry the node draws the scene's body with.
+
+    The node draws a body given by shape as that shape with its sizes, and a body given by
+    its inertia as the box with the same principal moments
+    (:func:`rigid_body_sim.ros.conversions.marker_geometry`).  A scene's ``draw`` section
+    has no node parameter and is not used.
+    """
+    body_data = scene.data.get('body', {})
+    shape = body_data.get('shape') if 'inertia' not in body_data else None
+    if shape == 'box':
+        size = body_data['size']
+    elif shape == 'cylinder':
+        size = (body_data['radius'], body_data['height'])
+    elif shape == 'sphere':
+        size = (body_data['radius'],)
+    elif shape == 'ellipsoid':
+        size = body_data['semi_axes']
+    else:
+        return marker_geometry(scene.body)
+    return marker_geometry(scene.body, shape, [float(s) for s in np.ravel(size)])
+
+
+def _tick_count(duration, rate):
+    try:
+        duration = float(duration)
+    except (TypeError, ValueError):
+        raise ValueError(f'duration must be a number of seconds; got {duration!r}') from None
+    if not math.isfinite(duration) or duration <= 0.0:
+        raise ValueError(f'duration must be > 0 s; got {duration:g}')
+    ticks = round(duration * rate)
+    if ticks < 1 or abs(ticks - duration * rate) > 1e-6 * max(1.0, ticks):
+        raise ValueError(f'duration {duration:g} s is not a whole number of ticks at '
+                         f'{rate:g} Hz (period {1.0 / rate:g} s)')
+    return ticks
+
+
+def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1,
+                    storage='mcap', start_time=0, clock=False, namespace='',
+                    world_frame='world', body_frame='body', progress=False):
+    """
+    Simulate `scene` for `duration` s and write what the node would publish into a bag.
+
+    Parameters
+    ----------
+    scene : rigid_body_sim.scenes.Scene
+        What to simulate: body, initial state, effects, default integrator and rate.
+    bag : str or Path
+        New bag directory.
+    duration : float
+        Simulated time in s; a whole number of ticks at `rate`.
+    rate : float, optional
+        Tick rate in Hz (default: the scene's): one state per topic per tick.
+    integrator : str, optional
+        Default: the scene's.
+    substeps : int
+        Integrator steps per tick, as the node's ``substeps`` parameter.
+    storage : str
+        'mcap' or 'sqlite3'.
+    start_time : int
+        Stamp of simulated time 0, in ns since the epoch (see the module docstring).
+    clock : bool
+        Also write /clock at every tick.
+    namespace : str
+        Namespace of the state topics ('' or '/name'), as the node's ``__ns``.
+    world_frame, body_frame : str
+        Frame ids, as the node's parameters.
+    progress : bool
+        Show a tqdm progress bar (on stderr).
+
+    Returns
+    -------
+    SimulationSummary
+
+    Raises
+    ------
+    ValueError
+        For a bad duration, rate, substeps, storage or start time, or an existing bag.
+
+    """
+    rate = float(scene.rate if rate is None else rate)
+    if not math.isfinite(rate) or rate <= 0.0:
+        raise ValueError(f'rate must be > 0 Hz; got {rate:g}')
+    ticks = _tick_count(duration, rate)
+    if int(substeps) != substeps or substeps < 1:
+        raise ValueError(f'substeps must be a whole number >= 1; got {substeps!r}')
+    substeps = int(substeps)
+    start_time = int(start_time)
+    if start_time < 0:
+        raise ValueError(f'start time must be >= 0 ns since the epoch; got {start_time}')
+    if world_frame == body_frame:
+        raise ValueError(f'world_frame and body_frame must differ; both are {world_frame!r}')
+    names = topic_names(namespace)
+    simulator = scene.simulator(integrator=integrator)
+    body = simulator.body
+    geometry = node_marker_geometry(scene)
+    serializer = BatchSerializer(body, world_frame, body_frame, geometry)
+    # The message classes, hence type names, are those of conversions.state_messages.
+    types = {topic: message_type_name(type(message)) for topic, message in state_messages(
+        body, simulator.state, 0, world_frame, body_frame, geometry).items()}
+    diagnostics = _OfflineDiagnostics(simulator, rate, substeps, _checked_namespace(namespace))
+    period = 1.0 / rate
+    step = period / substeps
+
+    started = time.perf_counter()
+    with BagWriter(bag, storage) as writer:
+        _set_custom_data(writer, scene, simulator, rate, substeps, start_time)
+        clock_connection = None
+        if clock:
+            clock_connection = writer.add_topic(CLOCK_TOPIC, message_type_name(Clock),
+                                                [offered_qos(_CLOCK_QOS)])
+        state_offer = [offered_qos(qos.STATE_QOS)]
+        connections = [(topic, writer.add_topic(names[topic], types[topic], state_offer))
+                       for topic in STATE_TOPICS]
+        diagnostics_connection = writer.add_topic(
+            DIAGNOSTICS_TOPIC, message_type_name(DiagnosticArray),
+            [offered_qos(qos.DIAGNOSTICS_QOS)])
+        if clock_connection is not None:
+            connections.insert(0, (CLOCK_TOPIC, clock_connection))
+        row_connections = [connection for _, connection in connections]
+        bar = _progress_bar(duration) if progress else None
+        batch = StateBatch(_BATCH_TICKS)
+        perf_counter = time.perf_counter
+        last_second = 0
+        tick = 1
+        try:
+            while tick <= ticks:
+                # The batch ends at the last tick, when full, or at the first tick of a new
+                # simulated second, after which /diagnostics is written (time order).
+                count = min(_BATCH_TICKS, ticks - tick + 1)
+                stamps = stamp_nanoseconds(start_time, np.arange(tick, tick + count), rate)
+                seconds = (stamps - start_time) // 1_000_000_000
+                new_second = np.flatnonzero(seconds > last_second)
+                if new_second.size:
+                    count = int(new_second[0]) + 1
+                    stamps = stamps[:count]
+                batch.clear()
+                step_durations = np.empty(count)
+                batch_started = perf_counter()
+                for index in range(count):
+                    step_started = perf_counter()
+                    if substeps == 1:
+                        simulator.step(period)
+                    else:
+                        simulator.run(period, step)
+                    step_durations[index] = perf_counter() - step_started
+                    batch.append(simulator.state)
+                serialized = serializer.serialize(batch.filled(), stamps)
+                if clock_connection is not None:
+                    serialized[CLOCK_TOPIC] = _clock_rows(stamps)
+                writer.write_rows(row_connections,
+                                  [serialized[topic] for topic, _ in connections], stamps)
+                diagnostics.record(step_durations, perf_counter() - batch_started)
+                if new_second.size:
+                    last_second = int(seconds[count - 1])
+                    stamp = int(stamps[-1])
+                    writer.write(diagnostics_connection, stamp, diagnostics.serialized(stamp))
+                tick += count
+                if bar is not None:
+                    bar.update(count * period)
+        finally:
+            if bar is not None:
+                bar.close()
+        counts = writer.message_counts
+    return SimulationSummary(writer.path, ticks, ticks * period, counts,
+                             time.perf_counter() - started)
+
+
+def _clock_rows(stamps):
+    """Return the serialised rosgraph_msgs/Clock of each stamp, (n, size) uint8."""
+    template = np.frombuffer(serialize_message(Clock()), dtype=np.uint8)
+    rows = np.empty((len(stamps), template.size), dtype=np.uint8)
+    rows[:] = template
+    # CDR: the 4-byte encapsulation header, then clock.sec (int32), clock.nanosec (uint32).
+    seconds, nanoseconds = np.divmod(np.asarray(stamps, dtype=np.int64), 1_000_000_000)
+    rows[:, 4:8] = seconds.astype('<i4').view(np.uint8).reshape(-1, 4)
+    rows[:, 8:12] = nanoseconds.astype('<u4').view(np.uint8).reshape(-1, 4)
+    return rows
+
+
+def _time(nanoseconds):
+    seconds, remainder = divmod(nanoseconds, 1_000_000_000)
+    return Time(sec=seconds, nanosec=remainder)
+
+
+def _progress_bar(duration):
+    from tqdm import tqdm
+    return tqdm(total=float(duration), unit='s', desc='simulated', leave=True,
+                bar_format='{desc}: {percentage:3.0f}%|{bar}| {n:.3g}/{total:.3g} s '
+                           '[{elapsed}<{remaining}, {rate_fmt}]')
+
+
+def _set_custom_data(writer, scene, simulator, rate, substeps, start_time):
+    # What the plot and a reader of the bag may want to know about the run; the node's
+    # messages carry none of it.
+    body = simulator.body
+    values = {
+        'scene': scene.name,
+        'scene_source': scene.source,
+        'integrator': simulator.integrator,
+        'rate': f'{rate:.17g}',
+        'substeps': str(substeps),
+        'start_time': str(start_time),
+        'mass': f'{body.mass:.17g}',
+        'inertia': ' '.join(f'{value:.17g}' for value in body.inertia.ravel()),
+        'effects': ', '.join(scene.effect_names()) or 'none',
+        'writer': 'rigid-body-sim simulate',
+    }
+    for key, value in values.items():
+        writer.set_custom_data(CUSTOM_DATA_PREFIX + key, value)
+
+
+class _OfflineDiagnostics:
+    """The node's /diagnostics status, for a run on the simulated clock."""
+
+    def __init__(self, simulator, rate, substeps, namespace):
+        self._simulator = simulator
+        self._rate = rate
+        self._substeps = substeps
+        self._name = f'{NODE_NAME}: simulation'
+        self._hardware_id = f'{namespace}/{NODE_NAME}'
+        self._reference_energy = simulator.energy()
+        self._reference_momentum = float(np.linalg.norm(simulator.state.angular_momentum))
+        self._steps = []
+        self._ticks = []
+
+    def record(self, step_durations, batch_duration):
+        """
+        Note a batch of ticks: each tick's step duration and the whole batch's (s, wall).
+
+        A tick's duration is its step plus an equal share of the batch's serialising and
+        writing, which are done for the batch at once.
+        """
+        step_durations = np.asarray(step_durations)
+        share = (batch_duration - step_durations.sum()) / max(1, step_durations.size)
+        self._steps.append(step_durations)
+        self._ticks.append(step_durations + share)
+
+    def serialized(self, stamp):
+        """Return the serialised DiagnosticArray for the ticks since the last one."""
+        simulator = self._simulator
+        energy = simulator.energy()
+        momentum = float(np.linalg.norm(simulator.state.angular_momentum))
+        steps = np.concatenate(self._steps) if self._steps else np.empty(0)
+        ticks = np.concatenate(self._ticks) if self._ticks else np.empty(0)
+        self._steps, self._ticks = [], []
+        status = DiagnosticStatus()
+        status.name = self._name
+        status.hardware_id = self._hardware_id
+        # On the simulated clock every tick is on time: the achieved rate is the rate.
+        status.level, status.message = DiagnosticStatus.OK, 'running'
+        values = [
+            ('integrator', simulator.integrator),
+            ('requested rate [Hz]', f'{self._rate:g}'),
+            ('achieved rate [Hz]', f'{self._rate:.2f}'),
+            ('missed ticks', '0'),
+            ('substeps', str(self._substeps)),
+            ('step [s]', f'{1.0 / (self._rate * self._substeps):.6g}'),
+            ('step time p50 [ms]', _milliseconds(steps, 50)),
+            ('step time max [ms]', _milliseconds(steps, 100)),
+            ('tick duration p50 [ms]', _milliseconds(ticks, 50)),
+            ('tick duration p99 [ms]', _milliseconds(ticks, 99)),
+            ('simulated time [s]', f'{simulator.time:.6f}'),
+            ('paused', 'False'),
+            ('external wrench active', 'False'),
+            ('energy [J]', f'{energy:.12g}'),
+            ('energy drift since last input', _relative(energy, self._reference_energy)),
+            ('|L| [kg m^2/s]', f'{momentum:.12g}'),
+            ('|L| drift since last input', _relative(momentum, self._reference_momentum)),
+            ('inputs rejected', '0'),
+        ]
+        status.values = [KeyValue(key=key, value=value) for key, value in values]
+        array = DiagnosticArray()
+        array.header.stamp = _time(stamp)
+        array.status = [status]
+        return serialize_message(array)
+
+
+def _milliseconds(durations, percentile):
+    if durations.size == 0:
+        return 'n/a'
+    return f'{1e3 * float(np.percentile(durations, percentile)):.4f}'
+
+
+def _relative(value, reference):
+    if reference == 0.0:
+        return f'{value - reference:+.3e} (absolute)'
+    return f'{(value - reference) / abs(reference):+.3e}'

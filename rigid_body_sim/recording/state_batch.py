@@ -1,0 +1,255 @@
+"""
+The node's state messages for many ticks at once, serialised with numpy.
+
+An offline run writes the same five state messages every tick.  Serialising them one
+state at a time (:class:`rigid_body_sim.ros.conversions.StateSerializer`, what the node
+does) costs more than the physics step; here a batch of states becomes, per topic, a
+(ticks, bytes) array: the message's CDR template from rclpy's serializer repeated, with the
+stamp and the state fields written into it column-wise.
+
+The bytes are those of ``StateSerializer.serialize`` (tested for every topic over random
+states): the fields are the ones :func:`~rigid_body_sim.ros.conversions.state_messages`
+documents, each computed with the same floating-point operations in the same order (numpy's
+element-wise operations round like Python's), so each value is bit for bit the node's.
+"""
+
+import struct
+
+import numpy as np
+from rclpy.serialization import serialize_message
+
+from ..physics import State
+from ..ros.conversions import marker_geometry
+from ..ros.conversions import state_messages
+from ..ros.conversions import STATE_TOPICS
+
+__all__ = ['StateBatch', 'BatchSerializer', 'STATE_COLUMNS']
+
+STATE_COLUMNS = 13
+"""Columns of a state row: quaternion (x, y, z, w), position, linear and angular momentum."""
+
+_POSE = ('position.x', 'position.y', 'position.z',
+         'orientation.x', 'orientation.y', 'orientation.z', 'orientation.w')
+_TWIST = ('linear.x', 'linear.y', 'linear.z', 'angular.x', 'angular.y', 'angular.z')
+# Each topic's state fields (message attribute paths), in the order of _values().
+_FIELDS = {
+    'pose': tuple('pose.' + field for field in _POSE),
+    'twist': _TWIST,
+    'angular_momentum': ('vector.x', 'vector.y', 'vector.z'),
+    'odom': tuple('pose.pose.' + field for field in _POSE)
+    + tuple('twist.twist.' + field for field in _TWIST),
+    'marker': tuple('pose.' + field for field in _POSE),
+}
+# A stamp no real message has, to find the header stamp in the template.
+_STAMP_SENTINEL = (1987654321, 987654321)
+
+
+class StateBatch:
+    """
+    Up to `capacity` states, one row each (see :data:`STATE_COLUMNS`), filled by append.
+
+    Appending copies four small arrays (a microsecond or two), the whole per-tick cost of
+    collecting a run for :class:`BatchSerializer`.
+    """
+
+    def __init__(self, capacity):
+        self.rows = np.empty((int(capacity), STATE_COLUMNS))
+        self.count = 0
+
+    def append(self, state):
+        """Add a State (world frame) as the next row."""
+        row = self.rows[self.count]
+        row[0:4] = state.quaternion
+        row[4:7] = state.position
+        row[7:10] = state.linear_momentum
+        row[10:13] = state.angular_momentum
+        self.count += 1
+
+    def clear(self):
+        """Forget the rows (keep the memory)."""
+        self.count = 0
+
+    @property
+    def full(self):
+        """Whether no row is left."""
+        return self.count == len(self.rows)
+
+    def filled(self):
+        """Return the filled rows, (count, 13)."""
+        return self.rows[:self.count]
+
+
+class BatchSerializer:
+    """
+    Serialise batches of states into the node's state messages (CDR bytes).
+
+    Parameters
+    ----------
+    body : RigidBody
+    world_frame, body_frame : str
+    geometry : MarkerGeometry, optional
+        As for :func:`~rigid_body_sim.ros.conversions.state_messages`.
+    topics : sequence of str
+        Which of :data:`~rigid_body_sim.ros.conversions.STATE_TOPICS` to serialise.
+
+    Raises
+    ------
+    RuntimeError
+        If rclpy serialises big-endian data (no supported platform does).
+
+    """
+
+    def __init__(self, body, world_frame='world', body_frame='body', geometry=None,
+                 topics=STATE_TOPICS):
+        if geometry is None:
+            geometry = marker_geometry(body)
+        self._inverse = body.inertia_inverse.tolist()
+        self._mass = body.mass
+        self._marker_axes = geometry.axes
+        self.topics = tuple(topics)
+        reference = State()
+        self._layouts = {}
+        for topic in self.topics:
+            messages = state_messages(body, reference, 0, world_frame, body_frame, geometry)
+            self._layouts[topic] = _layout(messages, topic)
+
+    def sizes(self):
+        """Return topic -> size in bytes of its serialised message (fixed for a body)."""
+        return {topic: layout[0].size for topic, layout in self._layouts.items()}
+
+    def serialize(self, rows, stamps):
+        """
+        Return topic -> (n, size) uint8 array: the serialised message of each state.
+
+        Parameters
+        ----------
+        rows : ndarray (n, 13)
+            States as :class:`StateBatch` rows.
+        stamps : ndarray (n,) of int
+            Header stamps in ns.
+
+        """
+        rows = np.asarray(rows, dtype=float)
+        stamps = np.asarray(stamps, dtype=np.int64)
+        values = self._values(rows)
+        seconds, nanoseconds = np.divmod(stamps, 1_000_000_000)
+        serialized = {}
+        for topic in self.topics:
+            template, stamp_offset, offsets = self._layouts[topic]
+            data = np.empty((len(rows), template.size), dtype=np.uint8)
+            data[:] = template
+            if stamp_offset is not None:
+                _column(data, stamp_offset, '<i4')[:] = seconds
+                _column(data, stamp_offset + 4, '<u4')[:] = nanoseconds
+            for offset, value in zip(offsets, values[topic]):
+                _column(data, offset, '<f8')[:] = value
+            serialized[topic] = data
+        return serialized
+
+    def _values(self, rows):
+        """Return topic -> list of value columns, as conversions._state_values computes."""
+        qx, qy, qz, qw = rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3]
+        position = [rows[:, 4], rows[:, 5], rows[:, 6]]
+        px, py, pz = rows[:, 7], rows[:, 8], rows[:, 9]
+        angular_momentum = [rows[:, 10], rows[:, 11], rows[:, 12]]
+        # R of rotations.matrix_from_quaternion: normalise, then the usual expansion.
+        norm = np.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
+        x, y, z, w = qx / norm, qy / norm, qz / norm, qw / norm
+        rotation = [
+            [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w)],
+            [2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w)],
+            [2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y)],
+        ]
+        mass = self._mass
+        velocity = [px / mass, py / mass, pz / mass]
+        # Omega = I_b^-1 R^T L (body frame), omega = R Omega (world frame).
+        omega_body = _multiply(self._inverse, _multiply_transposed(rotation, angular_momentum))
+        quaternion = [qx, qy, qz, qw]
+        pose = position + quaternion
+        if self._marker_axes is None:
+            marker = pose
+        else:
+            marker = position + _quaternion_product(quaternion, self._marker_axes)
+        return {
+            'pose': pose,
+            'twist': velocity + _multiply(rotation, omega_body),
+            'angular_momentum': angular_momentum,
+            'odom': pose + _multiply_transposed(rotation, velocity) + omega_body,
+            'marker': marker,
+        }
+
+
+# The products below are written term by term, left to right, as conversions writes them
+# with Python floats: the same roundings, so the same bits.
+
+
+def _multiply(matrix, vector):
+    x, y, z = vector
+    return [row[0] * x + row[1] * y + row[2] * z for row in matrix]
+
+
+def _multiply_transposed(matrix, vector):
+    (a, b, c), (d, e, f), (g, h, i) = matrix
+    x, y, z = vector
+    return [a * x + d * y + g * z, b * x + e * y + h * z, c * x + f * y + i * z]
+
+
+def _quaternion_product(a, b):
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return [aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz]
+
+
+def _column(data, offset, dtype):
+    """Return a view of one field (at byte `offset`) of every row of `data` (n, size)."""
+    dtype = np.dtype(dtype)
+    return np.ndarray((data.shape[0],), dtype=dtype, buffer=data, offset=offset,
+                      strides=(data.shape[1],))
+
+
+def _target(message, path):
+    *parents, attribute = path.split('.')
+    for parent in parents:
+        message = getattr(message, parent)
+    return message, attribute
+
+
+def _layout(messages, topic):
+    """Return (template uint8 array, stamp offset or None, field offsets) of a topic."""
+    message = messages[topic]
+    paths = _FIELDS[topic]
+    # Sentinels: values whose 8 bytes occur nowhere else in the message.
+    sentinels = [-8.765432109876e17 - 1.0e6 * k for k in range(len(paths))]
+    for path, value in zip(paths, sentinels):
+        parent, attribute = _target(message, path)
+        setattr(parent, attribute, value)
+    header = getattr(message, 'header', None)
+    if header is not None:
+        header.stamp.sec, header.stamp.nanosec = _STAMP_SENTINEL
+    template = serialize_message(message)
+    # The CDR encapsulation header: 0x00 0x01 for little-endian data.
+    if template[1] != 1:
+        raise RuntimeError('rclpy serialised big-endian CDR; the batch serializer writes '
+                           'little-endian fields')
+
+    def offset_of(packed, what):
+        offset = template.find(packed)
+        if offset < 0 or template.find(packed, offset + 1) >= 0:
+            raise RuntimeError(f'cannot locate {what} in the serialised {topic} message')
+        return offset
+
+    offsets = [offset_of(struct.pack('<d', value), path) for value, path in zip(sentinels, paths)]
+    stamp_offset = None
+    if header is not None:
+        stamp_offset = offset_of(struct.pack('<iI', *_STAMP_SENTINEL), 'the stamp')
+    buffer = bytearray(template)
+    # The template's own values do not matter (every state field and the stamp are
+    # overwritten), but zeros keep a mistake visible.
+    for offset in offsets:
+        buffer[offset:offset + 8] = bytes(8)
+    if stamp_offset is not None:
+        buffer[stamp_offset:stamp_offset + 8] = bytes(8)
+    return np.frombuffer(bytes(buffer), dtype=np.uint8), stamp_offset, offsets
