@@ -15,6 +15,7 @@ TOOLS = {
     'run': 'summary',
     'bench': 'bench',
     'scenes': 'scenes',
+    'simulate': 'simulate',
 }
 
 _EPILOG = """\
