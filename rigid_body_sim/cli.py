@@ -16,6 +16,7 @@ TOOLS = {
     'bench': 'bench',
     'scenes': 'scenes',
     'simulate': 'simulate',
+    'record': 'record',
 }
 
 _EPILOG = """\
