@@ -1,0 +1,410 @@
+"""
+A live recorder of ROS 2 topics into a rosbag2 bag, for machines without rosbag2.
+
+:func:`record` subscribes to the topics (default: everything the node publishes: its state
+topics, /diagnostics and /clock; a topic nobody publishes simply stays out of the bag),
+writes every message as it was received, and on SIGINT (Ctrl-C) or SIGTERM finishes the bag.
+
+Matching QoS.  A subscription must be compatible with the publisher and keep up with it.
+Reliability and durability follow the publishers, as ``ros2 bag record`` adapts them:
+the node's topics are subscribed at once with the policies of
+:mod:`rigid_body_sim.ros.qos` (best effort for /clock, whose publishers are best effort),
+other topics when discovery shows their type and offers (reliable if every publisher is,
+transient local if every publisher is).  History is keep-last with a deep queue (`depth`,
+default 1000: a second at 1 kHz), so a recorder that is briefly late loses nothing.
+
+No executor.  rclpy's executor costs tens of microseconds of Python per message, too much
+for five topics at 1 kHz on a small machine.  The recorder waits on its subscriptions with
+a wait set and then takes every queued message of every ready topic in one pass, the way
+``rclpy.wait_for_message`` takes one; messages are taken raw (CDR bytes, never
+deserialised) with their message info.
+
+What is written.  Each message's bag (log) time is its receive time: the DDS reception
+timestamp (system clock), or with ``use_sim_time`` the latest /clock received (0 before
+the first).  MCAP also keeps the publisher's source timestamp (publish time) and its
+publication sequence number (sequence), so a reader can count what was lost: the summary
+does, per topic, as gaps in the sequence numbers (meaningful for one publisher per topic).
+The offered QoS profiles stored per topic are those discovery reports, as ``ros2 bag
+record`` stores them.
+
+Killed.  Every `flush_period` (default 0.25 s) the bag is flushed (see
+:meth:`BagWriter.flush`): after SIGKILL the bag reads as it is, up to the last flush;
+``rigid-body-sim record --recover BAG`` rewrites it into a complete bag.
+"""
+
+import importlib
+import math
+import signal
+import threading
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray
+import rclpy
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy
+from rclpy.qos import HistoryPolicy
+from rclpy.qos import QoSProfile
+from rclpy.qos import ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock
+
+from .bag_writer import BagWriter
+from .bag_writer import offered_qos
+from .bag_writer import qos_from_profile
+from .simulate import CLOCK_TOPIC
+from .simulate import CUSTOM_DATA_PREFIX
+from .simulate import DIAGNOSTICS_TOPIC
+from .simulate import message_type_name
+from .simulate import topic_names
+from ..defaults import default_body
+from ..ros import qos
+from ..ros.conversions import state_messages
+from ..physics import State
+
+__all__ = ['NODE_NAME', 'RecordingSummary', 'default_topics', 'record']
+
+NODE_NAME = 'rigid_body_recorder'
+"""Name of the recorder's node."""
+
+# Wake up at least this often to look at the stop flag, the flush clock and discovery.
+_WAIT_TIMEOUT = 0.05  # s
+# How often topics of yet unknown type are looked up in the ROS graph.
+_DISCOVERY_PERIOD = 0.5  # s
+# The QoS of /clock publishers (rclcpp::ClockQoS and rosbag2's player: best effort).
+_CLOCK_PUBLISHER_QOS = QoSProfile(reliability=ReliabilityPolicy.BEST_EFFORT,
+                                  history=HistoryPolicy.KEEP_LAST, depth=1,
+                                  durability=DurabilityPolicy.VOLATILE)
+
+
+def default_topics(namespace=''):
+    """
+    Return absolute topic -> (message class, publisher QoS) of what the node publishes.
+
+    The state topics under `namespace`, /diagnostics and /clock.
+    """
+    messages = state_messages(default_body(), State(), 0)
+    topics = {name: (type(messages[topic]), qos.STATE_QOS)
+              for topic, name in topic_names(namespace).items()}
+    topics[DIAGNOSTICS_TOPIC] = (DiagnosticArray, qos.DIAGNOSTICS_QOS)
+    topics[CLOCK_TOPIC] = (Clock, getattr(qos, 'CLOCK_QOS', _CLOCK_PUBLISHER_QOS))
+    return topics
+
+
+class RecordingSummary:
+    """Messages recorded per topic, losses seen in sequence numbers, time and CPU used."""
+
+    def __init__(self, bag, counts, lost, wall_time, cpu_time):
+        self.bag = bag
+        self.counts = counts
+        self.lost = lost
+        self.wall_time = wall_time
+        self.cpu_time = cpu_time
+
+    @property
+    def cpu_fraction(self):
+        """Return the recorder's CPU time per wall-clock second (1.0 = one core)."""
+        return self.cpu_time / self.wall_time if self.wall_time > 0.0 else 0.0
+
+    def __str__(self):
+        lines = [f'{self.bag}: {sum(self.counts.values())} messages on {len(self.counts)} '
+                 f'topics in {self.wall_time:.1f} s, CPU {100.0 * self.cpu_fraction:.1f}% '
+                 f'of a core']
+        for topic, count in self.counts.items():
+            lost = self.lost.get(topic)
+            seen = 'lost: n/a' if lost is None else f'lost (sequence gaps): {lost}'
+            lines.append(f'  {topic}: {count} ({seen})')
+        return '\n'.join(lines)
+
+
+class _Topic:
+    """One recorded topic: its subscription, bag connection and loss count."""
+
+    def __init__(self, name, type_name, message_class, publisher_qos, recorded=True):
+        self.name = name
+        self.recorded = recorded
+        self.type_name = type_name
+        self.message_class = message_class
+        self.publisher_qos = publisher_qos
+        self.subscription = None
+        self.connection = None
+        self.last_sequence = None
+        self.lost = 0
+        self.count = 0
+
+
+def _message_class(type_name):
+    """Return the message class of a type name such as 'geometry_msgs/msg/PoseStamped'."""
+    package, kind, name = type_name.split('/')
+    return getattr(importlib.import_module(f'{package}.{kind}'), name)
+
+
+def _subscription_qos(reliability, durability, depth):
+    return QoSProfile(reliability=reliability, durability=durability,
+                      history=HistoryPolicy.KEEP_LAST, depth=depth)
+
+
+class _Recorder:
+    """The wait-and-take loop; see :func:`record`."""
+
+    def __init__(self, node, writer, topics, depth, flush_period, sync, use_sim_time, log):
+        self.node = node
+        self.writer = writer
+        self.depth = depth
+        self.flush_period = flush_period
+        self.sync = sync
+        self.use_sim_time = use_sim_time
+        self.log = log
+        self.topics = {}
+        self.pending = []  # topic names whose type is not known yet
+        self.sim_time = 0
+        self.wait_set = None
+        self.ready_handles = []
+        known = default_topics()
+        for name in topics:
+            if name in known:
+                message_class, publisher_qos = known[name]
+                self._add(name, message_type_name(message_class), message_class,
+                          publisher_qos)
+            else:
+                self.pending.append(name)
+        if use_sim_time and CLOCK_TOPIC not in self.topics:
+            # Read for the time, not recorded.
+            self._add(CLOCK_TOPIC, message_type_name(Clock), Clock,
+                      known[CLOCK_TOPIC][1], recorded=False)
+
+    def _add(self, name, type_name, message_class, publisher_qos, recorded=True):
+        topic = _Topic(name, type_name, message_class, publisher_qos, recorded)
+        profile = _subscription_qos(publisher_qos.reliability, publisher_qos.durability,
+                                    self.depth)
+        topic.subscription = self.node.create_subscription(
+            message_class, name, lambda message: None, profile, raw=True)
+        self.topics[name] = topic
+        self.wait_set = None  # rebuilt with the new subscription
+
+    def discover(self):
+        """Subscribe to the pending topics whose type and publishers the graph now shows."""
+        if not self.pending:
+            return
+        types = dict(self.node.get_topic_names_and_types())
+        for name in list(self.pending):
+            if name not in types:
+                continue
+            type_name = types[name][0]
+            offers = self.node.get_publishers_info_by_topic(name)
+            if not offers:
+                continue
+            reliable = all(info.qos_profile.reliability == ReliabilityPolicy.RELIABLE
+                           for info in offers)
+            transient = all(info.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
+                            for info in offers)
+            publisher_qos = QoSProfile(
+                reliability=(ReliabilityPolicy.RELIABLE if reliable
+                             else ReliabilityPolicy.BEST_EFFORT),
+                durability=(DurabilityPolicy.TRANSIENT_LOCAL if transient
+                            else DurabilityPolicy.VOLATILE),
+                history=HistoryPolicy.KEEP_LAST, depth=1)
+            try:
+                message_class = _message_class(type_name)
+            except (ImportError, AttributeError, ValueError):
+                self.log(f'cannot record {name}: message type {type_name} is not installed')
+                self.pending.remove(name)
+                continue
+            self._add(name, type_name, message_class, publisher_qos)
+            self.pending.remove(name)
+            self.log(f'recording {name} ({type_name})')
+
+    def _wait_set(self):
+        if self.wait_set is None:
+            self.wait_set = _rclpy.WaitSet(len(self.topics), 0, 0, 0, 0, 0,
+                                           self.node.context.handle)
+            self.ready_handles = [(topic, topic.subscription.handle,
+                                   topic.subscription.handle.pointer)
+                                  for topic in self.topics.values()]
+            # /clock first: with sim time, the messages taken after it are stamped with it.
+            self.ready_handles.sort(key=lambda item: item[0].name != CLOCK_TOPIC)
+        return self.wait_set
+
+    def wait_and_take(self, timeout):
+        """Wait up to `timeout` s for messages, then take and write every queued one."""
+        wait_set = self._wait_set()
+        wait_set.clear_entities()
+        for _, handle, _ in self.ready_handles:
+            wait_set.add_subscription(handle)
+        wait_set.wait(int(timeout * 1e9))
+        ready = wait_set.get_ready_entities('subscription')
+        if ready:
+            self.take(set(ready))
+
+    def take(self, ready=None):
+        """Take and write every queued message of the ready (default: all) topics."""
+        for topic, handle, pointer in self.ready_handles:
+            if ready is not None and pointer not in ready:
+                continue
+            message_class = topic.message_class
+            while True:
+                taken = handle.take_message(message_class, True)
+                if taken is None:
+                    break
+                self._write(topic, *taken)
+
+    def _write(self, topic, data, info):
+        if topic.name == CLOCK_TOPIC and self.use_sim_time:
+            # rosgraph_msgs/Clock in CDR: 4-byte encapsulation, int32 sec, uint32 nanosec.
+            seconds = int.from_bytes(data[4:8], 'little', signed=True)
+            self.sim_time = seconds * 1_000_000_000 + int.from_bytes(data[8:12], 'little')
+        if not topic.recorded:
+            return
+        if self.use_sim_time:
+            log_time = self.sim_time
+        else:
+            log_time = info.get('received_timestamp') or time.time_ns()
+        if topic.connection is None:
+            topic.connection = self.writer.add_topic(topic.name, topic.type_name,
+                                                     self._offers(topic))
+        sequence = info.get('publication_sequence_number')
+        if sequence is not None:
+            if topic.last_sequence is not None and sequence > topic.last_sequence + 1:
+                topic.lost += sequence - topic.last_sequence - 1
+            topic.last_sequence = sequence
+        topic.count += 1
+        self.writer.write(topic.connection, log_time, data,
+                          publish_time=info.get('source_timestamp') or log_time,
+                          sequence=sequence or 0)
+
+    def _offers(self, topic):
+        # What discovery reports now, as ros2 bag record stores it; if the publisher is not
+        # in the graph yet, what it reports for a publisher with this QoS.
+        offers = [qos_from_profile(info.qos_profile)
+                  for info in self.node.get_publishers_info_by_topic(topic.name)]
+        return offers or [offered_qos(topic.publisher_qos)]
+
+    def summary_counts(self):
+        """Return (counts, lost) per recorded topic, in the order they were first seen."""
+        recorded = [t for t in self.topics.values() if t.recorded and t.connection is not None]
+        recorded.sort(key=lambda t: t.connection.id)
+        counts = {t.name: t.count for t in recorded}
+        lost = {}
+        for t in recorded:
+            publishers = len(self.node.get_publishers_info_by_topic(t.name))
+            lost[t.name] = t.lost if t.last_sequence is not None and publishers <= 1 else None
+        return counts, lost
+
+
+def record(bag, topics=None, storage='mcap', namespace='', depth=1000, flush_period=0.25,
+           sync=True, use_sim_time=False, duration=None, stop=None, log=None, ros_args=None):
+    """
+    Record topics into a new bag until stopped; return a :class:`RecordingSummary`.
+
+    Parameters
+    ----------
+    bag : str or Path
+        New bag directory.
+    topics : sequence of str, optional
+        Topic names; relative names are taken under `namespace`.  Default: the node's
+        topics (:func:`default_topics`).
+    storage : str
+        'mcap' (default) or 'sqlite3'.
+    namespace : str
+        Namespace of the node whose topics are recorded ('' or '/name').
+    depth : int
+        Keep-last depth of each subscription's queue, in messages.
+    flush_period : float
+        Seconds between flushes; a killed recorder loses at most the last period.
+    sync : bool
+        fsync at each flush (against power loss; SIGKILL needs no fsync).
+    use_sim_time : bool
+        Bag times from /clock instead of the reception time.
+    duration : float, optional
+        Stop after this many seconds.
+    stop : threading.Event, optional
+        Stop when set.  In the main thread, SIGINT and SIGTERM also stop the recording.
+    log : callable, optional
+        Called with progress messages (default: print).
+    ros_args : list of str, optional
+        Arguments for rclpy.init (e.g. ['--ros-args', '-r', '__ns:=/rec']).
+
+    Raises
+    ------
+    ValueError
+        For an existing bag, a bad storage, depth or flush period.
+
+    """
+    if depth < 1:
+        raise ValueError(f'depth must be >= 1; got {depth}')
+    if not flush_period > 0.0:
+        raise ValueError(f'flush period must be > 0 s; got {flush_period}')
+    if duration is not None and not duration > 0.0:
+        raise ValueError(f'duration must be > 0 s; got {duration}')
+    log = log or print
+    stop = stop or threading.Event()
+    names = _absolute_topics(topics, namespace)
+    writer = BagWriter(bag, storage)
+    context = rclpy.Context()
+    rclpy.init(args=ros_args, context=context,
+               signal_handler_options=SignalHandlerOptions.NO)
+    restore = _stop_on_signals(stop)
+    node = None
+    started = time.monotonic()
+    cpu_started = time.process_time()
+    try:
+        node = Node(NODE_NAME, context=context, start_parameter_services=False)
+        writer.create()
+        writer.set_custom_data(CUSTOM_DATA_PREFIX + 'writer', 'rigid-body-sim record')
+        recorder = _Recorder(node, writer, names, depth, flush_period, sync, use_sim_time,
+                             log)
+        log(f'recording {", ".join(names)} into {writer.path} ({storage}); Ctrl-C to stop')
+        next_flush = started + flush_period
+        next_discovery = started
+        end = math.inf if duration is None else started + duration
+        while not stop.is_set():
+            now = time.monotonic()
+            if now >= end:
+                break
+            if now >= next_discovery:
+                recorder.discover()
+                next_discovery = now + _DISCOVERY_PERIOD
+            recorder.wait_and_take(min(_WAIT_TIMEOUT, max(0.0, end - now)))
+            if time.monotonic() >= next_flush:
+                writer.flush(sync)
+                next_flush = time.monotonic() + flush_period
+        # What arrived up to the stop is recorded too.
+        recorder.take()
+        counts, lost = recorder.summary_counts()
+    finally:
+        restore()
+        writer.close()
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown(context=context)
+    return RecordingSummary(writer.path, counts, lost, time.monotonic() - started,
+                            time.process_time() - cpu_started)
+
+
+def _absolute_topics(topics, namespace):
+    if not topics:
+        return list(default_topics(namespace))
+    namespace = (namespace or '').rstrip('/')
+    if namespace and not namespace.startswith('/'):
+        namespace = '/' + namespace
+    names = []
+    for topic in topics:
+        name = topic if topic.startswith('/') else f'{namespace}/{topic}'
+        if name not in names:
+            names.append(name)
+    return names
+
+
+def _stop_on_signals(stop):
+    """Set `stop` on SIGINT and SIGTERM (main thread only); return the undo function."""
+    if threading.current_thread() is not threading.main_thread():
+        return lambda: None
+    previous = {}
+    for number in (signal.SIGINT, signal.SIGTERM):
+        previous[number] = signal.signal(number, lambda *_: stop.set())
+
+    def restore():
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+    return restore
+
