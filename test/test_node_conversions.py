@@ -11,16 +11,20 @@ from geometry_msgs.msg import WrenchStamped
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message
+from rclpy.serialization import serialize_message
 from rigid_body_sim.physics import matrix_from_quaternion
 from rigid_body_sim.physics import RigidBody
 from rigid_body_sim.physics import State
 from rigid_body_sim.ros.conversions import inertia_equivalent_box
 from rigid_body_sim.ros.conversions import marker_geometry
+from rigid_body_sim.ros.conversions import marker_geometry_from_drawing
 from rigid_body_sim.ros.conversions import RejectedInput
 from rigid_body_sim.ros.conversions import state_messages
 from rigid_body_sim.ros.conversions import STATE_TOPICS
 from rigid_body_sim.ros.conversions import StateSerializer
 from rigid_body_sim.ros.conversions import wrench_input_from_message
+from rigid_body_sim.scenes import Drawing
+from rigid_body_sim.scenes import load_scene
 from visualization_msgs.msg import Marker
 
 
@@ -78,7 +82,7 @@ def test_marker_of_a_lamina_keeps_a_visible_thickness():
 def test_marker_of_a_shape_is_that_shape(shape, size, marker_type, scale):
     """Shapes are drawn as themselves, full extents along the body axes."""
     geometry = marker_geometry(RigidBody(1.0, [1.0, 1.0, 1.0]), shape, size)
-    assert geometry == (marker_type, scale, None)
+    assert geometry == (marker_type, scale, None, None)  # body axes, default colour
 
 
 def test_marker_of_a_shape_needs_its_number_of_sizes():
@@ -166,6 +170,33 @@ def test_serialized_messages_equal_state_messages(shape, size):
         for topic in STATE_TOPICS:
             message = messages[topic]
             assert deserialize_message(serialized[topic], type(message)) == message, topic
+
+
+@pytest.mark.parametrize('scene_name, marker_type', [
+    ('driven', Marker.CUBE), ('heavy_top', Marker.CYLINDER), ('default', Marker.CUBE)])
+def test_marker_of_a_scene_drawing_has_its_shape_size_and_colour(scene_name, marker_type):
+    """The drawing's size is the marker's scale; its colour survives serialisation."""
+    drawing = load_scene(scene_name).drawing
+    geometry = marker_geometry_from_drawing(drawing)
+    assert geometry.marker_type == marker_type
+    assert geometry.scale == drawing.size
+    assert geometry.axes is None
+    np.testing.assert_allclose(geometry.color, drawing.color, rtol=0, atol=2.0 ** -24)
+    body = load_scene(scene_name).body
+    state = load_scene(scene_name).state
+    marker = state_messages(body, state, 5, geometry=geometry)['marker']
+    assert deserialize_message(serialize_message(marker), Marker) == marker
+    serialized = StateSerializer(body, geometry=geometry).serialize(state, 5, ('marker',))
+    assert deserialize_message(serialized['marker'], Marker) == marker
+
+
+def test_marker_of_a_drawing_along_principal_axes_turns_with_them():
+    """A box drawn from a non-diagonal inertia lies along the principal axes."""
+    quaternion = (0.0, 0.0, math.sin(0.3), math.cos(0.3))
+    drawing = Drawing('box', (1.0, 2.0, 3.0), orientation=quaternion)
+    geometry = marker_geometry_from_drawing(drawing)
+    assert geometry.axes == quaternion
+    assert geometry.color == marker_geometry_from_drawing(Drawing('box', (1.0,) * 3)).color
 
 
 def torque_message(vector, frame_id=''):

@@ -37,6 +37,7 @@ __all__ = [
     'frame_from_frame_id',
     'inertia_equivalent_box',
     'marker_geometry',
+    'marker_geometry_from_drawing',
     'state_messages',
     'StateSerializer',
     'wrench_input_from_message',
@@ -58,13 +59,15 @@ _MIN_EDGE_FRACTION = 0.02
 _MARKER_COLOR = (0.875, 0.4375, 0.125, 0.875)
 _MARKER_NAMESPACE = 'rigid_body'
 
-MarkerGeometry = collections.namedtuple('MarkerGeometry', 'marker_type scale axes')
-MarkerGeometry.__doc__ = """How the body is drawn: an RViz marker type and its extent.
+MarkerGeometry = collections.namedtuple('MarkerGeometry', 'marker_type scale axes color',
+                                        defaults=(None,))
+MarkerGeometry.__doc__ = """How the body is drawn: an RViz marker type, its extent and colour.
 
 marker_type : int, a visualization_msgs/Marker type (CUBE, CYLINDER or SPHERE).
 scale : tuple of 3 floats, the marker's full extent along its own x, y, z (m).
 axes : quaternion (x, y, z, w) of the marker's axes in the body frame, or None when they
     are the body axes.
+color : (r, g, b, a), each 0..1, or None (default) for the package's orange.
 """
 
 WrenchInput = collections.namedtuple('WrenchInput', 'force torque frame')
@@ -161,6 +164,24 @@ def marker_geometry(body, shape='', size=()):
     return MarkerGeometry(marker_type, scale, None)
 
 
+_DRAWING_MARKER_TYPES = {'box': Marker.CUBE, 'cylinder': Marker.CYLINDER,
+                         'sphere': Marker.SPHERE, 'ellipsoid': Marker.SPHERE}
+
+
+def marker_geometry_from_drawing(drawing):
+    """
+    Return the :class:`MarkerGeometry` of a scene's :class:`~rigid_body_sim.scenes.Drawing`.
+
+    The drawing's size is already a Marker scale (m).  The colour is rounded to float32,
+    ColorRGBA's type, so that a message survives serialisation unchanged.
+    """
+    identity = tuple(float(q) for q in drawing.orientation) == (0.0, 0.0, 0.0, 1.0)
+    axes = None if identity else tuple(float(q) for q in drawing.orientation)
+    color = tuple(float(np.float32(c)) for c in drawing.color)
+    return MarkerGeometry(_DRAWING_MARKER_TYPES[drawing.shape],
+                          tuple(float(s) for s in drawing.size), axes, color)
+
+
 _POSE_FIELDS = ('position.x', 'position.y', 'position.z',
                 'orientation.x', 'orientation.y', 'orientation.z', 'orientation.w')
 _TWIST_FIELDS = ('linear.x', 'linear.y', 'linear.z', 'angular.x', 'angular.y', 'angular.z')
@@ -237,7 +258,8 @@ def _new_state_messages(world_frame, body_frame, geometry):
     marker.type = geometry.marker_type
     marker.action = Marker.ADD
     marker.scale.x, marker.scale.y, marker.scale.z = (float(s) for s in geometry.scale)
-    marker.color.r, marker.color.g, marker.color.b, marker.color.a = _MARKER_COLOR
+    marker.color.r, marker.color.g, marker.color.b, marker.color.a = (
+        _MARKER_COLOR if geometry.color is None else geometry.color)
     messages = _StateMessages(pose=pose, twist=Twist(), angular_momentum=angular_momentum,
                               odom=odom, marker=marker)
     # One Time object is shared by every header: stamping it once stamps all the messages.
