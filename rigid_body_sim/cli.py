@@ -17,6 +17,7 @@ TOOLS = {
     'scenes': 'scenes',
     'simulate': 'simulate',
     'record': 'record',
+    'plot': 'plot',
 }
 
 _EPILOG = """\
