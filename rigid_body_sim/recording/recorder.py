@@ -58,9 +58,9 @@ from .simulate import DIAGNOSTICS_TOPIC
 from .simulate import message_type_name
 from .simulate import topic_names
 from ..defaults import default_body
+from ..physics import State
 from ..ros import qos
 from ..ros.conversions import state_messages
-from ..physics import State
 
 __all__ = ['NODE_NAME', 'RecordingSummary', 'default_topics', 'record']
 
@@ -69,12 +69,13 @@ NODE_NAME = 'rigid_body_recorder'
 
 # Wake up at least this often to look at the stop flag, the flush clock and discovery.
 _WAIT_TIMEOUT = 0.05  # s
+# Shortest time between two passes over the queues: at 1 kHz a pass per message would cost
+# a wait-set round trip each; waiting a little lets every topic's queue gather a few.
+_PASS_INTERVAL = 0.002  # s
+# How long after its DDS reception stamp a sample is surely in its reader's queue.
+_ORDER_MARGIN = 20_000_000  # ns
 # How often topics of yet unknown type are looked up in the ROS graph.
 _DISCOVERY_PERIOD = 0.5  # s
-# The QoS of /clock publishers (rclcpp::ClockQoS and rosbag2's player: best effort).
-_CLOCK_PUBLISHER_QOS = QoSProfile(reliability=ReliabilityPolicy.BEST_EFFORT,
-                                  history=HistoryPolicy.KEEP_LAST, depth=1,
-                                  durability=DurabilityPolicy.VOLATILE)
 
 
 def default_topics(namespace=''):
@@ -87,7 +88,7 @@ def default_topics(namespace=''):
     topics = {name: (type(messages[topic]), qos.STATE_QOS)
               for topic, name in topic_names(namespace).items()}
     topics[DIAGNOSTICS_TOPIC] = (DiagnosticArray, qos.DIAGNOSTICS_QOS)
-    topics[CLOCK_TOPIC] = (Clock, getattr(qos, 'CLOCK_QOS', _CLOCK_PUBLISHER_QOS))
+    topics[CLOCK_TOPIC] = (Clock, qos.CLOCK_QOS)
     return topics
 
 
@@ -133,6 +134,10 @@ class _Topic:
         self.count = 0
 
 
+def _log_time(item):
+    return item[0]
+
+
 def _message_class(type_name):
     """Return the message class of a type name such as 'geometry_msgs/msg/PoseStamped'."""
     package, kind, name = type_name.split('/')
@@ -157,6 +162,11 @@ class _Recorder:
         self.log = log
         self.topics = {}
         self.pending = []  # topic names whose type is not known yet
+        # Taken, not yet written: (log time, connection, data, publish time, sequence).
+        # Topics are taken one after the other, so messages are written only once no
+        # earlier one can still come, in the order of their times: an MCAP file without
+        # index (a killed recorder's) must be in time order for rosbags to read it.
+        self.buffer = []
         self.sim_time = 0
         self.wait_set = None
         self.ready_handles = []
@@ -226,18 +236,37 @@ class _Recorder:
         return self.wait_set
 
     def wait_and_take(self, timeout):
-        """Wait up to `timeout` s for messages, then take and write every queued one."""
+        """Wait up to `timeout` s for messages, take every queued one, write in time order."""
         wait_set = self._wait_set()
         wait_set.clear_entities()
         for _, handle, _ in self.ready_handles:
             wait_set.add_subscription(handle)
         wait_set.wait(int(timeout * 1e9))
+        woke = time.time_ns()
         ready = wait_set.get_ready_entities('subscription')
         if ready:
             self.take(set(ready))
+        # A topic that was not ready when the wait returned had nothing received before
+        # then; so every message received before `woke` (less a margin for the time DDS
+        # takes from stamping a sample to queueing it) has now been taken.
+        self.write_buffered(math.inf if self.use_sim_time else woke - _ORDER_MARGIN)
+
+    def write_buffered(self, before=math.inf):
+        """Write the taken messages received before `before` (ns), in time order."""
+        buffer = self.buffer
+        if not buffer:
+            return
+        buffer.sort(key=_log_time)
+        count = len(buffer)
+        if buffer[-1][0] >= before:
+            count = next(k for k, item in enumerate(buffer) if item[0] >= before)
+        write = self.writer.write
+        for log_time, connection, data, publish_time, sequence in buffer[:count]:
+            write(connection, log_time, data, publish_time, sequence)
+        del buffer[:count]
 
     def take(self, ready=None):
-        """Take and write every queued message of the ready (default: all) topics."""
+        """Take every queued message of the ready (default: all) topics into the buffer."""
         for topic, handle, pointer in self.ready_handles:
             if ready is not None and pointer not in ready:
                 continue
@@ -246,9 +275,9 @@ class _Recorder:
                 taken = handle.take_message(message_class, True)
                 if taken is None:
                     break
-                self._write(topic, *taken)
+                self._keep(topic, *taken)
 
-    def _write(self, topic, data, info):
+    def _keep(self, topic, data, info):
         if topic.name == CLOCK_TOPIC and self.use_sim_time:
             # rosgraph_msgs/Clock in CDR: 4-byte encapsulation, int32 sec, uint32 nanosec.
             seconds = int.from_bytes(data[4:8], 'little', signed=True)
@@ -268,9 +297,8 @@ class _Recorder:
                 topic.lost += sequence - topic.last_sequence - 1
             topic.last_sequence = sequence
         topic.count += 1
-        self.writer.write(topic.connection, log_time, data,
-                          publish_time=info.get('source_timestamp') or log_time,
-                          sequence=sequence or 0)
+        self.buffer.append((log_time, topic.connection, data,
+                            info.get('source_timestamp') or log_time, sequence or 0))
 
     def _offers(self, topic):
         # What discovery reports now, as ros2 bag record stores it; if the publisher is not
@@ -365,11 +393,15 @@ def record(bag, topics=None, storage='mcap', namespace='', depth=1000, flush_per
                 recorder.discover()
                 next_discovery = now + _DISCOVERY_PERIOD
             recorder.wait_and_take(min(_WAIT_TIMEOUT, max(0.0, end - now)))
+            rest = now + _PASS_INTERVAL - time.monotonic()
+            if rest > 0.0:
+                time.sleep(rest)
             if time.monotonic() >= next_flush:
                 writer.flush(sync)
                 next_flush = time.monotonic() + flush_period
         # What arrived up to the stop is recorded too.
         recorder.take()
+        recorder.write_buffered()
         counts, lost = recorder.summary_counts()
     finally:
         restore()
@@ -407,4 +439,3 @@ def _stop_on_signals(stop):
         for number, handler in previous.items():
             signal.signal(number, handler)
     return restore
-

@@ -188,7 +188,7 @@ def recover_bag(path, force=False):
                 truncated = _recover_mcap(storage, writer)
             else:
                 truncated = _recover_sqlite3(storage, writer)
-            counts = {topic: count for topic, count in writer.message_counts.items()}
+            counts = dict(writer.message_counts)
     except BaseException:
         shutil.rmtree(path, ignore_errors=True)
         original.rename(path)

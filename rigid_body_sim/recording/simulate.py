@@ -27,10 +27,6 @@ from diagnostic_msgs.msg import DiagnosticArray
 from diagnostic_msgs.msg import DiagnosticStatus
 from diagnostic_msgs.msg import KeyValue
 import numpy as np
-from rclpy.qos import DurabilityPolicy
-from rclpy.qos import HistoryPolicy
-from rclpy.qos import QoSProfile
-from rclpy.qos import ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 
@@ -39,7 +35,7 @@ from .bag_writer import offered_qos
 from .state_batch import BatchSerializer
 from .state_batch import StateBatch
 from ..ros import qos
-from ..ros.conversions import marker_geometry
+from ..ros.conversions import marker_geometry_from_drawing
 from ..ros.conversions import state_messages
 from ..ros.conversions import STATE_TOPICS
 from ..ros.node import NODE_NAME
@@ -49,7 +45,6 @@ __all__ = [
     'DIAGNOSTICS_TOPIC',
     'SimulationSummary',
     'message_type_name',
-    'node_marker_geometry',
     'simulate_to_bag',
     'stamp_nanoseconds',
     'topic_names',
@@ -58,11 +53,6 @@ __all__ = [
 DIAGNOSTICS_TOPIC = '/diagnostics'
 CLOCK_TOPIC = '/clock'
 
-# The QoS of /clock as every ROS 2 clock publisher has it (rclcpp::ClockQoS): best effort,
-# keep last 1.  The node's own, if qos.py defines one, takes precedence.
-_CLOCK_QOS = getattr(qos, 'CLOCK_QOS', QoSProfile(
-    reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST, depth=1,
-    durability=DurabilityPolicy.VOLATILE))
 
 # Ticks serialised and written at once (at most; a batch also ends with each simulated
 # second): a few hundred rows amortise numpy's per-call cost, and 1024 ticks of all
@@ -125,30 +115,6 @@ def stamp_nanoseconds(start_nanoseconds, tick, rate):
         return start_nanoseconds + (tick * 1_000_000_000 + whole // 2) // whole
     nanoseconds = np.rint(np.asarray(tick) * 1e9 / rate).astype(np.int64)
     return start_nanoseconds + (nanoseconds if nanoseconds.ndim else int(nanoseconds))
-
-
-def node_marker_geometry(scene):
-    """
-    Return the MarkerGeometry the node draws the scene's body with.
-
-    The node draws a body given by shape as that shape with its sizes, and a body given by
-    its inertia as the box with the same principal moments
-    (:func:`rigid_body_sim.ros.conversions.marker_geometry`).  A scene's ``draw`` section
-    has no node parameter and is not used.
-    """
-    body_data = scene.data.get('body', {})
-    shape = body_data.get('shape') if 'inertia' not in body_data else None
-    if shape == 'box':
-        size = body_data['size']
-    elif shape == 'cylinder':
-        size = (body_data['radius'], body_data['height'])
-    elif shape == 'sphere':
-        size = (body_data['radius'],)
-    elif shape == 'ellipsoid':
-        size = body_data['semi_axes']
-    else:
-        return marker_geometry(scene.body)
-    return marker_geometry(scene.body, shape, [float(s) for s in np.ravel(size)])
 
 
 def _tick_count(duration, rate):
@@ -223,7 +189,7 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
     names = topic_names(namespace)
     simulator = scene.simulator(integrator=integrator)
     body = simulator.body
-    geometry = node_marker_geometry(scene)
+    geometry = marker_geometry_from_drawing(scene.drawing)
     serializer = BatchSerializer(body, world_frame, body_frame, geometry)
     # The message classes, hence type names, are those of conversions.state_messages.
     types = {topic: message_type_name(type(message)) for topic, message in state_messages(
@@ -238,7 +204,7 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
         clock_connection = None
         if clock:
             clock_connection = writer.add_topic(CLOCK_TOPIC, message_type_name(Clock),
-                                                [offered_qos(_CLOCK_QOS)])
+                                                [offered_qos(qos.CLOCK_QOS)])
         state_offer = [offered_qos(qos.STATE_QOS)]
         connections = [(topic, writer.add_topic(names[topic], types[topic], state_offer))
                        for topic in STATE_TOPICS]

@@ -10,7 +10,7 @@ leaves a bag that rosbags and the mcap tools read up to the last flush; --recove
 rewrites such a bag into a complete one (index, summary, metadata.yaml), keeping the
 original as BAG.orig.
 
-examples:
+Typical use:
   rigid-body-sim record --bag run1                 the node's topics until Ctrl-C
   rigid-body-sim record --bag run2 pose twist --duration 60
   rigid-body-sim record --recover run1             after a kill -9
@@ -25,7 +25,7 @@ from ..recording.bag_writer import STORAGES
 def add_arguments(parser):
     """Add the options of ``rigid-body-sim record``."""
     parser.add_argument('topics', nargs='*', metavar='TOPIC',
-                        help="topics to record; relative names are under --namespace "
+                        help='topics to record; relative names are under --namespace '
                              "(default: the node's pose, twist, angular_momentum, odom, "
                              'marker, /diagnostics, /clock)')
     parser.add_argument('--bag', help='bag directory to create (default: '

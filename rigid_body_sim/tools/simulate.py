@@ -9,7 +9,7 @@ stamps read as simulated time; 'now' for the wall clock at start).  The bag is M
 default (sqlite3 with --storage sqlite3) and plays with `ros2 bag play`, reads with rosbags
 or the mcap tools, and plots with `rigid-body-sim plot`.
 
-examples:
+Typical use:
   rigid-body-sim simulate --scene tennis_racket --duration 30
   rigid-body-sim simulate --scene default --duration 60 --rate 1000 --bag t_handle_1khz
   rigid-body-sim plot t_handle_1khz --out t_handle.png
