@@ -139,19 +139,24 @@ class Client:
     kept per topic with their arrival time (``time.monotonic()``).
 
     :param namespace: the simulator node's namespace.
+    :param extra_topics: more topics to record, ``{topic: (message type, QoS)}``.
     """
 
-    def __init__(self, namespace):
+    def __init__(self, namespace, extra_topics=None):
         self.namespace = namespace
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
         self.node = rclpy.create_node('test_client', namespace=namespace, context=self.context)
         self._lock = threading.Lock()
-        self._received = {topic: [] for topic in list(STATE_TYPES) + ['/diagnostics']}
-        for topic, message_type in STATE_TYPES.items():
+        extra_topics = dict(extra_topics or {})
+        self._received = {topic: []
+                          for topic in list(STATE_TYPES) + ['/diagnostics'] + list(extra_topics)}
+        topics = {topic: (message_type, STATE_QOS) for topic, message_type in STATE_TYPES.items()}
+        topics.update(extra_topics)
+        for topic, (message_type, qos) in topics.items():
             self.node.create_subscription(
                 message_type, topic,
-                lambda message, topic=topic: self._record(topic, message), STATE_QOS)
+                lambda message, topic=topic: self._record(topic, message), qos)
         self.node.create_subscription(
             DiagnosticArray, '/diagnostics', self._diagnostics_callback, STATE_QOS)
         self.torque_publisher = self.node.create_publisher(Vector3Stamped, 'torque', STATE_QOS)
@@ -216,12 +221,17 @@ class Client:
                       f'{count} messages on {topic}')
         return self.messages(topic, since)
 
-    def wait_until_connected(self, timeout=DISCOVERY_TIMEOUT):
-        """Wait until the node publishes to us and its inputs and services are matched."""
+    def wait_until_connected(self, timeout=DISCOVERY_TIMEOUT, inputs=True):
+        """
+        Wait until the node publishes to us and its inputs and services are matched.
+
+        :param inputs: whether to wait for its torque and wrench subscriptions too (a scene
+            without external_wrench has none).
+        """
         self.wait_for(
             lambda: all(self.received(topic) for topic in STATE_TYPES)
-            and self.torque_publisher.get_subscription_count() > 0
-            and self.wrench_publisher.get_subscription_count() > 0
+            and (not inputs or self.torque_publisher.get_subscription_count() > 0)
+            and (not inputs or self.wrench_publisher.get_subscription_count() > 0)
             and self.reset_client.service_is_ready()
             and self.pause_client.service_is_ready()
             and self.parameters_client.service_is_ready(),

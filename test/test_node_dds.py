@@ -1,11 +1,12 @@
 """
 The node over real DDS: its topics, inputs, services and parameters.
 
-One node runs at 100 Hz with the default body (the T-handle spinning near its middle axis)
-for the whole module, in a namespace of its own; each test starts from a reset.  The
-integrator is Buss's, whose kick-drift-kick splitting applies a held wrench as two half
-kicks, p <- p + h/2 F, L <- L + h/2 tau, around the free rotation: the expected momentum
-changes below follow from that exactly, to round-off.
+One node runs at 100 Hz with the default scene (the T-handle spinning near its middle axis,
+with external_wrench) for the whole module, in a namespace of its own; each test starts from
+a reset.  The integrator is Buss's (set: the scene's is the splitting), whose
+kick-drift-kick splitting applies a held wrench as two half kicks, p <- p + h/2 F,
+L <- L + h/2 tau, around the free rotation: the expected momentum changes below follow from
+that exactly, to round-off.
 """
 
 import math
@@ -19,10 +20,9 @@ from node_harness import STATE_TYPES
 from node_harness import unique_namespace
 import numpy as np
 import pytest
-from rigid_body_sim.defaults import default_body
-from rigid_body_sim.defaults import default_state
 from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import matrix_from_quaternion
+from rigid_body_sim.scenes import load_scene
 
 pytestmark = pytest.mark.xdist_group('node')
 
@@ -30,8 +30,8 @@ RATE = 100.0
 PERIOD = 1.0 / RATE
 INPUT_TIMEOUT = 0.5
 MAX_WRENCH = 1000.0
-BODY = default_body()
-INITIAL = default_state(BODY)
+BODY = load_scene('default').body
+INITIAL = load_scene('default').state
 L0 = np.array(INITIAL.angular_momentum)
 # Round-off bound for momenta of size ~|L0| = 4 after a few hundred additions.
 ROUND_OFF = 1e-12 * max(1.0, float(np.linalg.norm(L0)))
@@ -42,12 +42,12 @@ SETTLE = 0.3
 
 @pytest.fixture(scope='module')
 def sim(tmp_path_factory):
-    """Start the node (default parameters, 100 Hz) and a client; stop both at the end."""
+    """Start the node (default scene, buss, 100 Hz) and a client; stop both at the end."""
     isolate_ros_environment()
     namespace = unique_namespace()
     node = NodeProcess(tmp_path_factory.mktemp('node') / 'node.log', namespace=namespace,
                        parameters={'rate': RATE, 'input_timeout': INPUT_TIMEOUT,
-                                   'max_wrench': MAX_WRENCH})
+                                   'max_wrench': MAX_WRENCH, 'integrator': 'buss'})
     client = Client(namespace)
     try:
         client.wait_until_connected()
@@ -357,9 +357,11 @@ def test_an_unknown_integrator_is_rejected_with_the_valid_names(sim):
 
 
 def test_read_only_parameters_cannot_change_at_run_time(sim):
-    """The rate and the body are fixed once the node runs."""
+    """The scene, the rate, the body and the clock are fixed once the node runs."""
+    assert not sim.set_parameter('scene', 'heavy_top').successful
     assert not sim.set_parameter('rate', 50.0).successful
     assert not sim.set_parameter('body.mass', 2.0).successful
+    assert not sim.set_parameter('publish_clock', True).successful
 
 
 def test_reset_returns_to_the_initial_state(sim):

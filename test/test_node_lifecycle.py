@@ -20,7 +20,7 @@ from visualization_msgs.msg import Marker
 
 pytestmark = pytest.mark.xdist_group('node')
 
-STARTED = 'simulating a body of'
+STARTED = 'simulating scene'
 
 
 @pytest.fixture(autouse=True)
@@ -70,30 +70,53 @@ def test_a_signal_ends_the_node_cleanly_with_exit_code_0(tmp_path, signal_number
     assert ' ticks, ' in output  # the shutdown summary: it stopped in order
 
 
+# A scene file with one mistake: the pivot point has two coordinates.
+BROKEN_SCENE = """\
+name: broken
+description: a heavy top whose pivot point lacks a coordinate
+body: {mass: 0.3, shape: cylinder, radius: 0.04, height: 0.01}
+effects:
+  - pivot: {point: [0.0, -0.04]}
+  - gravity
+"""
+
+# label -> (parameters, what the one error line must say)
 BAD_CONFIGURATIONS = {
-    'body.inertia': ('[1.0, 1.0, 3.0]', 'triangle inequality'),
-    'integrator': ('euler', "unknown integrator 'euler'; valid integrators: "),
-    'rate': ('100', "parameter 'rate' must be a double; got 100"),
-    'body.mass': ('-2.0', 'mass must be > 0 kg'),
-    'initial.orientation': ('[0.0, 0.0, 0.0, 2.0]', 'must be a unit quaternion'),
-    'substeps': ('0', "parameter 'substeps' must be in [1, 100000]; got 0"),
+    'inertia': ({'body.inertia': '[1.0, 1.0, 3.0]'}, 'triangle inequality'),
+    'integrator': ({'integrator': 'euler'}, "unknown integrator 'euler'; valid integrators: "),
+    'rate': ({'rate': '100'}, "parameter 'rate' must be a double; got 100"),
+    'mass': ({'body.mass': '-2.0'}, 'body.mass: must be > 0 kg'),
+    'orientation': ({'initial.orientation': '[0.0, 0.0, 0.0, 2.0]'},
+                    'must be a unit quaternion'),
+    'substeps': ({'substeps': '0'}, "parameter 'substeps' must be in [1, 100000]; got 0"),
+    'real_time_factor': ({'real_time_factor': '0.0'},
+                         "parameter 'real_time_factor' must be in [0.001, 1000.0]; got 0.0"),
+    'unknown scene': ({'scene': 'no_such_scene'},
+                      "unknown scene 'no_such_scene'; built-in scenes: bike_wheel, default"),
+    'broken scene': ({'scene': '{tmp}/broken.yaml'},
+                     '/broken.yaml: effects[0].pivot.point: expected 3 numbers, got 2'),
+    'pivot position': ({'scene': 'heavy_top', 'initial.position': '[0.0, 0.0, 1.0]'},
+                       'initial.position: not allowed with a pivot'),
 }
 
 
 def test_a_bad_configuration_exits_non_zero_with_one_clear_error(tmp_path):
-    """Each bad value: one ERROR line naming the problem, no traceback, exit code 1."""
-    nodes = {name: NodeProcess(tmp_path / f'{name}.log', namespace=unique_namespace(),
-                               parameters={name: value})
-             for name, (value, _) in BAD_CONFIGURATIONS.items()}  # started together
+    """Each bad value or scene: one ERROR line naming the problem, no traceback, exit 1."""
+    (tmp_path / 'broken.yaml').write_text(BROKEN_SCENE)
+    nodes = {}
+    for label, (parameters, _) in BAD_CONFIGURATIONS.items():  # started together
+        parameters = {name: value.format(tmp=tmp_path) for name, value in parameters.items()}
+        nodes[label] = NodeProcess(tmp_path / f'{label}.log', namespace=unique_namespace(),
+                                   parameters=parameters)
     try:
-        for name, node in nodes.items():
+        for label, node in nodes.items():
             code = node.wait(60.0)
             output = node.output()
-            assert code == 1, (name, code, output)
+            assert code == 1, (label, code, output)
             errors = [line for line in output.splitlines() if 'ERROR' in line]
             assert len(errors) == 1, output
             assert 'invalid configuration' in errors[0]
-            assert BAD_CONFIGURATIONS[name][1] in errors[0], (name, errors[0])
+            assert BAD_CONFIGURATIONS[label][1] in errors[0], (label, errors[0])
             assert 'Traceback' not in output
     finally:
         for node in nodes.values():

@@ -1,33 +1,43 @@
 """
-The rigid_body_sim ROS 2 node: a timer-driven simulation of one rigid body.
+The rigid_body_sim ROS 2 node: a timer-driven simulation of one rigid body in a scene.
 
-Each tick of a timer at ``rate`` Hz applies the queued inputs, service requests and
-parameter changes in the order they came, expires inputs older than ``input_timeout``,
-advances the simulation by the nominal period 1/rate in ``substeps`` equal steps (simulated
-time follows the nominal period, not wall-clock jitter), then publishes the state, stamped
-with the node's clock.
+The parameter ``scene`` (:mod:`rigid_body_sim.scenes`) gives the body, its initial state,
+the effects on it (gravity, a pivot, drag, ...), how to draw it, and the default integrator
+and rate; the body and initial-state parameters that are set override it (see
+:mod:`rigid_body_sim.ros.parameters`).
+
+Each tick applies the queued inputs, service requests and parameter changes in the order
+they came, expires inputs older than ``input_timeout``, advances the simulation by the
+nominal period 1/rate in ``substeps`` equal steps (simulated time follows the nominal
+period, not wall-clock jitter), then publishes the state.  Ticks come every
+(1/rate)/real_time_factor s of wall-clock time.  Stamps: the node's clock, or with
+``publish_clock`` the simulated time, which is then also published on ``/clock``.
 
 The timer is a thread of its own on the steady clock, not an rclpy timer: rclpy's executor
 costs ~0.4 ms of CPU per timer callback on the reference machine, which alone would take 40%
-of a core at 1 kHz.  The executor thread only runs the subscription, service and parameter
+of a core at 1 kHz; and a timer on the node's clock would never fire under
+``use_sim_time:=true`` until a /clock arrived, which with ``publish_clock`` only its own
+ticks would publish.  The executor thread only runs the subscription, service and parameter
 callbacks, and they only queue work, so the simulation is touched by the tick thread alone.
 
 Topics (relative names, so ``--ros-args -r __ns:=/sat1`` namespaces them):
 
 - published: ``pose``, ``twist``, ``angular_momentum``, ``odom``, ``marker`` (see
-  :func:`rigid_body_sim.ros.conversions.state_messages`), and ``/diagnostics`` at 1 Hz;
-- subscribed: ``torque`` (Vector3Stamped) and ``wrench`` (WrenchStamped).  The header's
-  frame_id chooses world-fixed (``world_frame`` or empty) or body-fixed (``body_frame``).
-  Each topic holds its latest input until replaced or timed out; the two topics' inputs
-  add up.
+  :func:`rigid_body_sim.ros.conversions.state_messages`; the marker is the scene's
+  drawing), ``/diagnostics`` at 1 Hz, and with ``publish_clock`` ``/clock`` at every tick;
+- subscribed, only if the scene has the effect ``external_wrench``: ``torque``
+  (Vector3Stamped) and ``wrench`` (WrenchStamped).  The header's frame_id chooses
+  world-fixed (``world_frame`` or empty) or body-fixed (``body_frame``).  Each topic holds
+  its latest input until replaced or timed out; the two topics' inputs add up.
 
-Services: ``reset`` (std_srvs/Trigger) and ``pause`` (std_srvs/SetBool).  Parameters: see
-:mod:`rigid_body_sim.ros.parameters`.  The model is :class:`rigid_body_sim.physics.Simulator`;
-this module only converts between it and ROS.
+Services: ``reset`` (std_srvs/Trigger) and ``pause`` (std_srvs/SetBool).  The model is the
+scene's :class:`rigid_body_sim.physics.Simulator`; this module only converts between it and
+ROS.
 """
 
 import collections
 import math
+import struct
 import sys
 import threading
 import time
@@ -46,23 +56,28 @@ import rclpy
 from rclpy.clock import ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
+from rclpy.serialization import serialize_message
+from rosgraph_msgs.msg import Clock
 from std_srvs.srv import SetBool
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker
 
+from .conversions import marker_geometry_from_drawing
 from .conversions import RejectedInput
 from .conversions import STATE_TOPICS
 from .conversions import StateSerializer
 from .conversions import wrench_input_from_message
-from .parameters import body_and_state_from_parameters
+from .conversions import WrenchInput
 from .parameters import check_integrator
 from .parameters import declare_parameters
-from .parameters import marker_geometry_from_parameters
+from .parameters import declare_scene_parameter
 from .parameters import PARAMETERS
+from .parameters import scene_from_parameters
+from .qos import CLOCK_QOS
 from .qos import DIAGNOSTICS_QOS
 from .qos import INPUT_QOS
 from .qos import STATE_QOS
-from ..physics import Simulator
+from ..scenes import load_scene
 
 __all__ = ['RigidBodyNode', 'ConfigurationError', 'main', 'NODE_NAME']
 
@@ -72,6 +87,7 @@ NODE_NAME = 'rigid_body_sim'
 _MESSAGE_TYPES = {'pose': PoseStamped, 'twist': Twist, 'angular_momentum': Vector3Stamped,
                   'odom': Odometry, 'marker': Marker}
 _INPUT_TOPICS = {'torque': Vector3Stamped, 'wrench': WrenchStamped}
+_CLOCK_TOPIC = '/clock'
 _DIAGNOSTICS_PERIOD = 1.0  # s
 _WARNING_PERIOD = 1.0  # s between two warnings of the same kind
 # Ring of the latest tick durations: 65536 ticks is over a minute at 1 kHz, enough for the
@@ -120,19 +136,22 @@ class RigidBodyNode(Node):
     # -- set-up
 
     def _configure(self):
-        values = declare_parameters(self)
+        # The scene first: its integrator and rate are the defaults of those parameters.
+        scene = load_scene(declare_scene_parameter(self))
+        values = declare_parameters(self, scene)
         self._warn_unknown_overrides()
-        reason = check_integrator(values['integrator'])
-        if reason is not None:
-            raise ValueError(f"parameter 'integrator': {reason}")
-        body, state = body_and_state_from_parameters(values)
-        self._initial_state = state
-        self._simulator = Simulator(body, state, integrator=values['integrator'])
-        self._rate = values['rate']
+        scene = scene_from_parameters(scene, values)
+        self._scene = scene
+        body = scene.body
+        self._initial_state = scene.state
+        self._simulator = scene.simulator()
+        self._rate = scene.rate
         self._period = 1.0 / self._rate
+        self._real_time_factor = values['real_time_factor']
+        self._wall_period = self._period / self._real_time_factor
         # One throwaway step loads the integrator's compiled kernel (~0.5 s) now rather than
         # in the first tick.
-        Simulator(body, state, integrator=values['integrator']).step(self._period)
+        scene.simulator().step(self._period)
         self._substeps = values['substeps']
         self._input_timeout_ns = int(values['input_timeout'] * 1e9)
         self._max_wrench = values['max_wrench']
@@ -144,12 +163,24 @@ class RigidBodyNode(Node):
 
         self._serializer = StateSerializer(
             body, self._world_frame, self._body_frame,
-            geometry=marker_geometry_from_parameters(body, values))
+            geometry=marker_geometry_from_drawing(scene.drawing))
         self._state_publishers = [
             (topic, self.create_publisher(_MESSAGE_TYPES[topic], topic, STATE_QOS))
             for topic in STATE_TOPICS]
         self._diagnostics_publisher = self.create_publisher(
             DiagnosticArray, '/diagnostics', DIAGNOSTICS_QOS)
+        # Simulated time: _clock_ticks whole periods since start-up, counted on through
+        # resets and not while paused, so /clock never goes back.
+        self._publish_clock = values['publish_clock']
+        self._clock_ticks = 0
+        self._clock_subscribed = False
+        self._clock_publisher = None
+        if self._publish_clock:
+            self._clock_publisher = self.create_publisher(Clock, _CLOCK_TOPIC, CLOCK_QOS)
+            # Clock is a lone Time: its CDR bytes are a 4-byte header, then sec and nanosec.
+            self._clock_message = bytearray(serialize_message(Clock()))
+            self._clock_packer = struct.Struct(('<' if self._clock_message[1] == 1 else '>')
+                                               + 'iI')
 
         # Work queued by the callbacks (executor thread), done in order by the tick thread;
         # deque.append and popleft are atomic, so no lock is needed.
@@ -158,10 +189,18 @@ class RigidBodyNode(Node):
         self._paused = False
         self._last_warning = {}
         self._rejected = 0
-        for topic, message_type in _INPUT_TOPICS.items():
-            self.create_subscription(
-                message_type, topic,
-                lambda message, topic=topic: self._input_callback(topic, message), INPUT_QOS)
+        self._limited = 0
+        external_wrench = scene.external_wrench
+        self._limit = None if external_wrench is None or (
+            external_wrench.max_force is None and external_wrench.max_torque is None) \
+            else external_wrench.limit
+        # Only a scene that takes outside input listens for it.
+        if scene.accepts_external_wrench:
+            for topic, message_type in _INPUT_TOPICS.items():
+                self.create_subscription(
+                    message_type, topic,
+                    lambda message, topic=topic: self._input_callback(topic, message),
+                    INPUT_QOS)
         self.create_service(Trigger, 'reset', self._reset_callback)
         self.create_service(SetBool, 'pause', self._pause_callback)
         self.add_on_set_parameters_callback(self._validate_parameters_callback)
@@ -177,11 +216,19 @@ class RigidBodyNode(Node):
         self._next_diagnostics = time.monotonic() + _DIAGNOSTICS_PERIOD
         self._set_drift_reference()
         moments = ', '.join(f'{m:.4g}' for m in body.principal_moments)
+        effects = ', '.join(scene.effect_names()) or 'none (torque-free)'
+        inputs = 'torque and wrench' if scene.accepts_external_wrench else 'no inputs'
+        timing = ''
+        if self._real_time_factor != 1.0:
+            timing += f', {self._real_time_factor:g}x real time'
+        if self._publish_clock:
+            timing += ', publishing /clock (stamps in simulated time)'
         self.get_logger().info(
-            f'simulating a body of {body.mass:g} kg, principal moments ({moments}) kg m^2, '
-            f'with {self._simulator.integrator} at {self._rate:g} Hz x {self._substeps} '
-            f'substep(s); publishing pose, twist, angular_momentum, odom, marker in frame '
-            f'{self._world_frame!r}')
+            f'simulating scene {scene.name!r}: a body of {body.mass:g} kg, principal moments '
+            f'({moments}) kg m^2, effects: {effects}; {self._simulator.integrator} at '
+            f'{self._rate:g} Hz x {self._substeps} substep(s){timing}; publishing pose, '
+            f'twist, angular_momentum, odom, marker in frame {self._world_frame!r}; '
+            f'subscribed to {inputs}')
 
     def _warn_unknown_overrides(self):
         # rclpy ignores overrides of undeclared parameters: a typo in a params file would
@@ -215,11 +262,12 @@ class RigidBodyNode(Node):
         # on average whatever each tick's jitter.  A tick that comes late (the process was
         # not scheduled) is followed at once by the ticks it held up, so simulated time keeps
         # pace with the clock; beyond _MAX_LAG the missed ticks are dropped instead.
-        period = self._period
-        max_lag = max(_MAX_LAG, 2.0 * period)
         deadline = time.monotonic()
         stop = self._stop
         while not stop.is_set():
+            # Read every time: real_time_factor may change at run time.
+            period = self._wall_period
+            max_lag = max(_MAX_LAG, 2.0 * period)
             deadline += period
             delay = deadline - time.monotonic()
             if delay > 0.0:
@@ -263,11 +311,20 @@ class RigidBodyNode(Node):
                 simulator.step(self._period)
             else:
                 simulator.run(self._period, self._period / self._substeps)
+            self._clock_ticks += 1
         step_duration = time.perf_counter() - stepped
         if self._ticks >= self._next_subscriber_check:
             self._check_subscribers()
+        stamp = now
+        if self._publish_clock:
+            # /clock first: a sim-time consumer's clock reaches a stamp before the message.
+            stamp = self._simulated_nanoseconds()
+            if self._clock_subscribed:
+                self._clock_packer.pack_into(self._clock_message, 4,
+                                             *divmod(stamp, 1_000_000_000))
+                self._clock_publisher.publish(bytes(self._clock_message))
         if self._subscribed:
-            serialized = self._serializer.serialize(simulator.state, now, self._subscribed)
+            serialized = self._serializer.serialize(simulator.state, stamp, self._subscribed)
             for topic, publisher in self._subscribed.items():
                 publisher.publish(serialized[topic])
         index = self._ticks % _HISTORY
@@ -284,6 +341,15 @@ class RigidBodyNode(Node):
     tick_error = None
     """The exception that stopped the tick thread, if one did."""
 
+    def _simulated_nanoseconds(self):
+        # k periods of 1/rate s in ns, rounded; in integer arithmetic for a whole number of
+        # Hz, so the spacing is exact (1e9/rate ns when that is whole) however long the run.
+        rate = self._rate
+        if rate.is_integer():
+            whole = int(rate)
+            return (self._clock_ticks * 1_000_000_000 + whole // 2) // whole
+        return round(self._clock_ticks * 1e9 / rate)
+
     def _check_subscribers(self):
         # A topic nobody subscribes to is neither serialised nor published: the tick then
         # costs what the listeners need.  Checked every _SUBSCRIBER_CHECK_PERIOD s, so a
@@ -291,6 +357,8 @@ class RigidBodyNode(Node):
         # whether the node's clock follows /clock (use_sim_time) or the system clock.
         self._subscribed = {topic: publisher for topic, publisher in self._state_publishers
                             if publisher.get_subscription_count() > 0}
+        self._clock_subscribed = self._publish_clock and \
+            self._clock_publisher.get_subscription_count() > 0
         clock = self.get_clock()
         self._system_time = clock.clock_type == ClockType.SYSTEM_TIME or (
             clock.clock_type == ClockType.ROS_TIME and not clock.ros_time_is_active)
@@ -326,6 +394,10 @@ class RigidBodyNode(Node):
             self._substeps = value
         elif name == 'input_timeout':
             self._input_timeout_ns = int(value * 1e9)
+        elif name == 'real_time_factor':
+            self._real_time_factor = value
+            self._wall_period = self._period / value
+            self.get_logger().info(f'real_time_factor is now {value:g}')
 
     def _expire_inputs(self, now):
         expired = False
@@ -368,12 +440,22 @@ class RigidBodyNode(Node):
             self._warn_throttled((topic, error.kind),
                                  f'rejected a {topic} input, state unchanged: {error}')
             return
+        if self._limit is not None:
+            force, torque = self._limit(wrench.force, wrench.torque)
+            if np.any(force != wrench.force) or np.any(torque != wrench.torque):
+                self._limited += 1
+                limits = self._scene.external_wrench
+                self._warn_throttled((topic, 'limit'), (
+                    f"scaled a {topic} input down to the scene's limits (max_force "
+                    f'{limits.max_force} N, max_torque {limits.max_torque} N m)'))
+                wrench = WrenchInput(force, torque, wrench.frame)
         self._queue.append(('input', topic, wrench, received))
 
     def _reset_callback(self, request, response):
         self._queue.append(('reset',))
         response.success = True
-        response.message = 'reset to the initial state and time 0 at the next tick'
+        response.message = 'reset to the initial state and time 0 at the next tick' + (
+            ' (/clock counts on)' if self._publish_clock else '')
         return response
 
     def _pause_callback(self, request, response):
@@ -419,6 +501,7 @@ class RigidBodyNode(Node):
         ticks = self._ticks - window_ticks
         self._window = (now, self._ticks, self._missed_ticks)
         achieved = ticks / (now - window_start) if now > window_start else 0.0
+        requested = self._rate * self._real_time_factor  # ticks per wall-clock second
         tick = self._recent(self._tick_durations, ticks)
         step = self._recent(self._step_durations, ticks)
         simulator = self._simulator
@@ -431,15 +514,20 @@ class RigidBodyNode(Node):
         status.hardware_id = self.get_fully_qualified_name()
         if self._paused:
             status.level, status.message = DiagnosticStatus.OK, 'paused'
-        elif achieved < _RATE_WARNING_FRACTION * self._rate:
+        elif achieved < _RATE_WARNING_FRACTION * requested:
             status.level = DiagnosticStatus.WARN
-            status.message = f'falling behind: {achieved:.1f} of {self._rate:g} Hz'
+            status.message = f'falling behind: {achieved:.1f} of {requested:g} ticks/s'
         else:
             status.level, status.message = DiagnosticStatus.OK, 'running'
         values = [
+            ('scene', self._scene.name),
+            ('effects', ', '.join(self._scene.effect_names()) or 'none'),
             ('integrator', simulator.integrator),
             ('requested rate [Hz]', f'{self._rate:g}'),
+            ('real-time factor', f'{self._real_time_factor:g}'),
+            # Ticks per wall-clock second: rate x real-time factor when the node keeps up.
             ('achieved rate [Hz]', f'{achieved:.2f}'),
+            ('achieved real-time factor', f'{achieved / self._rate:.3f}'),
             ('missed ticks', str(self._missed_ticks - window_missed)),
             ('substeps', str(self._substeps)),
             ('step [s]', f'{self._period / self._substeps:.6g}'),
@@ -448,17 +536,25 @@ class RigidBodyNode(Node):
             ('tick duration p50 [ms]', _milliseconds(tick, 50)),
             ('tick duration p99 [ms]', _milliseconds(tick, 99)),
             ('simulated time [s]', f'{simulator.time:.6f}'),
+            ('clock [s]', f'{1e-9 * self._simulated_nanoseconds():.6f}'
+             if self._publish_clock else 'not published'),
             ('paused', str(self._paused)),
             ('external wrench active', str(wrench_active)),
+            # Kinetic plus the effects' potential energy (gravity): what is conserved.
             ('energy [J]', f'{energy:.12g}'),
             ('energy drift since last input', _relative(energy, self._reference_energy)),
             ('|L| [kg m^2/s]', f'{momentum:.12g}'),
             ('|L| drift since last input', _relative(momentum, self._reference_momentum)),
             ('inputs rejected', str(self._rejected)),
+            ('inputs scaled down to the scene limits', str(self._limited)),
         ]
         status.values = [KeyValue(key=key, value=value) for key, value in values]
         array = DiagnosticArray()
-        array.header.stamp = self.get_clock().now().to_msg()
+        if self._publish_clock:
+            array.header.stamp.sec, array.header.stamp.nanosec = divmod(
+                self._simulated_nanoseconds(), 1_000_000_000)
+        else:
+            array.header.stamp = self.get_clock().now().to_msg()
         array.status = [status]
         self._diagnostics_publisher.publish(array)
 

@@ -1,13 +1,22 @@
 """
-The node's parameters, each declared once, and what they make: a body and its state.
+The node's parameters, each declared once, and what they make: the scene to simulate.
 
-:data:`PARAMETERS` lists every parameter with its default, description, range and whether
-it may change at run time; :func:`declare_parameters` declares them all on a node with a
-ParameterDescriptor each.  :func:`body_and_state_from_parameters` turns the values into the
-RigidBody and initial State: the one place that knows how the body parameters combine.
+The node simulates a scene (:mod:`rigid_body_sim.scenes`): the read-only parameter
+``scene`` names a built-in scene or a scene file, which gives the body, its initial state,
+the effects on it, how to draw it, and the default integrator and rate.  The parameters come
+in three kinds, told apart by the ``default`` of their :class:`ParameterSpec`:
 
-Defaults are :mod:`rigid_body_sim.defaults`: the T-handle I = (1, 2, 3) kg m^2 spun near
-its unstable middle axis, which flips within the first minute.
+- a value: the node's own settings (frames, inputs, sim time), the same for every scene;
+- :data:`SCENE_VALUE`: ``integrator`` and ``rate`` are declared with the scene's values as
+  their defaults, so ``ros2 param get`` shows what runs; a value the user gives replaces it;
+- :data:`NOT_SET`: the body and initial-state parameters (``body.*``, ``initial.*``) are
+  declared with their type and no value.  Only those the user sets override the scene's
+  values; a default value could not be told from one the user gave and would silently
+  replace the scene's body (``ros2 param get`` answers "Parameter not set" for the others).
+
+:func:`declare_scene_parameter` and :func:`declare_parameters` declare them with a
+ParameterDescriptor each; :func:`scene_from_parameters` applies the values that are set to
+the scene, the one place that knows how the body and state parameters combine.
 """
 
 import collections
@@ -20,107 +29,168 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rcl_interfaces.msg import ParameterType
 from rclpy.exceptions import InvalidParameterTypeException
 from rclpy.exceptions import InvalidParameterValueException
+from rclpy.exceptions import ParameterUninitializedException
+from rclpy.parameter import Parameter
 
-from .conversions import marker_geometry
-from .conversions import SHAPES
-from ..defaults import DEFAULT_ANGULAR_VELOCITY_BODY
-from ..defaults import DEFAULT_INERTIA
-from ..defaults import DEFAULT_INTEGRATOR
-from ..defaults import DEFAULT_MASS
 from ..physics import get_integrator
 from ..physics import INTEGRATORS
-from ..physics import RigidBody
-from ..physics import State
+from ..scenes import DEFAULT_SCENE
+from ..scenes import SHAPES
 
 __all__ = [
     'PARAMETERS',
     'DEFAULTS',
+    'NOT_SET',
+    'SCENE_VALUE',
     'ParameterSpec',
+    'declare_scene_parameter',
     'declare_parameters',
     'parameter_descriptor',
-    'body_and_state_from_parameters',
-    'marker_geometry_from_parameters',
+    'scene_from_parameters',
     'check_integrator',
 ]
 
+
+class _Placeholder:
+    """A default that is not a value: see the module docstring."""
+
+    def __init__(self, text):
+        self._text = text
+
+    def __repr__(self):
+        return self._text
+
+
+NOT_SET = _Placeholder('NOT_SET')
+"""Default of a parameter declared without a value: when set, it overrides the scene."""
+
+SCENE_VALUE = _Placeholder('SCENE_VALUE')
+"""Default of a parameter declared with the scene's value as its default."""
+
 ParameterSpec = collections.namedtuple(
-    'ParameterSpec', 'name default description read_only value_range constraints')
-ParameterSpec.__doc__ = """One parameter: name, default (its type is the parameter's type),
-description, read_only, value_range ((from, to) inclusive, or None) and constraints (text)."""
+    'ParameterSpec', 'name kind default description read_only value_range constraints')
+ParameterSpec.__doc__ = """One parameter: name, kind (its Python type: float, int, str, bool
+or list, a list of doubles), default (a value, SCENE_VALUE or NOT_SET), description,
+read_only, value_range ((from, to) inclusive, or None) and constraints (text)."""
 
 # A unit quaternion given to 4 decimals is off by up to ~1e-4 in norm; such a slightly
 # unnormalised value is normalised, anything further from 1 is a mistake and is refused.
 _QUATERNION_NORM_TOLERANCE = 1e-3
+_FROM_SCENE = " Not set (default): the scene's."
 
 
-def _spec(name, default, description, read_only=True, value_range=None, constraints=''):
-    return ParameterSpec(name, default, description, read_only, value_range, constraints)
+def _spec(name, kind, default, description, read_only=True, value_range=None,
+          constraints=''):
+    return ParameterSpec(name, kind, default, description, read_only, value_range,
+                         constraints)
 
 
 PARAMETERS = (
-    _spec('integrator', DEFAULT_INTEGRATOR,
-          'Integration method; may change at run time, the state stays continuous.',
-          read_only=False,
-          constraints='one of: ' + ', '.join(sorted(INTEGRATORS))),
-    _spec('rate', 100.0, 'Timer rate in Hz: each tick advances the simulation by 1/rate s '
-          'of simulated time and publishes the state once.', value_range=(0.1, 10000.0)),
-    _spec('substeps', 1, 'Integrator steps per tick (step = 1 / (rate * substeps) s).',
+    _spec('scene', str, DEFAULT_SCENE,
+          'The scene to simulate: a built-in name (config/scenes/<name>.yaml; list them with '
+          '`rigid-body-sim scenes`) or the path of a scene file.  It gives the body, the '
+          'initial state, the effects, the drawing and the default integrator and rate; '
+          'the body.* and initial.* parameters that are set override its values.'),
+    _spec('integrator', str, SCENE_VALUE,
+          "Integration method; default: the scene's.  May change at run time; the state "
+          'stays continuous.',
+          read_only=False, constraints='one of: ' + ', '.join(sorted(INTEGRATORS))),
+    _spec('rate', float, SCENE_VALUE,
+          "Tick rate in Hz; default: the scene's.  Each tick advances the simulation by "
+          '1/rate s of simulated time and publishes the state once.',
+          value_range=(0.1, 10000.0)),
+    _spec('substeps', int, 1, 'Integrator steps per tick (step = 1 / (rate * substeps) s).',
           read_only=False, value_range=(1, 100000)),
-    _spec('world_frame', 'world', 'Frame id of the inertial world frame (z up).'),
-    _spec('body_frame', 'body', 'Frame id of the body frame (origin at the centre of mass).'),
-    _spec('input_timeout', 0.5, 'A torque or wrench input holds until replaced or until this '
-          'many seconds pass without a new one on its topic; 0 holds forever.',
+    _spec('real_time_factor', float, 1.0,
+          'Simulated seconds per wall-clock second: the ticks come every '
+          '(1/rate)/real_time_factor s of wall-clock time, each still advancing the '
+          'simulation by 1/rate s.  May change at run time.',
+          read_only=False, value_range=(0.001, 1000.0)),
+    _spec('publish_clock', bool, False,
+          'Publish the simulated time on /clock (rosgraph_msgs/Clock, best effort, keep '
+          'last 1) at every tick, and stamp every message with it: simulated time from 0 '
+          'at start-up, frozen while paused, never going back (a reset restarts the body, '
+          'not the clock).  Sim-time consumers (use_sim_time:=true, ros2 bag record '
+          '--use-sim-time) then follow the simulation.  False: stamps come from the '
+          "node's clock."),
+    _spec('world_frame', str, 'world', 'Frame id of the inertial world frame (z up).'),
+    _spec('body_frame', str, 'body',
+          'Frame id of the body frame (origin at the centre of mass).'),
+    _spec('input_timeout', float, 0.5,
+          'A torque or wrench input holds until replaced or until this many seconds of the '
+          "node's clock pass without a new one on its topic; 0 holds forever.",
           read_only=False, value_range=(0.0, 86400.0)),
-    _spec('max_wrench', 1000.0, 'Largest accepted force magnitude (N) and torque magnitude '
-          '(N m) of an input; larger inputs are rejected.',
+    _spec('max_wrench', float, 1000.0,
+          'Largest accepted force magnitude (N) and torque magnitude (N m) of an input; '
+          'larger inputs are rejected (inputs within it are then scaled down to the '
+          "scene's external_wrench limits, if it has any).",
           read_only=False, value_range=(0.0, 1.0e12)),
-    _spec('body.mass', DEFAULT_MASS, 'Mass of the body in kg (> 0).'),
-    _spec('body.inertia', [float(i) for i in DEFAULT_INERTIA],
+    _spec('body.mass', float, NOT_SET,
+          'Mass of the body in kg (> 0).  A body given by shape keeps its shape (its '
+          'inertia scales with the mass); one given by inertia keeps its inertia.'
+          + _FROM_SCENE),
+    _spec('body.inertia', list, NOT_SET,
           'Inertia tensor about the centre of mass in the body frame, kg m^2: 9 numbers '
-          '(row-major 3x3) or 3 (the diagonal).  Used when body.shape is empty.',
+          "(row-major 3x3) or 3 (the diagonal).  Replaces the scene's body (not with "
+          'body.shape).' + _FROM_SCENE,
           constraints='symmetric, positive definite, principal moments satisfy '
                       'I1 + I2 >= I3'),
-    _spec('body.shape', '', 'Solid body of uniform density whose inertia follows from '
-          'body.mass and body.size; empty: use body.inertia (drawn as the box with the same '
-          'principal moments).', constraints='one of: ' + ', '.join(SHAPES) + ', or empty'),
-    _spec('body.size', [1.0, 1.0, 1.0], 'Dimensions of body.shape in m: box (a, b, c) edges; '
+    _spec('body.shape', str, NOT_SET,
+          'Solid body of uniform density whose inertia follows from its mass and '
+          "body.size (needed unless the scene's body has this shape).  Not set or empty: "
+          "the scene's.",
+          constraints='one of: ' + ', '.join(SHAPES)),
+    _spec('body.size', list, NOT_SET,
+          "Dimensions in m of body.shape (or of the scene's shape): box (a, b, c) edges; "
           'cylinder (radius, height) along body z; sphere (radius); ellipsoid (a, b, c) '
-          'semi-axes.  Ignored when body.shape is empty.'),
-    _spec('initial.orientation', [0.0, 0.0, 0.0, 1.0],
-          'Initial orientation, body to world, as a unit quaternion (x, y, z, w).'),
-    _spec('initial.position', [0.0, 0.0, 0.0],
-          'Initial position of the centre of mass in m, world frame.'),
-    _spec('initial.velocity', [0.0, 0.0, 0.0],
-          'Initial velocity of the centre of mass in m/s, world frame.'),
-    _spec('initial.angular_velocity_body', [float(w) for w in DEFAULT_ANGULAR_VELOCITY_BODY],
-          'Initial angular velocity in rad/s, body frame.'),
+          'semi-axes.' + _FROM_SCENE),
+    _spec('initial.orientation', list, NOT_SET,
+          'Initial orientation, body to world, as a unit quaternion (x, y, z, w).'
+          + _FROM_SCENE),
+    _spec('initial.position', list, NOT_SET,
+          'Initial position of the centre of mass in m, world frame (not in a scene with a '
+          'pivot, where it follows from the pivot).' + _FROM_SCENE),
+    _spec('initial.velocity', list, NOT_SET,
+          'Initial velocity of the centre of mass in m/s, world frame (not with a pivot).'
+          + _FROM_SCENE),
+    _spec('initial.angular_velocity_body', list, NOT_SET,
+          "Initial angular velocity in rad/s, body frame; replaces the scene's angular "
+          'velocity in either frame (not with initial.angular_velocity_world).'
+          + _FROM_SCENE),
+    _spec('initial.angular_velocity_world', list, NOT_SET,
+          "Initial angular velocity in rad/s, world frame; replaces the scene's angular "
+          'velocity in either frame (not with initial.angular_velocity_body).'
+          + _FROM_SCENE),
 )
 """Every parameter of the node, in declaration order."""
 
-DEFAULTS = {spec.name: spec.default for spec in PARAMETERS}
-"""Parameter name -> default value."""
+DEFAULTS = {spec.name: spec.default for spec in PARAMETERS
+            if not isinstance(spec.default, _Placeholder)}
+"""Parameter name -> default value, for the parameters whose default is a value."""
 
+_SPECS = {spec.name: spec for spec in PARAMETERS}
 
-def _parameter_type(default):
-    if isinstance(default, bool):
-        return ParameterType.PARAMETER_BOOL
-    if isinstance(default, int):
-        return ParameterType.PARAMETER_INTEGER
-    if isinstance(default, float):
-        return ParameterType.PARAMETER_DOUBLE
-    if isinstance(default, str):
-        return ParameterType.PARAMETER_STRING
-    return ParameterType.PARAMETER_DOUBLE_ARRAY
+_PARAMETER_TYPES = {
+    bool: (ParameterType.PARAMETER_BOOL, Parameter.Type.BOOL),
+    int: (ParameterType.PARAMETER_INTEGER, Parameter.Type.INTEGER),
+    float: (ParameterType.PARAMETER_DOUBLE, Parameter.Type.DOUBLE),
+    str: (ParameterType.PARAMETER_STRING, Parameter.Type.STRING),
+    list: (ParameterType.PARAMETER_DOUBLE_ARRAY, Parameter.Type.DOUBLE_ARRAY),
+}
+_TYPE_NAMES = {float: 'a double', int: 'an integer', str: 'a string', bool: 'a boolean',
+               list: 'a list of doubles'}
+_EXAMPLES = {float: '100.0 for a double, not 100', int: '10', str: 'buss',
+             bool: 'true or false', list: '[1.0, 2.0, 3.0] for a list of doubles'}
 
 
 def parameter_descriptor(spec):
     """Return the rcl_interfaces/ParameterDescriptor of a :class:`ParameterSpec`."""
     descriptor = ParameterDescriptor(
-        name=spec.name, type=_parameter_type(spec.default), description=spec.description,
+        name=spec.name, type=_PARAMETER_TYPES[spec.kind][0], description=spec.description,
         additional_constraints=spec.constraints, read_only=spec.read_only)
     if spec.value_range is not None:
         low, high = spec.value_range
-        if isinstance(spec.default, int):
+        if spec.kind is int:
             descriptor.integer_range = [IntegerRange(from_value=low, to_value=high, step=1)]
         else:
             descriptor.floating_point_range = [
@@ -128,11 +198,38 @@ def parameter_descriptor(spec):
     return descriptor
 
 
-def declare_parameters(node):
+def declare_scene_parameter(node):
     """
-    Declare every parameter of :data:`PARAMETERS` on `node`; return {name: value}.
+    Declare the parameter ``scene`` on `node` and return its value.
+
+    Raises
+    ------
+    ValueError
+        If its override is not a string.
+
+    """
+    _declare(node, _SPECS['scene'], DEFAULT_SCENE)
+    return node.get_parameter('scene').value
+
+
+def declare_parameters(node, scene):
+    """
+    Declare every parameter of :data:`PARAMETERS` not yet declared on `node`.
 
     Overrides (``-p name:=value``, ``--params-file``) are applied by the declaration.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The node to declare them on.
+    scene : Scene
+        The scene the node simulates: its integrator and rate are the defaults of the
+        parameters of the same names.
+
+    Returns
+    -------
+    dict
+        Parameter name -> value, None for a parameter that is not set.
 
     Raises
     ------
@@ -141,38 +238,46 @@ def declare_parameters(node):
         parameter and what it expects.
 
     """
+    scene_values = {'integrator': scene.integrator, 'rate': float(scene.rate)}
+    values = {}
     for spec in PARAMETERS:
+        if not node.has_parameter(spec.name):
+            default = spec.default
+            if default is SCENE_VALUE:
+                default = scene_values[spec.name]
+            _declare(node, spec, default)
         try:
-            node.declare_parameter(spec.name, spec.default, parameter_descriptor(spec))
-        except InvalidParameterTypeException:
-            raise ValueError(
-                f'parameter {spec.name!r} must be {_TYPE_NAMES[type(spec.default)]}; got '
-                f'{_override(node, spec.name)!r} (ROS parameters are typed: write e.g. '
-                f'{_example(spec.default)})') from None
-        except InvalidParameterValueException:
-            low, high = spec.value_range
-            raise ValueError(
-                f'parameter {spec.name!r} must be in [{low}, {high}]; got '
-                f'{_override(node, spec.name)!r}') from None
-    return {spec.name: node.get_parameter(spec.name).value for spec in PARAMETERS}
+            values[spec.name] = node.get_parameter(spec.name).value
+        except ParameterUninitializedException:
+            values[spec.name] = None
+    return values
 
 
-_TYPE_NAMES = {float: 'a double', int: 'an integer', str: 'a string',
-               list: 'a list of doubles'}
+def _declare(node, spec, default):
+    if default is NOT_SET:
+        default = _PARAMETER_TYPES[spec.kind][1]  # declared typed, without a value
+    try:
+        node.declare_parameter(spec.name, default, parameter_descriptor(spec))
+    except InvalidParameterTypeException:
+        raise ValueError(
+            f'parameter {spec.name!r} must be {_TYPE_NAMES[spec.kind]}; got '
+            f'{_override(node, spec.name)!r} (ROS parameters are typed: write e.g. '
+            f'{_EXAMPLES[spec.kind]})') from None
+    except InvalidParameterValueException:
+        low, high = spec.value_range
+        override = _override(node, spec.name)
+        if override is None:  # the scene's value is outside the node's range
+            raise ValueError(
+                f"parameter {spec.name!r} must be in [{low}, {high}]; the scene's "
+                f'{spec.name} is {default!r}: set {spec.name}') from None
+        raise ValueError(
+            f'parameter {spec.name!r} must be in [{low}, {high}]; got {override!r}') from None
 
 
 def _override(node, name):
     # The offending value: rclpy keeps the overrides in a private dict (Jazzy).
     override = getattr(node, '_parameter_overrides', {}).get(name)
     return None if override is None else override.value
-
-
-def _example(default):
-    if isinstance(default, float):
-        return f'{default!r} for a double, not {int(default)}'
-    if isinstance(default, list):
-        return f'{default!r} for a list of doubles'
-    return repr(default)
 
 
 def check_integrator(name):
@@ -184,83 +289,122 @@ def check_integrator(name):
     return None
 
 
-def _vector(values, name, count, unit):
-    array = np.array(values, dtype=float).reshape(-1)
-    if array.size != count:
-        raise ValueError(f'parameter {name!r} must have {count} values ({unit}); got '
-                         f'{array.size}: {list(values)}')
-    if not np.all(np.isfinite(array)):
-        raise ValueError(f'parameter {name!r} must be finite; got {array.tolist()}')
-    return array
+# Shape -> its size keys in a scene's body section with their number of values, in the order
+# of body.size.
+_SIZE_KEYS = {
+    'box': (('size', 3),),
+    'cylinder': (('radius', 1), ('height', 1)),
+    'sphere': (('radius', 1),),
+    'ellipsoid': (('semi_axes', 3),),
+}
+_SIZE_MEANINGS = {'box': 'edges a, b, c', 'cylinder': 'radius, height',
+                  'sphere': 'radius', 'ellipsoid': 'semi-axes a, b, c'}
+
+
+def _body_section(scene, shape, size, mass):
+    """Return the body section that body.shape and body.size describe, or None."""
+    scene_body = scene.data.get('body', {})
+    scene_shape = None if 'inertia' in scene_body else scene_body.get('shape')
+    if shape is None and size is None:
+        return None
+    if shape is None:
+        if scene_shape is None:
+            raise ValueError("parameter 'body.size' needs body.shape: the scene's body is "
+                             'given by its inertia')
+        shape = scene_shape
+    if shape not in _SIZE_KEYS:
+        raise ValueError(f"parameter 'body.shape' must be one of {', '.join(SHAPES)}; got "
+                         f'{shape!r}')
+    counts = _SIZE_KEYS[shape]
+    needed = sum(count for _, count in counts)
+    if size is None:
+        if shape == scene_shape:
+            return None  # the scene's own shape and sizes
+        raise ValueError(f"parameter 'body.shape' is {shape!r}: set body.size too, "
+                         f'{needed} value(s) in m ({_SIZE_MEANINGS[shape]})')
+    size = [float(s) for s in size]
+    if len(size) != needed:
+        raise ValueError(f"parameter 'body.size' of a {shape} must have {needed} value(s) "
+                         f'in m ({_SIZE_MEANINGS[shape]}); got {len(size)}: {size}')
+    section = {'shape': shape, 'mass': mass}
+    start = 0
+    for key, count in counts:
+        section[key] = size[start] if count == 1 else size[start:start + count]
+        start += count
+    return section
+
+
+def _inertia(values):
+    inertia = [float(i) for i in values]
+    if len(inertia) not in (3, 9):
+        raise ValueError(f"parameter 'body.inertia' must have 9 values (row-major 3x3) or 3 "
+                         f'(the diagonal) in kg m^2; got {len(inertia)}: {inertia}')
+    return inertia
 
 
 def _orientation(values):
-    quaternion = _vector(values, 'initial.orientation', 4, 'quaternion x, y, z, w')
+    quaternion = np.array(values, dtype=float).reshape(-1)
+    if quaternion.size != 4 or not np.all(np.isfinite(quaternion)):
+        raise ValueError(f"parameter 'initial.orientation' must be 4 finite numbers, a "
+                         f'quaternion (x, y, z, w); got {quaternion.tolist()}')
     norm = math.sqrt(quaternion @ quaternion)
     if abs(norm - 1.0) > _QUATERNION_NORM_TOLERANCE:
         raise ValueError(f"parameter 'initial.orientation' must be a unit quaternion "
                          f'(x, y, z, w); got {quaternion.tolist()} of norm {norm:.6g}')
-    return quaternion / norm
+    return (quaternion / norm).tolist()
 
 
-def _body(values):
-    mass = values['body.mass']
-    shape = values['body.shape']
-    try:
-        if shape == '':
-            inertia = np.array(values['body.inertia'], dtype=float)
-            if inertia.size == 9:
-                inertia = inertia.reshape(3, 3)
-            elif inertia.size != 3:
-                raise ValueError(f'body.inertia must have 9 values (row-major 3x3) or 3 (the '
-                                 f'diagonal) in kg m^2; got {inertia.size}')
-            return RigidBody(mass, inertia)
-        size = list(values['body.size'])
-        marker_geometry(RigidBody(1.0, np.ones(3)), shape, size)  # checks shape and count
-        if shape == 'box':
-            return RigidBody.box(mass, size)
-        if shape == 'cylinder':
-            return RigidBody.cylinder(mass, size[0], size[1])
-        if shape == 'sphere':
-            return RigidBody.sphere(mass, size[0])
-        return RigidBody.ellipsoid(mass, size)
-    except ValueError as error:
-        raise ValueError(f'body parameters: {error}') from None
-
-
-def body_and_state_from_parameters(values):
+def scene_from_parameters(scene, values):
     """
-    Return the (RigidBody, initial State) that parameter values describe.
+    Return `scene` with the parameter values that are set applied to it.
 
     Parameters
     ----------
+    scene : Scene
+        The scene the ``scene`` parameter names.
     values : mapping
-        Parameter name -> value for the names of :data:`PARAMETERS` (missing names take
-        their defaults).  The body is body.shape with body.size and body.mass when the shape
-        is set, else body.mass with body.inertia.  The initial state (world frame) has
-        orientation initial.orientation, COM position initial.position, COM velocity
-        initial.velocity and body-frame angular velocity initial.angular_velocity_body.
+        Parameter name -> value; a missing name or None is a parameter that is not set,
+        which keeps the scene's value.  ``integrator`` and ``rate`` replace the scene's;
+        ``body.mass``, ``body.inertia``, ``body.shape`` with ``body.size``, and the
+        ``initial.*`` orientation (quaternion x, y, z, w, body to world), COM position (m)
+        and velocity (m/s), world frame, and angular velocity (rad/s, body or world frame)
+        replace the scene's body and initial state (see :meth:`Scene.with_overrides`).
 
     Raises
     ------
     ValueError
-        If the values describe no real body or state; the message names the parameter.
+        If the values describe no valid scene; the message names the parameter or, for
+        the scene's own checks, ``<scene file> (overrides): <key path>``.
 
     """
-    values = {**DEFAULTS, **dict(values)}
-    body = _body(values)
-    orientation = _orientation(values['initial.orientation'])
-    position = _vector(values['initial.position'], 'initial.position', 3, 'm')
-    velocity = _vector(values['initial.velocity'], 'initial.velocity', 3, 'm/s')
-    angular_velocity = _vector(values['initial.angular_velocity_body'],
-                               'initial.angular_velocity_body', 3, 'rad/s')
-    state = State.from_velocity(body, rotation=orientation, position=position,
-                                velocity=velocity, angular_velocity_body=angular_velocity)
-    return body, state
-
-
-def marker_geometry_from_parameters(body, values):
-    """Return the MarkerGeometry drawing `body` as the parameters describe it."""
-    values = {**DEFAULTS, **dict(values)}
-    shape = values['body.shape']
-    return marker_geometry(body, shape, values['body.size'] if shape else ())
+    value = dict(values).get
+    integrator = value('integrator')
+    if integrator is not None:
+        reason = check_integrator(integrator)
+        if reason is not None:
+            raise ValueError(f"parameter 'integrator': {reason}")
+        if integrator == scene.integrator:
+            integrator = None
+    rate = value('rate')
+    if rate is not None and float(rate) == scene.rate:
+        rate = None
+    shape = value('body.shape') or None  # empty: not set
+    inertia = value('body.inertia')
+    if shape is not None and inertia is not None:
+        raise ValueError('set body.shape (with body.size) or body.inertia, not both')
+    overrides = {'integrator': integrator, 'rate': rate, 'mass': value('body.mass')}
+    mass = overrides['mass'] if overrides['mass'] is not None else scene.body.mass
+    overrides['body'] = _body_section(scene, shape, value('body.size'), mass)
+    if inertia is not None:
+        overrides['inertia'] = _inertia(inertia)
+    if value('initial.orientation') is not None:
+        overrides['orientation'] = _orientation(value('initial.orientation'))
+    if value('initial.angular_velocity_body') is not None and \
+            value('initial.angular_velocity_world') is not None:
+        raise ValueError('set initial.angular_velocity_body or initial.angular_velocity_world, '
+                         'not both')
+    for name in ('position', 'velocity', 'angular_velocity_body', 'angular_velocity_world'):
+        overrides[name] = value(f'initial.{name}')
+    if all(override is None for override in overrides.values()):
+        return scene
+    return scene.with_overrides(**overrides)
