@@ -66,8 +66,9 @@ def start_time_nanoseconds(text):
     except ValueError:
         raise ValueError(f'--start-time must be seconds since the epoch or "now"; got '
                          f'{text!r}') from None
-    if not seconds >= 0.0 or seconds > 9.2e9:
-        raise ValueError(f'--start-time must be between 0 and 9.2e9 s; got {text}')
+    if not 0.0 <= seconds < 2.0**31:
+        raise ValueError(f'--start-time must be between 0 and 2^31 s (a stamp holds int32 '
+                         f'seconds); got {text}')
     return round(seconds * 1e9)
 
 
