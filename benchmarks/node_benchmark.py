@@ -172,7 +172,7 @@ def run_rate(rate, duration, warmup, trials, log_dir):
         node = subprocess.Popen(
             [sys.executable, '-m', 'rigid_body_sim.ros.node', '--ros-args',
              '-r', f'__ns:={namespace}', '-p', f'rate:={float(rate)}',
-             '-p', 'input_timeout:=0.0'],
+             '-p', 'input_timeout:=0.0', '-p', 'integrator:=buss'],
             stdout=log, stderr=subprocess.STDOUT, cwd=ROOT)
     probe = Probe(namespace)
     try:

@@ -14,17 +14,16 @@ import argparse
 import statistics
 import time
 
-from rigid_body_sim.defaults import default_body
-from rigid_body_sim.defaults import default_state
 from rigid_body_sim.physics import FAST_KERNELS
 from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import Simulator
+from rigid_body_sim.scenes import load_scene
 
 
 def microseconds_per_step(name, steps, repeats, fast, torque):
     """Return the median us/step of `name` over `repeats` runs of `steps` steps."""
-    body = default_body()
-    simulator = Simulator(body, default_state(body), integrator=name, fast=fast)
+    scene = load_scene('default')
+    simulator = Simulator(scene.body, scene.state, integrator=name, fast=fast)
     if torque:
         simulator.set_wrench(torque=[0.01, 0.0, 0.02], frame='body')
     dt = 1e-3

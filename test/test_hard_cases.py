@@ -83,7 +83,7 @@ def _omega_period(body, state, name, dt, chunk):
     return 2.0 * float(np.mean(np.diff(crossings)))
 
 
-# The T-handle of rigid_body_sim.defaults: a 1e-3 nudge, L^2 < 2 E I2 (orbits axis 1); the
+# The T-handle of the default scene: a 1e-3 nudge, L^2 < 2 E I2 (orbits axis 1); the
 # nudge along axis 3 instead: L^2 > 2 E I2 (orbits axis 3), the other branch of the closed
 # form.  Near the separatrix the period ~ log(1 / distance): an energy error of 1e-8 shifts
 # it by ~0.1 %, hence the brief's 1 % there.  Far from it the period is insensitive to the

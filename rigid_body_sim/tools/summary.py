@@ -1,32 +1,33 @@
 """
 Simulate the default tumbling body offline and print a readable summary.
 
-The default body is the T-handle I = (1, 2, 3) kg m^2 spun at 2 rad/s about its middle
-(unstable) axis with a small nudge: watch the body angular velocity's y component reverse
-(the Dzhanibekov flip) while energy and |L| stay put.  Columns: simulated time (s), the
-orientation quaternion (x, y, z, w), the body angular velocity (rad/s), and the relative
-drift of kinetic energy and |L| since t = 0.
+The body and its initial state are the node's default scene (config/scenes/default.yaml):
+the T-handle I = (1, 2, 3) kg m^2 spun at 2 rad/s about its middle (unstable) axis with a
+small nudge.  Watch the body angular velocity's y component reverse (the Dzhanibekov flip:
+first after ~7.2 s, then every ~14.4 s) while energy and |L| stay put.  Columns: simulated
+time (s), the orientation quaternion (x, y, z, w), the body angular velocity (rad/s), and
+the relative drift of kinetic energy and |L| since t = 0.
 """
 
 import time
 
 import numpy as np
 
-from ..defaults import default_body
-from ..defaults import DEFAULT_INTEGRATOR
-from ..defaults import default_state
 from ..physics import INTEGRATORS
 from ..physics import Simulator
+from ..scenes import DEFAULT_SCENE
+from ..scenes import load_scene
 
 
 def add_arguments(parser):
     """Add the options of ``rigid-body-sim run``."""
-    parser.add_argument('--integrator', default=DEFAULT_INTEGRATOR,
+    parser.add_argument('--integrator', default=None,
                         help=f'one of: {", ".join(sorted(INTEGRATORS))} '
-                             f'(default: {DEFAULT_INTEGRATOR})')
+                             f"(default: the {DEFAULT_SCENE} scene's)")
     parser.add_argument('--duration', type=float, default=30.0,
                         help='simulated time in s (default: 30)')
-    parser.add_argument('--dt', type=float, default=0.01, help='time step in s (default: 0.01)')
+    parser.add_argument('--dt', type=float, default=None,
+                        help=f"time step in s (default: 1 / the {DEFAULT_SCENE} scene's rate)")
     parser.add_argument('--every', type=float, default=1.0,
                         help='print a line every this many simulated s (default: 1)')
 
@@ -35,8 +36,12 @@ def main(args):
     """Run the simulation and print the summary table; return 0."""
     if not args.every > 0.0:
         raise ValueError(f'--every must be > 0 s; got {args.every}')
-    body = default_body()
-    simulator = Simulator(body, default_state(body), integrator=args.integrator)
+    scene = load_scene(DEFAULT_SCENE)
+    body = scene.body
+    if args.dt is None:
+        args.dt = scene.dt
+    # The body and state alone: the scene's only effect, external_wrench, has no input here.
+    simulator = Simulator(body, scene.state, integrator=args.integrator or scene.integrator)
     energy0 = simulator.energy()
     momentum0 = np.linalg.norm(simulator.state.angular_momentum)
     print(f'body: mass {body.mass:g} kg, principal moments '
