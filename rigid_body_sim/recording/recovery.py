@@ -82,10 +82,24 @@ def bag_is_complete(path):
             return False
         if int.from_bytes(footer[9:17], 'little') == 0:
             return False
+    elif not _sqlite3_closed(storage):
+        return False
     try:
         with Reader(path) as reader:
             return reader.message_count == sum(c.msgcount for c in reader.connections)
     except Exception:  # noqa: B902 (any failure to read means: not complete)
+        return False
+
+
+def _sqlite3_closed(storage):
+    # Closing writes the bag's metadata into the database's metadata table (schema 4).
+    try:
+        connection = sqlite3.connect(f'file:{storage}?mode=ro', uri=True)
+        try:
+            return connection.execute('SELECT count(*) FROM metadata').fetchone()[0] > 0
+        finally:
+            connection.close()
+    except sqlite3.Error:
         return False
 
 
@@ -113,9 +127,12 @@ def _recover_mcap(storage, writer):
     schemas = {}
     connections = {}
     for record in records:
+        # The summary section, when there is one, repeats the schemas and channels.
         if isinstance(record, Schema):
             schemas[record.id] = record
         elif isinstance(record, Channel):
+            if record.id in connections:
+                continue
             schema = schemas[record.schema_id]
             definition = schema.data.decode()
             type_hash = record.metadata.get('topic_type_hash', '')

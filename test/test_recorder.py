@@ -1,0 +1,259 @@
+"""
+The live recorder against the running node: nothing lost, clean finish, survives SIGKILL.
+
+The node and the recorder run as subprocesses (``python -m rigid_body_sim.ros.node`` and
+``python -m rigid_body_sim.cli record``) in a ROS domain of this test process's own, on the
+loopback.  What the node published is known from the messages themselves: its publisher
+numbers every message (the publication sequence number the recorder stores in each MCAP
+message), and with ``publish_clock`` it stamps tick k with k / rate exactly; so between the
+first and the last message recorded on a topic, received == published exactly when the
+sequence numbers and the stamps have no gap.
+"""
+
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+
+from mcap.data_stream import ReadDataStream
+from mcap.reader import make_reader
+from mcap.records import Chunk
+from mcap.records import Message
+from mcap.stream_reader import breakup_chunk
+from node_harness import isolate_ros_environment
+from node_harness import NodeProcess
+from node_harness import PACKAGE_ROOT
+from node_harness import unique_namespace
+import numpy as np
+import pytest
+from rigid_body_sim.recording.bag_writer import storage_file
+from rigid_body_sim.recording.recovery import bag_is_complete
+from rigid_body_sim.recording.recovery import recover_bag
+from rigid_body_sim.recording.simulate import simulate_to_bag
+from rigid_body_sim.scenes import load_scene
+from rosbags.interfaces import QosDurability
+from rosbags.interfaces import QosReliability
+from rosbags.rosbag2 import Reader
+from rosbags.rosbag2.errors import ReaderError
+
+pytestmark = pytest.mark.xdist_group('node')
+
+STATE_TOPICS = ('pose', 'twist', 'angular_momentum', 'odom', 'marker')
+STAMPED = ('pose', 'angular_momentum', 'odom', 'marker')
+
+
+class RecorderProcess:
+    """``rigid-body-sim record`` as a subprocess, its output in a file."""
+
+    def __init__(self, log_path, bag, *arguments):
+        self.log_path = Path(log_path)
+        self._log = open(self.log_path, 'w')
+        self.process = subprocess.Popen(
+            [sys.executable, '-m', 'rigid_body_sim.cli', 'record', '--bag', str(bag),
+             *arguments], stdout=self._log, stderr=subprocess.STDOUT, cwd=PACKAGE_ROOT)
+
+    def output(self):
+        """Return what it printed."""
+        return self.log_path.read_text()
+
+    def wait_until_recording(self, bag, timeout=30.0):
+        """Wait for the first flush (metadata.yaml) with the node's topics in it."""
+        deadline = time.monotonic() + timeout
+        metadata = Path(bag) / 'metadata.yaml'
+        while not (metadata.exists() and '/pose' in metadata.read_text()):
+            assert self.process.poll() is None, self.output()
+            assert time.monotonic() < deadline, 'the recorder recorded nothing:\n' + \
+                self.output()
+            time.sleep(0.05)
+
+    def finish(self, timeout=60.0):
+        """Wait for the exit; return the exit code."""
+        try:
+            return self.process.wait(timeout=timeout)
+        finally:
+            if self.process.poll() is None:
+                self.process.kill()
+                self.process.wait()
+            self._log.close()
+
+
+def mcap_messages(path):
+    """Return topic -> list of mcap Message records, in file order."""
+    messages = {}
+    with open(path, 'rb') as stream:
+        reader = make_reader(stream)
+        for _, channel, message in reader.iter_messages(log_time_order=False):
+            messages.setdefault(channel.topic, []).append(message)
+    return messages
+
+
+def stamp_of(data):
+    """Return the header stamp (ns) of a serialised stamped message (CDR, little-endian)."""
+    seconds = int.from_bytes(data[4:8], 'little', signed=True)
+    return seconds * 1_000_000_000 + int.from_bytes(data[8:12], 'little')
+
+
+def assert_nothing_lost(messages, namespace, rate):
+    """Per state topic: sequence numbers and (sim-time) stamps without a gap."""
+    period = round(1e9 / rate)
+    for topic in STATE_TOPICS:
+        records = messages[f'{namespace}/{topic}']
+        sequences = np.array([m.sequence for m in records])
+        assert np.all(np.diff(sequences) == 1), \
+            f'{topic}: {int(np.sum(np.diff(sequences) - 1))} lost of {sequences.ptp() + 1}'
+        if topic in STAMPED:
+            stamps = np.array([stamp_of(m.data) for m in records])
+            assert np.all(np.diff(stamps) == period), f'{topic}: stamps with gaps'
+        log_times = np.array([m.log_time for m in records])
+        assert np.all(np.diff(log_times) >= 0)
+
+
+@pytest.fixture
+def environment():
+    """Isolate ROS discovery for this test process; return a fresh namespace."""
+    isolate_ros_environment()
+    return unique_namespace()
+
+
+@pytest.mark.slow
+def test_recorder_loses_no_message_at_1_khz_over_30_s(tmp_path, environment):
+    """The long one (about 35 s): five topics at 1 kHz, counted by the node's own numbers."""
+    namespace = environment
+    node = NodeProcess(tmp_path / 'node.log', namespace=namespace,
+                       parameters={'rate': 1000.0, 'publish_clock': 'true'})
+    bag = tmp_path / 'live'
+    try:
+        time.sleep(1.0)
+        recorder = RecorderProcess(tmp_path / 'recorder.log', bag, '--namespace', namespace,
+                                   '--duration', '32')
+        assert recorder.finish(timeout=120.0) == 0, recorder.output()
+    finally:
+        node.stop()
+    messages = mcap_messages(storage_file(bag, 'mcap'))
+    assert_nothing_lost(messages, namespace, 1000.0)
+    for topic in STATE_TOPICS:
+        # 32 s less discovery: well over 30 s of messages at 1 kHz.
+        assert len(messages[f'{namespace}/{topic}']) >= 28000, (topic, recorder.output())
+    assert 'lost (sequence gaps): 0' in recorder.output()
+    assert 'lost (sequence gaps): 1' not in recorder.output()
+    assert bag_is_complete(bag)
+
+
+@pytest.fixture(scope='module')
+def node_100_hz(tmp_path_factory):
+    """Run a node at 100 Hz with /clock for the shorter tests; yield its namespace."""
+    isolate_ros_environment()
+    namespace = unique_namespace()
+    node = NodeProcess(tmp_path_factory.mktemp('node') / 'node.log', namespace=namespace,
+                       parameters={'rate': 100.0, 'publish_clock': 'true'})
+    time.sleep(1.0)
+    yield namespace
+    node.stop()
+
+
+@pytest.mark.parametrize('signal_number', [signal.SIGINT, signal.SIGTERM])
+def test_sigint_and_sigterm_finish_a_complete_bag(tmp_path, node_100_hz, signal_number):
+    namespace = node_100_hz
+    bag = tmp_path / 'stopped'
+    recorder = RecorderProcess(tmp_path / 'recorder.log', bag, '--namespace', namespace)
+    recorder.wait_until_recording(bag)
+    time.sleep(1.5)
+    recorder.process.send_signal(signal_number)
+    assert recorder.finish() == 0, recorder.output()
+    assert bag_is_complete(bag)
+    with Reader(bag) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        read = {}
+        for connection, _, _ in reader.messages():
+            read[connection.topic] = read.get(connection.topic, 0) + 1
+        offers = {c.topic: c.ext.offered_qos_profiles for c in reader.connections}
+    assert counts == read
+    assert counts[f'{namespace}/pose'] >= 100
+    (offer,) = offers[f'{namespace}/pose']
+    assert (offer.reliability, offer.durability) == (QosReliability.RELIABLE,
+                                                     QosDurability.VOLATILE)
+    (clock_offer,) = offers['/clock']
+    assert clock_offer.reliability == QosReliability.BEST_EFFORT
+    assert_nothing_lost(mcap_messages(storage_file(bag, 'mcap')), namespace, 100.0)
+    assert f'{namespace}/pose: {counts[f"{namespace}/pose"]} (lost' in recorder.output()
+
+
+@pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
+def test_a_recorder_killed_with_sigkill_leaves_a_readable_bag_that_recovers(
+        tmp_path, node_100_hz, storage):
+    namespace = node_100_hz
+    bag = tmp_path / 'killed'
+    recorder = RecorderProcess(tmp_path / 'recorder.log', bag, '--namespace', namespace,
+                               '--storage', storage, '--flush-period', '0.2')
+    recorder.wait_until_recording(bag)
+    time.sleep(2.0)
+    recorder.process.kill()
+    recorder.finish()
+    assert not bag_is_complete(bag)
+    # Readable as it is, up to the last flush (0.2 s at most before the kill).
+    with Reader(bag) as reader:
+        before = [(c.topic, t, bytes(d)) for c, t, d in reader.messages()]
+    poses = [item for item in before if item[0] == f'{namespace}/pose']
+    assert len(poses) >= 150
+    if storage == 'mcap':
+        by_mcap = mcap_messages(storage_file(bag, 'mcap'))
+        assert sum(len(m) for m in by_mcap.values()) == len(before)
+        assert_nothing_lost(by_mcap, namespace, 100.0)
+    summary = recover_bag(bag)
+    assert bag_is_complete(bag) and (tmp_path / 'killed.orig').is_dir()
+    with Reader(bag) as reader:
+        after = [(c.topic, t, bytes(d)) for c, t, d in reader.messages()]
+        assert reader.message_count == len(after) == sum(summary.counts.values())
+    assert sorted(after) == sorted(before)
+
+
+def _messages_in_complete_chunks(path, cut):
+    """Return the Message records of the chunks that end before byte `cut`, in file order."""
+    with open(path, 'rb') as stream:
+        summary = make_reader(stream).get_summary()
+        messages = []
+        for index in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):
+            if index.chunk_start_offset + index.chunk_length > cut:
+                break
+            # Past the record's opcode (1 byte) and length (8 bytes).
+            stream.seek(index.chunk_start_offset + 1 + 8)
+            chunk = Chunk.read(ReadDataStream(stream))
+            messages += [r for r in breakup_chunk(chunk) if isinstance(r, Message)]
+    return messages
+
+
+def test_an_mcap_cut_anywhere_is_recovered_up_to_its_last_complete_chunk(tmp_path):
+    source = tmp_path / 'source'
+    simulate_to_bag(load_scene('default'), source, 6.0, rate=1000.0, clock=True)
+    data = storage_file(source, 'mcap').read_bytes()
+    rng = np.random.default_rng(11)
+    cuts = sorted(rng.integers(100, len(data) - 1, size=6)) + [len(data) - 20, 60]
+    for number, cut in enumerate(cuts):
+        bag = tmp_path / f'cut{number}'
+        bag.mkdir()
+        storage_file(bag, 'mcap').write_bytes(data[:cut])
+        (bag / 'metadata.yaml').write_bytes((source / 'metadata.yaml').read_bytes())
+        # As documented: rosbags cannot open a cut file (no footer).
+        with pytest.raises(ReaderError):
+            with Reader(bag) as reader:
+                list(reader.messages())
+        expected = _messages_in_complete_chunks(storage_file(source, 'mcap'), cut)
+        summary = recover_bag(bag)
+        assert summary.truncated
+        assert bag_is_complete(bag)
+        recovered = [m for ms in mcap_messages(storage_file(bag, 'mcap')).values() for m in ms]
+        order = lambda message: (message.log_time, message.channel_id)  # noqa: E731
+        assert len(recovered) == len(expected), cut
+        for got, want in zip(sorted(recovered, key=order), sorted(expected, key=order)):
+            assert (got.log_time, got.data) == (want.log_time, want.data)
+
+
+def test_recover_refuses_a_complete_bag_and_a_missing_one(tmp_path):
+    bag = tmp_path / 'complete'
+    simulate_to_bag(load_scene('default'), bag, 0.5)
+    with pytest.raises(ValueError, match='complete bag already'):
+        recover_bag(bag)
+    with pytest.raises(ValueError, match='not a bag directory'):
+        recover_bag(tmp_path / 'nothing')
+    assert recover_bag(bag, force=True).counts['/pose'] == 50
