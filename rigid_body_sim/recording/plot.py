@@ -28,7 +28,7 @@ from rosbags.rosbag2 import Reader
 
 from .bag_writer import typestore
 
-__all__ = ['BagMotion', 'read_motion', 'plot_bag', 'plot_motion']
+__all__ = ['BagMotion', 'com_moves', 'read_motion', 'plot_bag', 'plot_motion']
 
 _ODOMETRY = 'nav_msgs/msg/Odometry'
 _VECTOR3_STAMPED = 'geometry_msgs/msg/Vector3Stamped'
@@ -247,7 +247,7 @@ def plot_motion(motion, out):
 
     axes = figure.add_subplot(grid[1, 1], projection='3d')
     position = motion.position
-    if np.ptp(position, axis=0).max() > _MOTION_THRESHOLD:
+    if com_moves(motion):
         path = np.vstack((position[::stride], position[-1:]))
         axes.plot(path[:, 0], path[:, 1], path[:, 2], color='tab:blue')
         axes.scatter(*position[0], color='tab:green', marker='o', s=30, label='start')
@@ -273,6 +273,11 @@ def plot_motion(motion, out):
     figure.savefig(out, dpi=110)
     pyplot.close(figure)
     return out
+
+
+def com_moves(motion):
+    """Return True if the COM path spans more than round-off (1e-9 m) in the bag."""
+    return bool(np.ptp(motion.position, axis=0).max() > _MOTION_THRESHOLD)
 
 
 def _torque_effects(motion):
