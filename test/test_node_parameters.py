@@ -23,8 +23,8 @@ from rigid_body_sim.ros.parameters import DEFAULTS
 from rigid_body_sim.ros.parameters import NOT_SET
 from rigid_body_sim.ros.parameters import parameter_descriptor
 from rigid_body_sim.ros.parameters import PARAMETERS
-from rigid_body_sim.ros.parameters import SCENE_VALUE
 from rigid_body_sim.ros.parameters import scene_from_parameters
+from rigid_body_sim.ros.parameters import SCENE_VALUE
 from rigid_body_sim.scenes import load_scene
 from rigid_body_sim.scenes import scene_names
 import yaml
@@ -51,7 +51,7 @@ def flatten(tree, prefix=''):
 
 @pytest.fixture(scope='module')
 def context():
-    """An rclpy context of this module's own."""
+    """Give this module an rclpy context of its own."""
     context = rclpy.Context()
     rclpy.init(context=context)
     yield context
