@@ -356,6 +356,26 @@ def test_an_unknown_integrator_is_rejected_with_the_valid_names(sim):
         assert name in result.reason
 
 
+def test_real_time_factor_changes_the_tick_rate_at_run_time(sim):
+    """Set to 3 at run time: three times the messages per wall-clock second; then back."""
+    try:
+        assert sim.set_parameter('real_time_factor', 3.0).successful
+        sim.wait_for(lambda: 'real_time_factor is now 3' in sim.process.output(), 5.0,
+                     'the change')
+        # As in _rates_in_windows: a window in which the machine was starved is retried.
+        for _ in range(5):
+            start = time.monotonic()
+            time.sleep(1.0)
+            arrivals = [t for t, _ in sim.received('angular_momentum') if t > start]
+            measured = (len(arrivals) - 1) / (arrivals[-1] - arrivals[0])
+            if abs(measured / (3.0 * RATE) - 1.0) <= 0.1:
+                break
+        assert abs(measured / (3.0 * RATE) - 1.0) <= 0.1, measured
+    finally:
+        assert sim.set_parameter('real_time_factor', 1.0).successful
+    assert not sim.set_parameter('real_time_factor', 0.0).successful  # out of range
+
+
 def test_read_only_parameters_cannot_change_at_run_time(sim):
     """The scene, the rate, the body and the clock are fixed once the node runs."""
     assert not sim.set_parameter('scene', 'heavy_top').successful
