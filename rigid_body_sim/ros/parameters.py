@@ -179,7 +179,7 @@ _PARAMETER_TYPES = {
 }
 _TYPE_NAMES = {float: 'a double', int: 'an integer', str: 'a string', bool: 'a boolean',
                list: 'a list of doubles'}
-_EXAMPLES = {float: '100.0 for a double, not 100', int: '10', str: 'buss',
+_EXAMPLES = {float: '100.0 for a double, not 100', int: '10', str: "'5' (quoted) for a string",
              bool: 'true or false', list: '[1.0, 2.0, 3.0] for a list of doubles'}
 
 
