@@ -152,7 +152,8 @@ def _subscription_qos(reliability, durability, depth):
 class _Recorder:
     """The wait-and-take loop; see :func:`record`."""
 
-    def __init__(self, node, writer, topics, depth, flush_period, sync, use_sim_time, log):
+    def __init__(self, node, writer, topics, namespace, depth, flush_period, sync,
+                 use_sim_time, log):
         self.node = node
         self.writer = writer
         self.depth = depth
@@ -170,7 +171,8 @@ class _Recorder:
         self.sim_time = 0
         self.wait_set = None
         self.ready_handles = []
-        known = default_topics()
+        # The node's topics (in its namespace) are subscribed at once, with known types.
+        known = default_topics(namespace)
         for name in topics:
             if name in known:
                 message_class, publisher_qos = known[name]
@@ -379,8 +381,8 @@ def record(bag, topics=None, storage='mcap', namespace='', depth=1000, flush_per
         node = Node(NODE_NAME, context=context, start_parameter_services=False)
         writer.create()
         writer.set_custom_data(CUSTOM_DATA_PREFIX + 'writer', 'rigid-body-sim record')
-        recorder = _Recorder(node, writer, names, depth, flush_period, sync, use_sim_time,
-                             log)
+        recorder = _Recorder(node, writer, names, namespace, depth, flush_period, sync,
+                             use_sim_time, log)
         log(f'recording {", ".join(names)} into {writer.path} ({storage}); Ctrl-C to stop')
         next_flush = started + flush_period
         next_discovery = started

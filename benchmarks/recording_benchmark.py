@@ -1,0 +1,158 @@
+#!/usr/bin/env python3
+"""
+Measure offline simulate speed and the live recorder's CPU and losses at 1 kHz.
+
+Usage: .venv/bin/python benchmarks/recording_benchmark.py [--seconds S] [--repeats K]
+       [--record-seconds R] [--no-record]
+
+1. Offline: each built-in scene simulated at 1 kHz for S simulated seconds into an MCAP
+   bag with every topic the node publishes plus /clock (6 topics at 1 kHz, /diagnostics at
+   1 Hz), by ``simulate_to_bag`` in this process after a warm-up run (numba's compiled
+   kernels loaded): the median over K runs of simulated s per wall-clock s.  Then the
+   same for the default scene through the command line (``rigid-body-sim simulate``, a new
+   process: imports, kernel loading and all), timed from outside.
+2. Live: the node at 1 kHz with publish_clock (``python -m rigid_body_sim.ros.node``) and
+   ``rigid-body-sim record`` of its topics for R s, both subprocesses in a ROS domain of
+   their own on the loopback: messages per topic, messages lost (gaps in the publishers'
+   sequence numbers and in the node's simulated-time stamps, read back from the bag), the
+   recorder's CPU while recording (its own report: process time / wall time) and in total
+   (from /proc, start-up included), and the node's CPU over the same time.
+"""
+
+import argparse
+import os
+from pathlib import Path
+import shutil
+import signal
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+from mcap.reader import make_reader
+import numpy as np
+from rigid_body_sim.recording.simulate import simulate_to_bag
+from rigid_body_sim.scenes import load_scene
+from rigid_body_sim.scenes import scene_names
+
+RATE = 1000.0
+STATE_TOPICS = ('pose', 'twist', 'angular_momentum', 'odom', 'marker')
+STAMPED = ('pose', 'angular_momentum', 'odom', 'marker')
+
+
+def offline(seconds, repeats, directory):
+    """Print the speed of simulate_to_bag per scene."""
+    print(f'Offline simulate at {RATE:g} Hz, {seconds:g} s simulated, all topics + /clock, '
+          f'median of {repeats}:')
+    print(f'  {"scene":<14} {"integrator":<10} {"effects":<26} {"x real time":>11} '
+          f'{"us/tick":>8} {"MB/s sim":>9}')
+    for name in scene_names():
+        scene = load_scene(name)
+        simulate_to_bag(scene, directory / f'{name}_warm', 0.2, rate=RATE, clock=True)
+        speeds = []
+        size = 0
+        for k in range(repeats):
+            bag = directory / f'{name}_{k}'
+            summary = simulate_to_bag(scene, bag, seconds, rate=RATE, clock=True)
+            speeds.append(summary.speed)
+            size = sum(f.stat().st_size for f in bag.iterdir())
+            shutil.rmtree(bag)
+        speed = statistics.median(speeds)
+        effects = ', '.join(scene.effect_names()) or 'none'
+        print(f'  {name:<14} {scene.integrator:<10} {effects:<26} {speed:>10.1f}x '
+              f'{1e6 / (speed * RATE):>8.1f} {size / seconds / 1e6:>9.2f}')
+    bag = directory / 'cli'
+    command = [sys.executable, '-m', 'rigid_body_sim.cli', 'simulate', '--scene', 'default',
+               '--duration', f'{seconds:g}', '--rate', f'{RATE:g}', '--clock', '--quiet',
+               '--bag', str(bag)]
+    started = time.perf_counter()
+    subprocess.run(command, check=True, stdout=subprocess.DEVNULL)
+    wall = time.perf_counter() - started
+    print(f'  command line, default scene, new process (start-up included): {wall:.2f} s '
+          f'for {seconds:g} s = {seconds / wall:.1f}x real time')
+    print(f'    {" ".join(command[1:])}')
+
+
+def _cpu_seconds(pid):
+    """Return user + system CPU seconds of a process (Linux /proc)."""
+    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def live(record_seconds, directory):
+    """Run the node and the recorder at 1 kHz; print losses and CPU."""
+    environment = dict(os.environ)
+    environment['ROS_DOMAIN_ID'] = str(150 + os.getpid() % 80)
+    environment['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    namespace = '/bench'
+    node = subprocess.Popen(
+        [sys.executable, '-m', 'rigid_body_sim.ros.node', '--ros-args', '-r',
+         f'__ns:={namespace}', '-p', f'rate:={RATE}', '-p', 'publish_clock:=true'],
+        env=environment, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+    bag = directory / 'live'
+    try:
+        time.sleep(2.0)
+        node_cpu = _cpu_seconds(node.pid)
+        started = time.monotonic()
+        recorder = subprocess.Popen(
+            [sys.executable, '-m', 'rigid_body_sim.cli', 'record', '--namespace', namespace,
+             '--bag', str(bag), '--duration', f'{record_seconds:g}'],
+            env=environment, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        total_cpu = 0.0
+        while recorder.poll() is None:
+            try:
+                total_cpu = _cpu_seconds(recorder.pid)
+            except (FileNotFoundError, ProcessLookupError):
+                break
+            time.sleep(0.2)
+        report = recorder.communicate()[0]
+        wall = time.monotonic() - started
+        node_cpu = _cpu_seconds(node.pid) - node_cpu
+    finally:
+        node.send_signal(signal.SIGINT)
+        node.wait(20)
+    print(f'Live recorder: node at {RATE:g} Hz (publish_clock), rigid-body-sim record of its '
+          f'topics for {record_seconds:g} s:')
+    print('  ' + report.strip().replace('\n', '\n  '))
+    print(f'  recorder CPU including start-up: {total_cpu:.1f} s in {wall:.1f} s = '
+          f'{100 * total_cpu / wall:.1f}% of a core; node CPU meanwhile: '
+          f'{100 * node_cpu / wall:.1f}% of a core')
+    with open(bag / 'live.mcap', 'rb') as stream:
+        messages = {}
+        for _, channel, message in make_reader(stream).iter_messages(log_time_order=False):
+            messages.setdefault(channel.topic, []).append(message)
+    print('  read back from the bag (mcap): received, lost between first and last '
+          '(sequence gaps / stamp gaps)')
+    for topic in STATE_TOPICS:
+        records = messages.get(f'{namespace}/{topic}', [])
+        sequences = np.array([m.sequence for m in records])
+        lost = int(np.sum(np.diff(sequences) - 1)) if len(records) > 1 else 0
+        stamp_lost = 'n/a'
+        if topic in STAMPED and len(records) > 1:
+            stamps = np.array([int.from_bytes(m.data[4:8], 'little') * 10**9
+                               + int.from_bytes(m.data[8:12], 'little') for m in records])
+            stamp_lost = str(int(np.sum(np.diff(stamps) // 1_000_000 - 1)))
+        print(f'    {topic:<17} {len(records):>7} received, lost {lost} / {stamp_lost}')
+
+
+def main():
+    """Run the measurements and print them."""
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--seconds', type=float, default=30.0,
+                        help='simulated seconds per offline run (default 30)')
+    parser.add_argument('--repeats', type=int, default=3, help='offline runs (default 3)')
+    parser.add_argument('--record-seconds', type=float, default=30.0,
+                        help='seconds of live recording (default 30)')
+    parser.add_argument('--no-record', action='store_true', help='offline only')
+    args = parser.parse_args()
+    print(f'machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}')
+    with tempfile.TemporaryDirectory() as directory:
+        offline(args.seconds, args.repeats, Path(directory))
+        if not args.no_record:
+            live(args.record_seconds, Path(directory))
+
+
+if __name__ == '__main__':
+    main()
