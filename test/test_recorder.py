@@ -210,6 +210,28 @@ def test_a_recorder_killed_with_sigkill_leaves_a_readable_bag_that_recovers(
     assert sorted(after) == sorted(before)
 
 
+def test_use_sim_time_logs_messages_at_the_simulated_time(tmp_path, node_100_hz):
+    namespace = node_100_hz
+    bag = tmp_path / 'sim_time'
+    recorder = RecorderProcess(tmp_path / 'recorder.log', bag, '--namespace', namespace,
+                               '--use-sim-time', '--duration', '4')
+    assert recorder.finish() == 0, recorder.output()
+    messages = mcap_messages(storage_file(bag, 'mcap'))
+    clock = messages['/clock']
+    clock_times = np.array([stamp_of(m.data) for m in clock])
+    # /clock is logged at its own value (taken first in each pass).
+    np.testing.assert_array_equal([m.log_time for m in clock], clock_times)
+    poses = messages[f'{namespace}/pose']
+    stamps = np.array([stamp_of(m.data) for m in poses])
+    log_times = np.array([m.log_time for m in poses])
+    # A tick's pose follows its /clock; it is logged at the latest /clock taken, which is
+    # its own tick's or, if it waited in the queue, a later one (best effort may also drop
+    # a /clock): never earlier, and far less than a second later.
+    assert np.all(log_times >= stamps) and np.all(log_times - stamps < 500_000_000)
+    assert np.all(np.diff(log_times) >= 0)
+    assert log_times.min() >= clock_times.min()
+
+
 def _messages_in_complete_chunks(path, cut):
     """Return the Message records of the chunks that end before byte `cut`, in file order."""
     with open(path, 'rb') as stream:

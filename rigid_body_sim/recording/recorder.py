@@ -20,8 +20,8 @@ a wait set and then takes every queued message of every ready topic in one pass,
 deserialised) with their message info.
 
 What is written.  Each message's bag (log) time is its receive time: the DDS reception
-timestamp (system clock), or with ``use_sim_time`` the latest /clock received (0 before
-the first).  MCAP also keeps the publisher's source timestamp (publish time) and its
+timestamp (system clock), or with ``use_sim_time`` the latest /clock received (messages taken
+before the first /clock get its time; 0 if none ever comes).  MCAP also keeps the publisher's source timestamp (publish time) and its
 publication sequence number (sequence), so a reader can count what was lost: the summary
 does, per topic, as gaps in the sequence numbers (meaningful for one publisher per topic).
 The offered QoS profiles stored per topic are those discovery reports, as ``ros2 bag
@@ -168,7 +168,7 @@ class _Recorder:
         # earlier one can still come, in the order of their times: an MCAP file without
         # index (a killed recorder's) must be in time order for rosbags to read it.
         self.buffer = []
-        self.sim_time = 0
+        self.sim_time = None  # ns, from /clock (use_sim_time): None before the first one
         self.wait_set = None
         self.ready_handles = []
         # The node's topics (in its namespace) are subscribed at once, with known types.
@@ -251,13 +251,23 @@ class _Recorder:
         # A topic that was not ready when the wait returned had nothing received before
         # then; so every message received before `woke` (less a margin for the time DDS
         # takes from stamping a sample to queueing it) has now been taken.
-        self.write_buffered(math.inf if self.use_sim_time else woke - _ORDER_MARGIN)
+        if not self.use_sim_time:
+            self.write_buffered(woke - _ORDER_MARGIN)
+        elif self.sim_time is not None:
+            self.write_buffered()
 
     def write_buffered(self, before=math.inf):
         """Write the taken messages received before `before` (ns), in time order."""
         buffer = self.buffer
         if not buffer:
             return
+        if self.use_sim_time and buffer[0][0] < 0:
+            # Taken before the first /clock: they get its time (0 if none came).
+            first = self.sim_time
+            if first is None:
+                self.log('no /clock received: messages taken before any have bag time 0')
+                first = 0
+            buffer[:] = [(first if item[0] < 0 else item[0],) + item[1:] for item in buffer]
         buffer.sort(key=_log_time)
         count = len(buffer)
         if buffer[-1][0] >= before:
@@ -288,6 +298,9 @@ class _Recorder:
             return
         if self.use_sim_time:
             log_time = self.sim_time
+            if log_time is None:
+                # Kept until the first /clock gives the time (see write_buffered).
+                log_time = -1
         else:
             log_time = info.get('received_timestamp') or time.time_ns()
         if topic.connection is None:
