@@ -21,8 +21,9 @@ deserialised) with their message info.
 
 What is written.  Each message's bag (log) time is its receive time: the DDS reception
 timestamp (system clock), or with ``use_sim_time`` the latest /clock received (messages taken
-before the first /clock get its time; 0 if none ever comes).  MCAP also keeps the publisher's source timestamp (publish time) and its
-publication sequence number (sequence), so a reader can count what was lost: the summary
+before the first /clock get its time; 0 if none ever comes).  MCAP also keeps the
+publisher's source timestamp (publish time) and its publication sequence number
+(sequence), so a reader can count what was lost: the summary
 does, per topic, as gaps in the sequence numbers (meaningful for one publisher per topic).
 The offered QoS profiles stored per topic are those discovery reports, as ``ros2 bag
 record`` stores them.
