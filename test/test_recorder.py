@@ -224,10 +224,13 @@ def test_use_sim_time_logs_messages_at_the_simulated_time(tmp_path, node_100_hz)
     poses = messages[f'{namespace}/pose']
     stamps = np.array([stamp_of(m.data) for m in poses])
     log_times = np.array([m.log_time for m in poses])
-    # A tick's pose follows its /clock; it is logged at the latest /clock taken, which is
-    # its own tick's or, if it waited in the queue, a later one (best effort may also drop
-    # a /clock): never earlier, and far less than a second later.
-    assert np.all(log_times >= stamps) and np.all(log_times - stamps < 500_000_000)
+    # A message is logged at the latest /clock taken before it: usually its own tick's
+    # (the node publishes /clock first), a tick earlier when the pose overtook its /clock
+    # on the way (two DDS readers), later when it waited in the queue or came before the
+    # first /clock (best effort matched later).  So within a few ticks, mostly none.
+    lag = log_times - stamps
+    assert np.all(lag > -100_000_000) and np.all(lag < 2_000_000_000), (lag.min(), lag.max())
+    assert np.median(np.abs(lag)) <= 10_000_000
     assert np.all(np.diff(log_times) >= 0)
     assert log_times.min() >= clock_times.min()
 
