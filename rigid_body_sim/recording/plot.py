@@ -17,8 +17,10 @@ drag.
 
 The figure (matplotlib, Agg backend) has four panels: Omega's components against time;
 the relative drift of T_rot and |L| against time; the orientation as the paths the tips of
-the body's x, y, z axes trace on the unit sphere (world frame); and the COM path when the
-COM moves, else the polhode (the path of Omega in the body frame).
+the body's x, y, z axes trace on the unit sphere (world frame), until the busiest has gone
+round four times (an axis spinning many times faster than the others, such as a top's,
+shows only its ends); and the COM path when the COM moves, else the polhode (the path of
+Omega in the body frame).
 """
 
 from pathlib import Path
@@ -39,6 +41,8 @@ _AXIS_COLORS = ('tab:red', 'tab:green', 'tab:blue')
 # An axis whose tip travels more than this many turns, and 20 times as far as the slowest
 # axis, spins: its path would cover the sphere.
 _FAST_TURNS = 10
+# Turns of the busiest drawn axis shown on the sphere.
+_DRAWN_TURNS = 4
 # Points per 3D path: more only slow the drawing down, the lines look the same.
 _PATH_POINTS = 6000
 _CUSTOM_PREFIX = 'rigid_body_sim.'
@@ -225,22 +229,39 @@ def plot_motion(motion, out):
     axes = figure.add_subplot(grid[1, 0], projection='3d')
     _unit_sphere(axes)
     rotation = motion.rotation
-    lengths = [np.linalg.norm(np.diff(rotation[:, :, k], axis=0), axis=1).sum()
-               for k in range(3)]
+    # Distance each axis tip has travelled on the sphere up to each message (rad).
+    travelled = np.vstack([np.concatenate(([0.0], np.cumsum(np.linalg.norm(
+        np.diff(rotation[:, :, k], axis=0), axis=1)))) for k in range(3)])
+    lengths = travelled[:, -1]
+    spinning = [lengths[k] > _FAST_TURNS * 2.0 * np.pi and lengths[k] > 20.0 * lengths.min()
+                for k in range(3)]
+    # The other axes are drawn until one of them has gone round _DRAWN_TURNS times: more
+    # loops would only tangle.
+    drawn = [k for k in range(3) if not spinning[k]]
+    end = len(time)
+    if drawn:
+        beyond = np.flatnonzero(travelled[drawn].max(axis=0) > _DRAWN_TURNS * 2.0 * np.pi)
+        if beyond.size:
+            end = int(beyond[0]) + 1
+    window_stride = max(1, -(-end // _PATH_POINTS))
     for k, (label, color) in enumerate(zip('xyz', _AXIS_COLORS)):
         tips = rotation[:, :, k]
-        if lengths[k] > _FAST_TURNS * 2.0 * np.pi and lengths[k] > 20.0 * min(lengths):
+        if spinning[k]:
             # A fast-spinning axis would paint the whole sphere: only its ends are shown.
             label = f'body {label} axis (spins: {lengths[k] / (2 * np.pi):.0f} turns, ends only)'
+            last = tips[-1]
         else:
-            path = np.vstack((tips[::stride], tips[-1:]))
-            axes.plot(path[:, 0], path[:, 1], path[:, 2], color=color, linewidth=0.6,
-                      alpha=0.8)
+            path = np.vstack((tips[:end:window_stride], tips[end - 1:end]))
+            axes.plot(path[:, 0], path[:, 1], path[:, 2], color=color, linewidth=0.7,
+                      alpha=0.85)
             label = f'body {label} axis'
+            last = tips[end - 1]
         axes.plot([], [], color=color, label=label)
         axes.scatter(*tips[0], color=color, marker='o', s=25)
-        axes.scatter(*tips[-1], color=color, marker='s', s=25)
-    axes.set(title='Orientation: body axes on the unit sphere (o start, \u25a1 end)',
+        axes.scatter(*last, color=color, marker='s', s=25)
+    shown = 'o start, \u25a1 end' if end == len(time) else \
+        f'o start, \u25a1 at {time[end - 1]:.3g} s: the first {_DRAWN_TURNS} turns'
+    axes.set(title=f'Orientation: body axes on the unit sphere ({shown})',
              xlabel='world x', ylabel='world y', zlabel='world z')
     _equal_3d(axes, np.array([[-1.0, -1.0, -1.0], [1.0, 1.0, 1.0]]))
     axes.legend(loc='upper left', fontsize='small')
