@@ -525,6 +525,17 @@ class BagWriter:
         self._writer.storage.flush(sync)
         self._write_metadata()
 
+    def sync_to_disk(self):
+        """
+        Fsync the storage file: what the last :meth:`flush` wrote survives a power loss.
+
+        May run in another thread while this one writes on (the recorder does, so that a
+        slow disk never stalls its takes); not after :meth:`close`.
+        """
+        storage = self._writer.storage
+        if isinstance(storage, _McapStorage):
+            os.fsync(storage.bio.fileno())
+
     def close(self):
         """Finish the bag: summary and index, final ``metadata.yaml``.  Idempotent."""
         if not self._closed and self._writer.storage is not None:

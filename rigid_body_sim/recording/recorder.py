@@ -11,7 +11,8 @@ the node's topics are subscribed at once with the policies of
 :mod:`rigid_body_sim.ros.qos` (best effort for /clock, whose publishers are best effort),
 other topics when discovery shows their type and offers (reliable if every publisher is,
 transient local if every publisher is).  History is keep-last with a deep queue (`depth`,
-default 1000: a second at 1 kHz), so a recorder that is briefly late loses nothing.
+default 5000: five seconds at 1 kHz), so a recorder that is briefly starved of CPU (on a
+busy two-core machine it was, once, for over a second) loses nothing.
 
 No executor.  rclpy's executor costs tens of microseconds of Python per message, too much
 for five topics at 1 kHz on a small machine.  The recorder waits on its subscriptions with
@@ -35,6 +36,7 @@ Killed.  Every `flush_period` (default 0.25 s) the bag is flushed (see
 
 import importlib
 import math
+import os
 import signal
 import threading
 import time
@@ -96,12 +98,15 @@ def default_topics(namespace=''):
 class RecordingSummary:
     """Messages recorded per topic, losses seen in sequence numbers, time and CPU used."""
 
-    def __init__(self, bag, counts, lost, wall_time, cpu_time):
+    def __init__(self, bag, counts, lost, wall_time, cpu_time, longest_pass=0.0,
+                 longest_flush=0.0):
         self.bag = bag
         self.counts = counts
         self.lost = lost
         self.wall_time = wall_time
         self.cpu_time = cpu_time
+        self.longest_pass = longest_pass
+        self.longest_flush = longest_flush
 
     @property
     def cpu_fraction(self):
@@ -111,7 +116,8 @@ class RecordingSummary:
     def __str__(self):
         lines = [f'{self.bag}: {sum(self.counts.values())} messages on {len(self.counts)} '
                  f'topics in {self.wall_time:.1f} s, CPU {100.0 * self.cpu_fraction:.1f}% '
-                 f'of a core']
+                 f'of a core; longest pass {1e3 * self.longest_pass:.0f} ms, longest flush '
+                 f'{1e3 * self.longest_flush:.0f} ms']
         for topic, count in self.counts.items():
             lost = self.lost.get(topic)
             seen = 'lost: n/a' if lost is None else f'lost (sequence gaps): {lost}'
@@ -335,7 +341,7 @@ class _Recorder:
         return counts, lost
 
 
-def record(bag, topics=None, storage='mcap', namespace='', depth=1000, flush_period=0.25,
+def record(bag, topics=None, storage='mcap', namespace='', depth=5000, flush_period=0.25,
            sync=True, use_sim_time=False, duration=None, stop=None, log=None, ros_args=None):
     """
     Record topics into a new bag until stopped; return a :class:`RecordingSummary`.
@@ -389,6 +395,7 @@ def record(bag, topics=None, storage='mcap', namespace='', depth=1000, flush_per
                signal_handler_options=SignalHandlerOptions.NO)
     restore = _stop_on_signals(stop)
     node = None
+    syncer = None
     started = time.monotonic()
     cpu_started = time.process_time()
     try:
@@ -401,8 +408,16 @@ def record(bag, topics=None, storage='mcap', namespace='', depth=1000, flush_per
         next_flush = started + flush_period
         next_discovery = started
         end = math.inf if duration is None else started + duration
+        # Longest time from one pass over the queues to the next, and longest flush: a queue
+        # of `depth` messages at rate r overflows after depth / r s without a pass.
+        longest_pass = longest_flush = 0.0
+        previous = None
+        syncer = _Syncer(writer) if sync and storage == 'mcap' else None
         while not stop.is_set():
             now = time.monotonic()
+            if previous is not None:
+                longest_pass = max(longest_pass, now - previous)
+            previous = now
             if now >= end:
                 break
             if now >= next_discovery:
@@ -413,20 +428,67 @@ def record(bag, topics=None, storage='mcap', namespace='', depth=1000, flush_per
             if rest > 0.0:
                 time.sleep(rest)
             if time.monotonic() >= next_flush:
-                writer.flush(sync)
+                flush_started = time.monotonic()
+                # To the OS here (enough against SIGKILL); the fsync against power loss runs
+                # in a thread of its own, as it can take a slow disk tens of milliseconds.
+                writer.flush(sync=False)
+                if syncer is not None:
+                    syncer.request()
                 next_flush = time.monotonic() + flush_period
+                longest_flush = max(longest_flush, next_flush - flush_period - flush_started)
         # What arrived up to the stop is recorded too.
         recorder.take()
         recorder.write_buffered()
         counts, lost = recorder.summary_counts()
     finally:
         restore()
+        if syncer is not None:
+            syncer.stop()
         writer.close()
+        if sync:
+            _fsync_path(writer.storage_file)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown(context=context)
     return RecordingSummary(writer.path, counts, lost, time.monotonic() - started,
-                            time.process_time() - cpu_started)
+                            time.process_time() - cpu_started, longest_pass, longest_flush)
+
+
+class _Syncer:
+    """A thread that fsyncs the bag's storage file whenever asked."""
+
+    def __init__(self, writer):
+        self._writer = writer
+        self._wanted = threading.Event()
+        self._stopping = False
+        self._thread = threading.Thread(target=self._run, name='fsync', daemon=True)
+        self._thread.start()
+
+    def request(self):
+        """Ask for an fsync (one pending request covers any number)."""
+        self._wanted.set()
+
+    def stop(self):
+        """Finish the pending fsync, if any, and end the thread."""
+        self._stopping = True
+        self._wanted.set()
+        self._thread.join()
+
+    def _run(self):
+        while True:
+            self._wanted.wait()
+            self._wanted.clear()
+            if self._stopping:
+                return
+            self._writer.sync_to_disk()
+
+
+def _fsync_path(path):
+    descriptor = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(descriptor)
+    finally:
+        os.close(descriptor)
 
 
 def _absolute_topics(topics, namespace):
