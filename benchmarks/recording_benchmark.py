@@ -133,7 +133,28 @@ def live(record_seconds, directory):
             stamps = np.array([int.from_bytes(m.data[4:8], 'little') * 10**9
                                + int.from_bytes(m.data[8:12], 'little') for m in records])
             stamp_lost = str(int(np.sum(np.diff(stamps) // 1_000_000 - 1)))
-        print(f'    {topic:<17} {len(records):>7} received, lost {lost} / {stamp_lost}')
+        where = ''
+        if lost:
+            # Where the gaps are (s after the topic's first message) and how long the
+            # publisher paused there: a gap after a long pause points at the publisher.
+            publish = np.array([m.publish_time for m in records])
+            at = np.flatnonzero(np.diff(sequences) != 1)
+            where = '; gaps at ' + ', '.join(
+                f'{(publish[k] - publish[0]) * 1e-9:.2f} s ({sequences[k + 1] - sequences[k] - 1}'
+                f' lost, publisher pause {(publish[k + 1] - publish[k]) * 1e-6:.1f} ms)'
+                for k in at[:5])
+        print(f'    {topic:<17} {len(records):>7} received, lost {lost} / {stamp_lost}{where}')
+    diagnostics = messages.get('/diagnostics', [])
+    if diagnostics:
+        from rigid_body_sim.recording.bag_writer import typestore
+        store = typestore()
+        worst = max((store.deserialize_cdr(m.data, 'diagnostic_msgs/msg/DiagnosticArray')
+                     for m in diagnostics),
+                    key=lambda array: float({kv.key: kv.value for kv in
+                                             array.status[0].values}['tick duration p99 [ms]']))
+        values = {kv.key: kv.value for kv in worst.status[0].values}
+        print(f"  node's worst second: tick p99 {values['tick duration p99 [ms]']} ms, step max "
+              f"{values['step time max [ms]']} ms, missed ticks {values['missed ticks']}")
 
 
 def main():
