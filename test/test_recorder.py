@@ -27,6 +27,11 @@ from node_harness import PACKAGE_ROOT
 from node_harness import unique_namespace
 import numpy as np
 import pytest
+import rclpy
+from rclpy.qos import DurabilityPolicy
+from rclpy.qos import QoSProfile
+from rclpy.qos import ReliabilityPolicy
+from rclpy.serialization import deserialize_message
 from rigid_body_sim.recording.bag_writer import storage_file
 from rigid_body_sim.recording.recovery import bag_is_complete
 from rigid_body_sim.recording.recovery import recover_bag
@@ -36,6 +41,7 @@ from rosbags.interfaces import QosDurability
 from rosbags.interfaces import QosReliability
 from rosbags.rosbag2 import Reader
 from rosbags.rosbag2.errors import ReaderError
+from std_msgs.msg import String
 
 pytestmark = pytest.mark.xdist_group('node')
 
@@ -233,6 +239,81 @@ def test_use_sim_time_logs_messages_at_the_simulated_time(tmp_path, node_100_hz)
     assert np.median(np.abs(lag)) <= 10_000_000
     assert np.all(np.diff(log_times) >= 0)
     assert log_times.min() >= clock_times.min()
+
+
+class TopicPublisher:
+    """
+    Publishers in this test process (a context of their own): std_msgs/String messages.
+
+    Each message's data is its number (0, 1, 2, ...) on its topic, so what was received
+    can be compared with what was published, message by message.
+    """
+
+    def __init__(self, topics):
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node('test_publisher', context=self.context)
+        self.publishers = {topic: self.node.create_publisher(String, topic, profile)
+                           for topic, profile in topics.items()}
+        self.published = {topic: 0 for topic in topics}
+
+    def publish(self, topic):
+        """Publish the next number on `topic`."""
+        self.publishers[topic].publish(String(data=str(self.published[topic])))
+        self.published[topic] += 1
+
+    def close(self):
+        """Destroy the node and release the context."""
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def test_topics_the_node_does_not_publish_are_found_by_discovery_with_their_qos(
+        tmp_path, environment):
+    """
+    Only foreign topics: the recorder starts with nothing to subscribe (no wait on an empty
+    wait set), finds them by discovery and matches their QoS: a best-effort one, and a
+    transient-local one whose message was published before the recorder started (only a
+    transient-local subscription receives it).
+    """
+    namespace = environment
+    best_effort, latched = f'{namespace}/best_effort_count', f'{namespace}/latched_count'
+    publisher = TopicPublisher({
+        best_effort: QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT),
+        latched: QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)})
+    bag = tmp_path / 'foreign'
+    try:
+        publisher.publish(latched)
+        recorder = RecorderProcess(tmp_path / 'recorder.log', bag, best_effort, latched,
+                                   f'{namespace}/nobody_publishes', '--duration', '6')
+        while recorder.process.poll() is None:
+            publisher.publish(best_effort)
+            time.sleep(0.01)
+        assert recorder.finish() == 0, recorder.output()
+    finally:
+        publisher.close()
+    assert bag_is_complete(bag)
+    with Reader(bag) as reader:
+        offers = {c.topic: c.ext.offered_qos_profiles for c in reader.connections}
+        received = {}
+        for connection, _, raw in reader.messages():
+            message = deserialize_message(bytes(raw), String)
+            received.setdefault(connection.topic, []).append(int(message.data))
+    assert set(offers) == {best_effort, latched}
+    (offer,) = offers[best_effort]
+    assert offer.reliability == QosReliability.BEST_EFFORT
+    (offer,) = offers[latched]
+    assert (offer.reliability, offer.durability) == (QosReliability.RELIABLE,
+                                                     QosDurability.TRANSIENT_LOCAL)
+    assert received[latched] == [0]
+    # Best effort may drop some, never reorders or invents: increasing numbers, all
+    # published; at 100 Hz for the seconds after discovery (0.5 s period), at least 100.
+    numbers = received[best_effort]
+    assert len(numbers) >= 100 and np.all(np.diff(numbers) > 0)
+    assert numbers[-1] < publisher.published[best_effort]
+    assert f'recording {best_effort} (std_msgs/msg/String)' in recorder.output()
+    assert f'no message received (not in the bag): {namespace}/nobody_publishes' in \
+        recorder.output()
 
 
 def _messages_in_complete_chunks(path, cut):

@@ -99,8 +99,9 @@ class RecordingSummary:
     """Messages recorded per topic, losses seen in sequence numbers, time and CPU used."""
 
     def __init__(self, bag, counts, lost, wall_time, cpu_time, longest_pass=0.0,
-                 longest_flush=0.0):
+                 longest_flush=0.0, missing=()):
         self.bag = bag
+        self.missing = list(missing)
         self.counts = counts
         self.lost = lost
         self.wall_time = wall_time
@@ -122,6 +123,8 @@ class RecordingSummary:
             lost = self.lost.get(topic)
             seen = 'lost: n/a' if lost is None else f'lost (sequence gaps): {lost}'
             lines.append(f'  {topic}: {count} ({seen})')
+        if self.missing:
+            lines.append(f'  no message received (not in the bag): {", ".join(self.missing)}')
         return '\n'.join(lines)
 
 
@@ -246,6 +249,11 @@ class _Recorder:
 
     def wait_and_take(self, timeout):
         """Wait up to `timeout` s for messages, take every queued one, write in time order."""
+        if not self.topics:
+            # Nothing subscribed yet (only topics discovery has not shown): rcl refuses to
+            # wait on an empty wait set, so just let the time pass until the next look.
+            time.sleep(timeout)
+            return
         wait_set = self._wait_set()
         wait_set.clear_entities()
         for _, handle, _ in self.ready_handles:
@@ -440,6 +448,7 @@ def record(bag, topics=None, storage='mcap', namespace='', depth=5000, flush_per
         recorder.take()
         recorder.write_buffered()
         counts, lost = recorder.summary_counts()
+        missing = [name for name in names if name not in counts]
     finally:
         restore()
         if syncer is not None:
@@ -451,7 +460,8 @@ def record(bag, topics=None, storage='mcap', namespace='', depth=5000, flush_per
             node.destroy_node()
         rclpy.try_shutdown(context=context)
     return RecordingSummary(writer.path, counts, lost, time.monotonic() - started,
-                            time.process_time() - cpu_started, longest_pass, longest_flush)
+                            time.process_time() - cpu_started, longest_pass, longest_flush,
+                            missing)
 
 
 class _Syncer:
