@@ -115,6 +115,30 @@ def assert_nothing_lost(messages, namespace, rate):
         assert np.all(np.diff(log_times) >= 0)
 
 
+def assert_logged_at_the_receive_time(messages):
+    """
+    Each message's bag time is when it was received: after it was published, and soon.
+
+    The publish time the recorder stores is the publisher's DDS source timestamp, the log
+    time the reader's reception timestamp, both from the system clock of this one machine:
+    so publish <= log exactly.  Over the loopback a sample arrives within a fraction of a
+    millisecond (measured: median 0.1-0.4 ms, longest 8 ms, at 100 Hz), so the median delay
+    is below one tick at the node's 100 Hz (10 ms);
+    the longest is bounded by the recorder's order margin (20 ms), the longest a sample
+    may take from its reception stamp to its reader's queue, plus what a loaded two-core
+    machine takes to schedule the receive thread: 0.5 s, the longest stall the node itself
+    catches up.  A log time taken when the message was written (every 2 ms at least, after
+    the 20 ms margin) would lie 20 ms or more after the publish time: above the median bound.
+    """
+    for topic, records in messages.items():
+        publish = np.array([m.publish_time for m in records], dtype=np.int64)
+        log = np.array([m.log_time for m in records], dtype=np.int64)
+        delay = log - publish
+        assert np.all(delay >= 0), (topic, delay.min())
+        assert np.median(delay) < 10_000_000, (topic, np.median(delay))
+        assert np.all(delay < 500_000_000), (topic, delay.max())
+
+
 @pytest.fixture
 def environment():
     """Isolate ROS discovery for this test process; return a fresh namespace."""
@@ -181,7 +205,9 @@ def test_sigint_and_sigterm_finish_a_complete_bag(tmp_path, node_100_hz, signal_
                                                      QosDurability.VOLATILE)
     (clock_offer,) = offers['/clock']
     assert clock_offer.reliability == QosReliability.BEST_EFFORT
-    assert_nothing_lost(mcap_messages(storage_file(bag, 'mcap')), namespace, 100.0)
+    messages = mcap_messages(storage_file(bag, 'mcap'))
+    assert_nothing_lost(messages, namespace, 100.0)
+    assert_logged_at_the_receive_time(messages)
     assert f'{namespace}/pose: {counts[f"{namespace}/pose"]} (lost' in recorder.output()
     # The node's topics in its namespace are subscribed at once, not found by discovery.
     assert f'recording {namespace}/pose (' not in recorder.output()
