@@ -11,10 +11,12 @@ sequence numbers and the stamps have no gap.
 """
 
 from pathlib import Path
+import re
 import signal
 import subprocess
 import sys
 import time
+import warnings
 
 from mcap.data_stream import ReadDataStream
 from mcap.reader import make_reader
@@ -146,9 +148,27 @@ def environment():
     return unique_namespace()
 
 
+def recorded_counts(output):
+    """Return topic -> (recorded, lost) as the recorder's summary printed them."""
+    counts = {}
+    for line in output.splitlines():
+        match = re.fullmatch(r'  (\S+): (\d+) \(lost \(sequence gaps\): (\d+)\)', line)
+        if match:
+            counts[match[1]] = (int(match[2]), int(match[3]))
+    return counts
+
+
 @pytest.mark.slow
 def test_recorder_loses_no_message_at_1_khz_over_30_s(tmp_path, environment):
-    """The long one (about 35 s): five topics at 1 kHz, counted by the node's own numbers."""
+    """
+    The long one (about 35 s): five topics at 1 kHz, counted by the node's own numbers.
+
+    Over the recording window of each reliable topic (its first to its last message in the
+    bag) the node published last - first + 1 messages by its publisher's sequence numbers;
+    the bag holds exactly that many, and for the stamped topics as many ticks as the
+    simulated-time stamps span.  /clock is best effort (as every ROS clock): its losses
+    are reported (a warning), not required to be none.
+    """
     namespace = environment
     node = NodeProcess(tmp_path / 'node.log', namespace=namespace,
                        parameters={'rate': 1000.0, 'publish_clock': 'true'})
@@ -162,11 +182,30 @@ def test_recorder_loses_no_message_at_1_khz_over_30_s(tmp_path, environment):
         node.stop()
     messages = mcap_messages(storage_file(bag, 'mcap'))
     assert_nothing_lost(messages, namespace, 1000.0)
-    for topic in STATE_TOPICS:
-        # 32 s less discovery: well over 30 s of messages at 1 kHz.
-        assert len(messages[f'{namespace}/{topic}']) >= 28000, (topic, recorder.output())
-    assert 'lost (sequence gaps): 0' in recorder.output()
-    assert 'lost (sequence gaps): 1' not in recorder.output()
+    printed = recorded_counts(recorder.output())
+    with Reader(bag) as reader:
+        in_metadata = {c.topic: c.msgcount for c in reader.connections}
+    for topic in [f'{namespace}/{topic}' for topic in STATE_TOPICS] + ['/diagnostics']:
+        records = messages[topic]
+        sequences = np.array([m.sequence for m in records])
+        published = int(sequences[-1] - sequences[0] + 1)
+        assert len(records) == published == in_metadata[topic], (topic, recorder.output())
+        assert printed[topic] == (published, 0), (topic, recorder.output())
+        if topic.rsplit('/', 1)[1] in STAMPED:
+            stamps = [stamp_of(records[0].data), stamp_of(records[-1].data)]
+            assert (stamps[1] - stamps[0]) // 1_000_000 + 1 == published, topic
+        if topic != '/diagnostics':
+            # 32 s less discovery: well over 30 s of messages at 1 kHz.
+            assert published >= 28000, (topic, recorder.output())
+    assert len(messages['/diagnostics']) >= 28
+    clock = np.array([m.sequence for m in messages['/clock']])
+    assert np.all(np.diff(clock) > 0)
+    clock_lost = int(clock[-1] - clock[0] + 1) - len(clock)
+    assert printed['/clock'] == (len(clock), clock_lost)
+    print(f'/clock (best effort): {len(clock)} recorded, {clock_lost} lost')
+    if clock_lost:
+        warnings.warn(f'/clock (best effort) lost {clock_lost} of {clock[-1] - clock[0] + 1} '
+                      'at 1 kHz (allowed: best effort)')
     assert bag_is_complete(bag)
 
 
