@@ -9,6 +9,12 @@ types, missing values and non-physical bodies are ValueErrors whose message name
 the key path and what is wrong, e.g.
 ``scenes/heavy_top.yaml: effects[0].pivot.point: expected 3 numbers, got 2``.
 
+The YAML is read more strictly than ``yaml.safe_load`` (:func:`read_scene_yaml`): a key given
+twice in one mapping is an error (``body.size: duplicate key (lines 5 and 9)``), and numbers
+are YAML 1.2's, so ``damping: 1e-3`` is a float.  A section key with nothing after it
+(``initial:``, ``draw:``, ``body:``, ``effects:``, an effect's ``- pivot:``) is an error, as its
+lines were likely lost: leave a section out for its defaults, ``effects: []`` means none.
+
 For the node: ``scene = load_scene(name_or_path)``, then
 ``scene = scene.with_overrides(...)`` with the body and initial-state parameters the user
 set (they win over the scene's values, and are validated the same way), then
@@ -21,6 +27,7 @@ import copy
 from dataclasses import dataclass
 from dataclasses import field
 from pathlib import Path
+import re
 
 import numpy as np
 import yaml
@@ -45,6 +52,7 @@ __all__ = [
     'find_scene',
     'load_scene',
     'parse_scene',
+    'read_scene_yaml',
     'scene_names',
 ]
 
@@ -72,6 +80,15 @@ _DRAW_KEYS = ('shape', 'size', 'color')
 _THINNEST_DRAWING = 0.01
 # How far a scene's orientation quaternion may be from unit norm before it is an error.
 _QUATERNION_NORM_TOLERANCE = 1e-6
+
+# Numbers in scene files are read as YAML 1.2 (core schema) reads them, not as PyYAML's
+# YAML 1.1: 1e-3, 1E+3, -.5 are floats (1.1 wants a dot and a signed exponent, so these were
+# strings), 010 is ten (1.1: octal 8) and 1:30 is a string (1.1: sexagesimal 90).
+_INT_TAG = 'tag:yaml.org,2002:int'
+_FLOAT_TAG = 'tag:yaml.org,2002:float'
+_YAML12_INT = re.compile(r'^(?:[-+]?[0-9]+|0o[0-7]+|0x[0-9a-fA-F]+)$')
+_YAML12_FLOAT = re.compile(r'^(?:[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?'
+                           r'|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$')
 
 
 @dataclass(frozen=True)
@@ -299,13 +316,126 @@ def load_scene(name_or_path=DEFAULT_SCENE):
     source = f'scenes/{path.name}' if builtin else str(name_or_path)
     try:
         with open(path, encoding='utf-8') as stream:
-            data = yaml.safe_load(stream)
-    except yaml.YAMLError as error:
-        problem = ' '.join(str(error).split())
-        raise ValueError(f'{source}: not valid YAML: {problem}') from None
+            data = read_scene_yaml(stream, source)
     except OSError as error:
         raise ValueError(f'{source}: cannot read: {error.strerror}') from None
     return parse_scene(data, source)
+
+
+def read_scene_yaml(stream, source='<scene>'):
+    """
+    Return the data of a scene file's YAML (a str or a text stream), as the loader reads it.
+
+    Stricter than ``yaml.safe_load``: a key given twice in one mapping is an error (safe_load
+    keeps the last one silently), and numbers follow YAML 1.2 (``1e-3`` is a float).
+
+    Raises
+    ------
+    ValueError
+        ``<source>: not valid YAML: ...``, or ``<source>: <key path>: duplicate key ...``.
+
+    """
+    loader = _SceneYamlLoader(stream)
+    try:
+        try:
+            node = loader.get_single_node()
+        except yaml.YAMLError as error:
+            raise ValueError(f'{source}: not valid YAML: {_one_line(error)}') from None
+        if node is None:
+            return None
+        _reject_duplicate_keys(loader, node, source)
+        try:
+            return loader.construct_document(node)
+        except (yaml.YAMLError, ValueError, TypeError, OverflowError) as error:
+            # A bad explicit tag (!!float abc, !!timestamp 2024-13-45) fails in Python's own
+            # conversion, with a ValueError that would not name the file.
+            raise ValueError(f'{source}: not valid YAML: {_one_line(error)}') from None
+    finally:
+        loader.dispose()
+
+
+class _SceneYamlLoader(yaml.SafeLoader):
+    """SafeLoader with YAML 1.2 numbers (see _YAML12_INT, _YAML12_FLOAT)."""
+
+    # PyYAML's 1.1 int and float resolvers are dropped (not shadowed): the first that
+    # matches a plain scalar decides its type, and 1.1's would read 010 as 8.
+    yaml_implicit_resolvers = {
+        first: [(tag, regexp) for tag, regexp in resolvers if tag not in (_INT_TAG, _FLOAT_TAG)]
+        for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()}
+
+    def construct_yaml12_int(self, node):
+        """Return a YAML 1.2 integer: decimal (leading zeros too), 0o octal or 0x hex."""
+        text = self.construct_scalar(node)
+        sign, digits = (-1, text[1:]) if text[:1] == '-' else (1, text.lstrip('+'))
+        base = {'0o': 8, '0x': 16}.get(digits[:2], 10)
+        try:
+            return sign * int(digits[2:] if base != 10 else digits, base)
+        except ValueError:
+            raise yaml.constructor.ConstructorError(
+                None, None, f'{text!r} is not an integer', node.start_mark) from None
+
+    def construct_yaml12_float(self, node):
+        """Return a float; a value that is none (an explicit !!float tag) is a YAML error."""
+        try:
+            return self.construct_yaml_float(node)
+        except ValueError:
+            raise yaml.constructor.ConstructorError(
+                None, None, f'{self.construct_scalar(node)!r} is not a number',
+                node.start_mark) from None
+
+
+# Resolvers are tried in the order added: int first, so that 10 stays an int.
+_SceneYamlLoader.add_implicit_resolver(_INT_TAG, _YAML12_INT, list('-+0123456789'))
+_SceneYamlLoader.add_implicit_resolver(_FLOAT_TAG, _YAML12_FLOAT, list('-+.0123456789'))
+_SceneYamlLoader.add_constructor(_INT_TAG, _SceneYamlLoader.construct_yaml12_int)
+_SceneYamlLoader.add_constructor(_FLOAT_TAG, _SceneYamlLoader.construct_yaml12_float)
+
+
+def _reject_duplicate_keys(loader, root, source):
+    """Raise ValueError ``<source>: <key path>: duplicate key ...`` for a key given twice."""
+    pending, seen = [(root, '')], set()
+    while pending:
+        node, path = pending.pop()
+        if id(node) in seen:  # an alias: already checked where its anchor is
+            continue
+        seen.add(id(node))
+        if isinstance(node, yaml.SequenceNode):
+            pending.extend((item, f'{path}[{index}]') for index, item in enumerate(node.value))
+        elif isinstance(node, yaml.MappingNode):
+            marks = {}
+            for key_node, value_node in node.value:
+                key = _mapping_key(loader, key_node)
+                key_path = _join(path, str(key))
+                if key is not None:
+                    if key in marks:
+                        raise ValueError(f'{source}: {key_path}: duplicate key '
+                                         f'({_where_both(marks[key], key_node.start_mark)}); '
+                                         'give each key once')
+                    marks[key] = key_node.start_mark
+                pending.append((value_node, key_path))
+
+
+def _mapping_key(loader, key_node):
+    """Return a scalar mapping key as it will be constructed (None for other keys)."""
+    if not isinstance(key_node, yaml.ScalarNode):
+        return None  # a list or mapping as a key: construction rejects it as unhashable
+    if key_node.tag == 'tag:yaml.org,2002:merge':
+        return '<<'
+    try:
+        return loader.construct_object(key_node)
+    except (yaml.YAMLError, ValueError, TypeError, OverflowError):
+        return None  # construct_document reports it, as invalid YAML
+
+
+def _where_both(first, second):
+    """Return where two marks are: 'lines 3 and 7', or 'line 3, columns 8 and 23'."""
+    if first.line == second.line:
+        return f'line {first.line + 1}, columns {first.column + 1} and {second.column + 1}'
+    return f'lines {first.line + 1} and {second.line + 1}'
+
+
+def _one_line(error):
+    return ' '.join(str(error).split())
 
 
 def parse_scene(data, source='<scene>'):
@@ -328,7 +458,11 @@ class _SceneReader:
         return ValueError(prefix + problem)
 
     def read(self, data):
-        mapping = self.mapping(data, '', _TOP_KEYS, required=('name', 'description', 'body'))
+        mapping = self.mapping(data, '', _TOP_KEYS)
+        self.reject_empty_sections(mapping)
+        for key in ('name', 'description', 'body'):
+            if key not in mapping or mapping[key] is None:
+                raise self.error(key, 'missing; the scene requires it')
         name = self.text(mapping['name'], 'name')
         description = self.text(mapping['description'], 'description')
         body, body_shape = self.body(mapping['body'])
@@ -344,6 +478,23 @@ class _SceneReader:
         return Scene(name=name, description=description, body=body, state=state,
                      effects=tuple(effects), integrator=integrator, rate=rate,
                      drawing=drawing, source=self.source, data=copy.deepcopy(mapping))
+
+    def reject_empty_sections(self, mapping):
+        """
+        Raise for a section key with nothing after it (``initial:`` alone).
+
+        YAML reads it as null, which could be taken for "the defaults", but more likely the
+        lines below it were lost or mis-indented.  Leaving a section out is the documented
+        way to get its defaults; ``effects: []`` says "no effects".
+        """
+        for key in ('body', 'initial', 'draw'):
+            if key in mapping and mapping[key] is None:
+                remedy = ('the scene requires it' if key == 'body' else
+                          'give its keys, or leave the line out for the defaults')
+                raise self.error(key, f'empty; {remedy}')
+        if 'effects' in mapping and mapping['effects'] is None:
+            raise self.error('effects', 'empty; list the effects, or write effects: [] '
+                                        'for none')
 
     # -- generic checks
 
@@ -371,13 +522,13 @@ class _SceneReader:
         try:
             return check_number(value, 'value', unit, positive=positive)
         except ParameterError as error:
-            raise self.error(path, error.problem) from None
+            raise self.error(path, error.problem + _quoted_number_hint(value)) from None
 
     def vector(self, value, path, unit=''):
         try:
             return check_vector(value, 'value', unit)
         except ParameterError as error:
-            raise self.error(path, error.problem) from None
+            raise self.error(path, error.problem + _quoted_number_hint(value)) from None
 
     # -- sections
 
@@ -446,8 +597,6 @@ class _SceneReader:
             raise self.error(path, str(error)) from None
 
     def effects(self, value):
-        if value is None:
-            return []
         if not isinstance(value, list):
             raise self.error('effects', f'expected a list of effects, got {describe_value(value)}')
         effects, seen = [], set()
@@ -457,11 +606,6 @@ class _SceneReader:
                 name, parameters = item, {}
             elif isinstance(item, dict) and len(item) == 1:
                 (name, parameters), = item.items()
-                if parameters is None:
-                    parameters = {}
-                if not isinstance(parameters, dict):
-                    raise self.error(f'{path}.{name}', 'expected a mapping of parameters, got '
-                                                       f'{describe_value(parameters)}')
             else:
                 raise self.error(path, 'expected an effect name or {name: {parameters}}, got '
                                        f'{describe_value(item)}')
@@ -471,17 +615,23 @@ class _SceneReader:
             if name in seen:
                 raise self.error(path, f'effect {name!r} is named twice')
             seen.add(name)
+            if parameters is None:
+                # "- pivot:" with nothing below: the parameters' lines were likely lost.
+                raise self.error(f'{path}.{name}', 'no parameters after the colon; give them, '
+                                                   f'or write "- {name}" for the defaults')
+            if not isinstance(parameters, dict):
+                raise self.error(f'{path}.{name}', 'expected a mapping of parameters, got '
+                                                   f'{describe_value(parameters)}')
             try:
                 effects.append(create_effect(name, parameters))
             except ParameterError as error:
-                raise self.error(f'{path}.{name}.{error.key}', error.problem) from None
+                hint = _quoted_number_hint(parameters.get(error.key))
+                raise self.error(f'{path}.{name}.{error.key}', error.problem + hint) from None
             except ValueError as error:
                 raise self.error(f'{path}.{name}', str(error)) from None
         return effects
 
     def initial(self, value, body, pivot):
-        if value is None:
-            value = {}
         initial = self.mapping(value, 'initial', _INITIAL_KEYS)
         if 'angular_velocity_body' in initial and 'angular_velocity_world' in initial:
             raise self.error('initial', 'give angular_velocity_body or angular_velocity_world, '
@@ -512,7 +662,8 @@ class _SceneReader:
         try:
             quaternion = check_vector(value, 'value', size=4)
         except ParameterError as error:
-            raise self.error(path, error.problem + ' (quaternion x, y, z, w)') from None
+            raise self.error(path, error.problem + ' (quaternion x, y, z, w)'
+                             + _quoted_number_hint(value)) from None
         norm = float(np.linalg.norm(quaternion))
         if abs(norm - 1.0) > _QUATERNION_NORM_TOLERANCE:
             raise self.error(path, f'expected a unit quaternion (x, y, z, w), got norm '
@@ -520,7 +671,7 @@ class _SceneReader:
         return quaternion / norm
 
     def drawing(self, value, body, body_shape, body_data):
-        draw = self.mapping(value if value is not None else {}, 'draw', _DRAW_KEYS)
+        draw = self.mapping(value, 'draw', _DRAW_KEYS)
         shape = draw.get('shape', body_shape or 'box')
         if shape not in SHAPES:
             raise self.error('draw.shape', f'expected one of {", ".join(SHAPES)}, got '
@@ -551,7 +702,8 @@ class _SceneReader:
         try:
             color = check_vector(value, 'value', size=4)
         except ParameterError as error:
-            raise self.error(path, error.problem + ' (r, g, b[, a])') from None
+            raise self.error(path, error.problem + ' (r, g, b[, a])'
+                             + _quoted_number_hint(value)) from None
         if np.any(color < 0.0) or np.any(color > 1.0):
             raise self.error(path, f'each of r, g, b, a must be in 0..1, got {color.tolist()}')
         return tuple(color.tolist())
@@ -590,6 +742,15 @@ def _equivalent_extents(body, shape):
     extents = np.sqrt(np.clip(squared, 0.0, None))
     extents = np.maximum(extents, _THINNEST_DRAWING * float(np.max(extents)))
     return tuple(float(x) for x in extents), orientation
+
+
+def _quoted_number_hint(value):
+    """Return a hint if `value` (or an item of it) is a number in quotes, else ''."""
+    items = value if isinstance(value, (list, tuple)) else (value,)
+    for item in items:
+        if isinstance(item, str) and (_YAML12_INT.match(item) or _YAML12_FLOAT.match(item)):
+            return '; write it without quotes to make it a number'
+    return ''
 
 
 def _join(path, key):

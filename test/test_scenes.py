@@ -5,6 +5,7 @@ The physics of each built-in scene is tested in test_scene_physics.py.
 """
 
 import copy
+import math
 
 import numpy as np
 import pytest
@@ -19,6 +20,7 @@ from rigid_body_sim.scenes import DEFAULT_SCENE
 from rigid_body_sim.scenes import find_scene
 from rigid_body_sim.scenes import load_scene
 from rigid_body_sim.scenes import parse_scene
+from rigid_body_sim.scenes import read_scene_yaml
 from rigid_body_sim.scenes import scene_names
 import yaml
 
@@ -217,6 +219,141 @@ def test_a_scene_file_anywhere_loads_by_path(tmp_path):
     assert scene.integrator == 'buss' and scene.rate == 100.0
     assert scene.drawing.shape == 'sphere' and scene.drawing.size == (0.2, 0.2, 0.2)
     np.testing.assert_array_equal(scene.state.position, [0.0, 0.0, 10.0])
+
+
+# -- the YAML itself: duplicate keys, YAML 1.2 numbers, empty sections
+
+# A small valid scene file; tests append or replace lines.
+MINE = ('name: mine\n'
+        'description: a box\n'
+        'body:\n'
+        '  mass: 2.0\n'
+        '  shape: box\n'
+        '  size: [0.3, 0.2, 0.1]\n')
+
+
+def _write(tmp_path, text):
+    path = tmp_path / 'mine.yaml'
+    path.write_text(text, encoding='utf-8')
+    return str(path)
+
+
+@pytest.mark.parametrize('text, message', [
+    (MINE + 'name: other\n', 'name: duplicate key (lines 1 and 7)'),
+    (MINE + '  size: [1.0, 1.0, 1.0]\n', 'body.size: duplicate key (lines 6 and 7)'),
+    (MINE + '  "size": [1, 1, 1]\n', 'body.size: duplicate key (lines 6 and 7)'),
+    (MINE + 'effects:\n  - pivot: {point: [0, 0, 1], point: [0, 0, 2]}\n',
+     'effects[0].pivot.point: duplicate key (line 8, columns 13 and 31)'),
+    (MINE + 'draw: {color: [1, 0, 0], shape: box, color: [0, 1, 0]}\n',
+     'draw.color: duplicate key (line 7, columns 8 and 38)'),
+], ids=['top_level', 'nested', 'quoted_and_plain', 'effect_parameter', 'flow_mapping'])
+def test_a_key_given_twice_is_an_error_naming_its_path_and_lines(tmp_path, text, message):
+    # yaml.safe_load keeps the last value silently: the scene would run with one of two
+    # sizes the author wrote.
+    path = _write(tmp_path, text)
+    with pytest.raises(ValueError) as caught:
+        load_scene(path)
+    assert str(caught.value) == f'{path}: {message}; give each key once'
+
+
+def test_merge_keys_and_aliases_are_not_duplicates(tmp_path):
+    # A YAML merge (<<) overridden by an explicit key is that key written once in this
+    # mapping; an alias repeats a value, not a key.
+    text = (MINE.replace('  mass: 2.0\n', '  <<: {mass: 1.0}\n  mass: 2.0\n')
+            + 'initial:\n  position: &p [0, 0, 1]\n  velocity: *p\n')
+    scene = load_scene(_write(tmp_path, text))
+    assert scene.body.mass == 2.0
+    np.testing.assert_array_equal(scene.state.position, [0.0, 0.0, 1.0])
+
+
+@pytest.mark.parametrize('text, value', [
+    ('1e-3', 1e-3), ('1E+3', 1000.0), ('2.5e-1', 0.25), ('1.0e3', 1000.0), ('.5', 0.5),
+    ('-.5', -0.5), ('+.5', 0.5), ('1.', 1.0), ('-2', -2), ('010', 10), ('0o10', 8),
+    ('0x1F', 31), ('.inf', math.inf), ('-.Inf', -math.inf),
+])
+def test_numbers_are_read_in_yaml_1_2_forms(text, value):
+    # PyYAML's YAML 1.1 resolver wants a dot and a signed exponent (1e-3 was a string),
+    # and reads 010 as octal 8.
+    read = read_scene_yaml(f'a: {text}\n')['a']
+    assert read == value and type(read) is type(value)
+
+
+def test_a_number_in_exponent_form_loads_as_an_effect_parameter(tmp_path):
+    text = (MINE + 'effects:\n  - dissipation: {damping: 1e-3}\n'
+            '  - gravity: {acceleration: [0, 0, -9.81E+0]}\n')
+    scene = load_scene(_write(tmp_path, text))
+    assert scene.effects[0].damping == 1e-3
+    np.testing.assert_array_equal(scene.effects[1].acceleration, [0.0, 0.0, -9.81])
+
+
+@pytest.mark.parametrize('line, message', [
+    ('  mass: "1e-3"', "body.mass: expected a number in kg, got the string '1e-3'; write it "
+                       'without quotes to make it a number'),
+    ('  mass: 1e-3 kg', "body.mass: expected a number in kg, got the string '1e-3 kg'"),
+    ('  mass: 1:30', "body.mass: expected a number in kg, got the string '1:30'"),
+    ('  mass: 1_000', "body.mass: expected a number in kg, got the string '1_000'"),
+    ('  mass: nan', "body.mass: expected a number in kg, got the string 'nan'"),
+    ('  mass: .nan', 'body.mass: expected a finite number, got nan'),
+    ('  size: [0.3, "0.2", 0.1]', "body.size: expected 3 numbers, item 1 is the string '0.2'; "
+                                  'write it without quotes'),
+])
+def test_strings_that_are_not_numbers_stay_errors(tmp_path, line, message):
+    key = line.split(':')[0]
+    text = '\n'.join(line if old.startswith(key + ':') else old
+                     for old in MINE.splitlines()) + '\n'
+    path = _write(tmp_path, text)
+    with pytest.raises(ValueError) as caught:
+        load_scene(path)
+    assert str(caught.value).startswith(f'{path}: {message}'), str(caught.value)
+    if 'quotes' not in message:
+        assert 'quotes' not in str(caught.value)
+
+
+def test_a_quoted_effect_parameter_gets_the_same_hint(tmp_path):
+    path = _write(tmp_path, MINE + 'effects: [{dissipation: {damping: "1e-3"}}]\n')
+    with pytest.raises(ValueError, match=r'effects\[0\]\.dissipation\.damping: expected a '
+                                         r".*'1e-3'; write it without quotes"):
+        load_scene(path)
+
+
+@pytest.mark.parametrize('text', ['a: !!float abc\n', 'a: !!int 0b11\n',
+                                  'a: !!timestamp 2024-13-45\n', 'a: [1, 2\n'])
+def test_yaml_that_python_cannot_convert_is_invalid_yaml_naming_the_file(tmp_path, text):
+    path = _write(tmp_path, text)
+    with pytest.raises(ValueError, match=f'^{path}: not valid YAML: '):
+        load_scene(path)
+
+
+@pytest.mark.parametrize('lines, message', [
+    ('initial:\n', 'initial: empty; give its keys, or leave the line out for the defaults'),
+    ('draw:\n', 'draw: empty; give its keys, or leave the line out for the defaults'),
+    ('effects:\n', 'effects: empty; list the effects, or write effects: [] for none'),
+    ('effects:\n  - gravity:\n', 'effects[0].gravity: no parameters after the colon; give '
+                                 'them, or write "- gravity" for the defaults'),
+])
+def test_an_empty_section_is_an_error_not_its_defaults(tmp_path, lines, message):
+    # A key with nothing after it most likely lost the lines below it (commented out,
+    # mis-indented): taking the defaults would run another experiment than the one meant.
+    path = _write(tmp_path, MINE + lines)
+    with pytest.raises(ValueError) as caught:
+        load_scene(path)
+    assert str(caught.value) == f'{path}: {message}'
+
+
+def test_an_empty_body_is_an_error():
+    text = MINE.split('body:')[0] + 'body:\n'
+    with pytest.raises(ValueError, match=r'^mine.yaml: body: empty; the scene requires it$'):
+        parse_scene(read_scene_yaml(text), 'mine.yaml')
+
+
+def test_sections_left_out_or_written_empty_give_the_defaults(tmp_path):
+    left_out = load_scene(_write(tmp_path, MINE))
+    for extra in ('effects: []\n', 'initial: {}\ndraw: {}\neffects: []\n',
+                  'effects: [gravity: {}]\n'):
+        scene = load_scene(_write(tmp_path, MINE + extra))
+        assert scene.state == left_out.state and scene.drawing == left_out.drawing
+        assert scene.effect_names() == (['gravity'] if 'gravity' in extra else [])
+    assert left_out.effects == () and left_out.simulator().wrench_function() is None
 
 
 # -- overrides (the node's body and initial-state parameters win over the scene)
