@@ -6,6 +6,9 @@ The physics of each built-in scene is tested in test_scene_physics.py.
 
 import copy
 import math
+import re
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -14,7 +17,11 @@ from rigid_body_sim import cli
 from rigid_body_sim.paths import scenes_dir
 from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import RigidBody
+from rigid_body_sim.physics.effects import effect_parameters
 from rigid_body_sim.physics.effects import EFFECTS
+from rigid_body_sim.physics.effects import register_effect
+from rigid_body_sim.physics.effects.registry import check_number
+from rigid_body_sim.physics.effects.registry import Effect
 from rigid_body_sim.physics.rotations import matrix_from_quaternion
 from rigid_body_sim.scenes import DEFAULT_SCENE
 from rigid_body_sim.scenes import find_scene
@@ -92,16 +99,51 @@ def test_pivot_scene_state_starts_on_the_constraint():
                                    atol=1e-15)
 
 
-def test_the_schema_comment_documents_every_effect_and_key():
+def _schema_comment():
     text = find_scene(DEFAULT_SCENE).read_text(encoding='utf-8')
-    schema = '\n'.join(line for line in text.splitlines() if line.startswith('#'))
-    for name in EFFECTS:
-        assert f'- {name}' in schema, name
+    return [line for line in text.splitlines() if line.startswith('#')]
+
+
+def _schema_problems():
+    """
+    Return what the schema comment of default.yaml gets wrong about the effects, if anything.
+
+    The registry is the authority on effects and `rigid-body-sim scenes --effects` prints it;
+    the schema documents some effects and points there.  So an effect it names must exist
+    with the parameters it names, and a new effect needs no edit of the schema.
+    """
+    lines = _schema_comment()
+    prose = ' '.join(line.lstrip('#').strip() for line in lines)
+    problems = []
+    if '`rigid-body-sim scenes --effects`' not in prose:
+        problems.append('does not point to `rigid-body-sim scenes --effects`')
+    listed = re.findall(r'^#\s+- (\w+)', '\n'.join(lines), flags=re.MULTILINE)
+    if not listed:
+        problems.append('documents no effect')
+    for name in listed:
+        if name not in EFFECTS:
+            problems.append(f'documents {name!r}, which is not a registered effect')
+            continue
+        for parameter in effect_parameters(name):
+            if f'{parameter}:' not in prose:
+                problems.append(f'documents {name!r} without its parameter {parameter!r}')
+    return problems
+
+
+def test_the_schema_comment_documents_every_key_and_only_registered_effects():
+    assert _schema_problems() == []
+    schema = '\n'.join(_schema_comment())
     for key in ('name:', 'description:', 'body:', 'mass:', 'shape:', 'size:', 'radius:',
                 'height:', 'semi_axes:', 'inertia:', 'initial:', 'orientation:',
                 'angular_velocity_body:', 'angular_velocity_world:', 'position:', 'velocity:',
                 'effects:', 'integrator:', 'rate:', 'draw:', 'color:'):
         assert key in schema, key
+
+
+def test_the_schema_check_sees_an_effect_it_documents_wrongly(monkeypatch):
+    # The check above can fail: without pivot in the registry, the schema's '- pivot' is wrong.
+    monkeypatch.delitem(EFFECTS, 'pivot')
+    assert _schema_problems() == ["documents 'pivot', which is not a registered effect"]
 
 
 # -- strict validation: every error names the file, the key path and the problem
@@ -499,3 +541,55 @@ def test_scenes_command_describes_one_scene_and_reports_bad_files(capsys, tmp_pa
     out = capsys.readouterr().out
     for name in EFFECTS:
         assert f'{name}: ' in out
+        for parameter in effect_parameters(name):
+            assert f'    {parameter} (' in out, (name, parameter)
+
+
+def test_a_broken_scene_file_is_one_line_on_stderr_and_exit_code_2(tmp_path):
+    # In a process of its own, as a user runs it: no traceback.
+    path = _write(tmp_path, MINE + '  size: [1.0, 1.0, 1.0]\n')
+    result = subprocess.run([sys.executable, '-m', 'rigid_body_sim.cli', 'scenes', path],
+                            capture_output=True, text=True, timeout=120, check=False)
+    assert result.returncode == 2
+    assert result.stdout == ''
+    assert result.stderr.splitlines() == [
+        f'rigid-body-sim scenes: error: {path}: body.size: duplicate key (lines 6 and 7); '
+        'give each key once']
+
+
+# -- a new effect needs no edit outside its module and the registry
+
+
+@pytest.fixture
+def anchor_spring():
+    """Register a test effect for the test's duration (it sorts first among the effects)."""
+
+    @register_effect('anchor_spring')
+    class AnchorSpring(Effect):
+        """A linear spring pulling the COM to the world origin (a test effect)."""
+
+        def __init__(self, stiffness=1.0):
+            self.stiffness = check_number(stiffness, 'stiffness', 'N/m', positive=True)
+
+        def wrench(self, body, state, time):
+            return -self.stiffness * state.position, np.zeros(3)
+
+    yield AnchorSpring
+    del EFFECTS['anchor_spring']
+
+
+def test_a_new_effect_is_listed_loaded_and_documented_without_other_edits(anchor_spring, capsys,
+                                                                          tmp_path):
+    assert cli.main(['scenes', '--effects']) == 0
+    out = capsys.readouterr().out
+    assert 'anchor_spring: A linear spring pulling the COM to the world origin' in out
+    assert '    stiffness (default 1.0)' in out
+    scene = load_scene(_write(tmp_path, MINE + 'initial: {position: [1, 0, 0]}\n'
+                                                'effects: [anchor_spring: {stiffness: 4e+0}]\n'))
+    assert scene.effect_names() == ['anchor_spring'] and scene.effects[0].stiffness == 4.0
+    assert scene.simulator().wrench_function() is not None
+    # The schema comment needs no entry for it.
+    assert _schema_problems() == []
+    with pytest.raises(ValueError, match=r"unknown effect 'springs'; valid effects: "
+                                         r'anchor_spring, dissipation'):
+        load_scene(_write(tmp_path, MINE + 'effects: [springs]\n'))
