@@ -584,8 +584,8 @@ def test_a_new_effect_is_listed_loaded_and_documented_without_other_edits(anchor
     out = capsys.readouterr().out
     assert 'anchor_spring: A linear spring pulling the COM to the world origin' in out
     assert '    stiffness (default 1.0)' in out
-    scene = load_scene(_write(tmp_path, MINE + 'initial: {position: [1, 0, 0]}\n'
-                                                'effects: [anchor_spring: {stiffness: 4e+0}]\n'))
+    text = MINE + 'initial: {position: [1, 0, 0]}\neffects: [anchor_spring: {stiffness: 4e+0}]\n'
+    scene = load_scene(_write(tmp_path, text))
     assert scene.effect_names() == ['anchor_spring'] and scene.effects[0].stiffness == 4.0
     assert scene.simulator().wrench_function() is not None
     # The schema comment needs no entry for it.
