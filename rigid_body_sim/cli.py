@@ -50,7 +50,12 @@ def build_parser():
 
 
 def main(argv=None):
-    """Run the command line; return the exit code (0 success, 1 failure, 2 bad input)."""
+    """
+    Run the command line; return the exit code.
+
+    0 success, 1 failure (a path that cannot be written or read), 2 bad input, 130 Ctrl-C;
+    a tool stopped by signal n cleanly (``simulate``) returns 128 + n.
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.command is None:
@@ -61,6 +66,12 @@ def main(argv=None):
     except ValueError as error:
         print(f'rigid-body-sim {args.command}: error: {error}', file=sys.stderr)
         return 2
+    except OSError as error:
+        # A bag or PNG path that cannot be written (under a file, no permission, disk full).
+        where = f'{error.filename}: ' if error.filename else ''
+        reason = error.strerror or str(error)
+        print(f'rigid-body-sim {args.command}: error: {where}{reason}', file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print(f'rigid-body-sim {args.command}: interrupted', file=sys.stderr)
         return 130

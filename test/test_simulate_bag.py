@@ -8,9 +8,15 @@ physics: without torque about the COM, the integrators leave L untouched (L <- L
 with tau = 0), so every angular_momentum message equals L(0) exactly.
 """
 
+import contextlib
 import json
 import math
 from pathlib import Path
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
 
 from geometry_msgs.msg import PoseStamped
 from geometry_msgs.msg import Twist
@@ -21,6 +27,7 @@ from nav_msgs.msg import Odometry
 from node_harness import Client
 from node_harness import isolate_ros_environment
 from node_harness import NodeProcess
+from node_harness import PACKAGE_ROOT
 from node_harness import unique_namespace
 import numpy as np
 import pytest
@@ -32,6 +39,7 @@ from rigid_body_sim.recording.bag_writer import INFINITE_DURATION
 from rigid_body_sim.recording.bag_writer import offered_qos
 from rigid_body_sim.recording.bag_writer import qos_from_profile
 from rigid_body_sim.recording.bag_writer import typestore
+from rigid_body_sim.recording.recovery import bag_is_complete
 from rigid_body_sim.recording.simulate import simulate_to_bag
 from rigid_body_sim.recording.simulate import stamp_nanoseconds
 from rigid_body_sim.recording.state_batch import BatchSerializer
@@ -295,6 +303,23 @@ def test_custom_data_names_the_run(van_zon_bag):
     np.testing.assert_array_equal(inertia, scene.body.inertia)
 
 
+def test_metadata_names_jazzy_as_ros_distro_in_every_place_rosbag2_keeps_it(tmp_path):
+    """metadata.yaml, the MCAP 'rosbag2' metadata record, the sqlite3 metadata table."""
+    for storage in ('mcap', 'sqlite3'):
+        bag = tmp_path / storage
+        simulate_to_bag(load_scene('default'), bag, 0.1, storage=storage)
+        assert 'ros_distro: jazzy\n' in (bag / 'metadata.yaml').read_text()
+        if storage == 'mcap':
+            with open(bag / 'mcap.mcap', 'rb') as stream:
+                records = [m for m in make_reader(stream).iter_metadata() if m.name == 'rosbag2']
+            (record,) = records
+            serialized = record.metadata['serialized_metadata']
+        else:
+            with contextlib.closing(sqlite3.connect(bag / 'sqlite3.db3')) as connection:
+                ((serialized,),) = connection.execute('SELECT metadata FROM metadata')
+        assert 'ros_distro: jazzy\n' in serialized + '\n' and 'rosbags' not in serialized
+
+
 def test_namespace_moves_the_state_topics_only(tmp_path):
     simulate_to_bag(load_scene('default'), tmp_path / 'ns', 0.1, namespace='sat1')
     facts, messages = read_rosbags(tmp_path / 'ns')
@@ -337,6 +362,57 @@ def test_an_interrupted_run_leaves_a_complete_bag_of_what_was_written(tmp_path, 
     # Interrupted after writing its third batch (each a simulated second at 100 Hz): three
     # whole seconds are in the bag, closed and indexed.
     assert len(messages['/pose']) == facts['connections']['/pose'].msgcount == 300
+
+
+@pytest.mark.parametrize('signal_number', [signal.SIGINT, signal.SIGTERM])
+def test_sigint_and_sigterm_stop_simulate_with_a_complete_bag(tmp_path, signal_number):
+    """
+    The command stops after the batch it is simulating and finishes the bag.
+
+    At 100 Hz a batch is one simulated second, so the bag holds a whole number of seconds,
+    each tick's messages on every state topic, /diagnostics once per second.  Exit code
+    128 + the signal's number, as a shell reports a process ended by it.
+    """
+    bag = tmp_path / 'stopped'
+    process = subprocess.Popen(
+        [sys.executable, '-m', 'rigid_body_sim.cli', 'simulate', '--scene', 'default',
+         '--duration', '100000', '--rate', '100', '--bag', str(bag), '--quiet'],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=PACKAGE_ROOT)
+    try:
+        # The storage file is created inside the signal handling: from then on a signal
+        # only stops the run.  Then let it simulate a few seconds.
+        deadline = time.monotonic() + 60.0
+        while not (bag / 'stopped.mcap').exists():
+            assert process.poll() is None, process.communicate()
+            assert time.monotonic() < deadline
+            time.sleep(0.05)
+        time.sleep(1.0)
+        process.send_signal(signal_number)
+        out, err = process.communicate(timeout=60.0)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert process.returncode == 128 + signal_number, err
+    assert 'Traceback' not in err
+    assert f'{signal.Signals(signal_number).name}: stopped after' in err
+    assert '(stopped early)' in out
+    assert bag_is_complete(bag)
+    facts, messages = read_rosbags(bag)
+    ticks = len(messages['/pose'])
+    assert ticks >= 100 and ticks % 100 == 0
+    for topic in ('/pose', '/twist', '/angular_momentum', '/odom', '/marker'):
+        assert len(messages[topic]) == facts['connections'][topic].msgcount == ticks
+    assert len(messages['/diagnostics']) == ticks // 100
+    assert f'/pose: {ticks}' in out
+
+
+def test_a_bag_path_that_cannot_be_created_is_one_clear_line(tmp_path, capsys):
+    (tmp_path / 'a_file').write_text('')
+    bag = tmp_path / 'a_file' / 'bag'
+    assert cli_main(['simulate', '--duration', '1', '--bag', str(bag), '--quiet']) == 1
+    err = capsys.readouterr().err
+    assert err == f'rigid-body-sim simulate: error: {bag}: Not a directory\n'
 
 
 @pytest.mark.xdist_group('node')

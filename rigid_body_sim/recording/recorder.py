@@ -37,7 +37,6 @@ Killed.  Every `flush_period` (default 0.25 s) the bag is flushed (see
 import importlib
 import math
 import os
-import signal
 import threading
 import time
 
@@ -59,6 +58,7 @@ from .simulate import CLOCK_TOPIC
 from .simulate import CUSTOM_DATA_PREFIX
 from .simulate import DIAGNOSTICS_TOPIC
 from .simulate import message_type_name
+from .signals import StopOnSignals
 from .simulate import topic_names
 from ..defaults import default_body
 from ..physics import State
@@ -401,7 +401,8 @@ def record(bag, topics=None, storage='mcap', namespace='', depth=5000, flush_per
     context = rclpy.Context()
     rclpy.init(args=ros_args, context=context,
                signal_handler_options=SignalHandlerOptions.NO)
-    restore = _stop_on_signals(stop)
+    signals = StopOnSignals(stop)
+    signals.install()
     node = None
     syncer = None
     started = time.monotonic()
@@ -450,7 +451,7 @@ def record(bag, topics=None, storage='mcap', namespace='', depth=5000, flush_per
         counts, lost = recorder.summary_counts()
         missing = [name for name in names if name not in counts]
     finally:
-        restore()
+        signals.restore()
         if syncer is not None:
             syncer.stop()
         writer.close()
@@ -513,17 +514,3 @@ def _absolute_topics(topics, namespace):
         if name not in names:
             names.append(name)
     return names
-
-
-def _stop_on_signals(stop):
-    """Set `stop` on SIGINT and SIGTERM (main thread only); return the undo function."""
-    if threading.current_thread() is not threading.main_thread():
-        return lambda: None
-    previous = {}
-    for number in (signal.SIGINT, signal.SIGTERM):
-        previous[number] = signal.signal(number, lambda *_: stop.set())
-
-    def restore():
-        for number, handler in previous.items():
-            signal.signal(number, handler)
-    return restore

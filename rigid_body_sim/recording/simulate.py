@@ -65,10 +65,16 @@ CUSTOM_DATA_PREFIX = 'rigid_body_sim.'
 
 
 class SimulationSummary:
-    """What :func:`simulate_to_bag` did: ticks, messages per topic, wall time, speed."""
+    """
+    What :func:`simulate_to_bag` did: ticks, messages per topic, wall time, speed.
 
-    def __init__(self, bag, ticks, duration, message_counts, wall_time):
+    `ticks` and `duration` are what was simulated and written, less than asked for when
+    the run was stopped early (`stopped`).
+    """
+
+    def __init__(self, bag, ticks, duration, message_counts, wall_time, stopped=False):
         self.bag = bag
+        self.stopped = stopped
         self.ticks = ticks
         self.duration = duration
         self.message_counts = message_counts
@@ -83,7 +89,8 @@ class SimulationSummary:
         total = sum(self.message_counts.values())
         return (f'{self.bag}: {self.duration:g} s simulated in {self.wall_time:.2f} s '
                 f'({self.speed:.1f}x real time), {self.ticks} ticks, {total} messages on '
-                f'{len(self.message_counts)} topics')
+                f'{len(self.message_counts)} topics'
+                + (' (stopped early)' if self.stopped else ''))
 
 
 def message_type_name(message_class):
@@ -135,7 +142,7 @@ def _tick_count(duration, rate):
 
 def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1,
                     storage='mcap', start_time=0, clock=False, namespace='',
-                    world_frame='world', body_frame='body', progress=False):
+                    world_frame='world', body_frame='body', progress=False, stop=None):
     """
     Simulate `scene` for `duration` s and write what the node would publish into a bag.
 
@@ -165,6 +172,10 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
         Frame ids, as the node's parameters.
     progress : bool
         Show a tqdm progress bar (on stderr).
+    stop : threading.Event, optional
+        Stop when set, after the batch of ticks being simulated (at most a simulated
+        second): the bag then holds every tick up to there and is complete; the summary's
+        `ticks` and `stopped` say how far the run got.
 
     Returns
     -------
@@ -227,7 +238,7 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
         last_second = 0
         tick = 1
         try:
-            while tick <= ticks:
+            while tick <= ticks and not (stop is not None and stop.is_set()):
                 # The batch ends at the last tick, when full, or at the first tick of a new
                 # simulated second, after which /diagnostics is written (time order).
                 count = min(_BATCH_TICKS, ticks - tick + 1)
@@ -265,8 +276,9 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
             if bar is not None:
                 bar.close()
         counts = writer.message_counts
-    return SimulationSummary(writer.path, ticks, ticks * period, counts,
-                             time.perf_counter() - started)
+    written = tick - 1
+    return SimulationSummary(writer.path, written, written * period, counts,
+                             time.perf_counter() - started, stopped=written < ticks)
 
 
 def _clock_rows(stamps):

@@ -17,6 +17,7 @@ Typical use:
 
 from datetime import datetime
 from pathlib import Path
+import sys
 import time
 
 from ..physics import INTEGRATORS
@@ -73,7 +74,13 @@ def start_time_nanoseconds(text):
 
 
 def main(args):
-    """Run the simulation into the bag and print what was written; return 0."""
+    """
+    Run the simulation into the bag and print what was written; return 0.
+
+    Ctrl-C (SIGINT) or SIGTERM stops the run after the batch of ticks being simulated; the
+    bag is then complete up to there, and the exit code is 128 + the signal's number.
+    """
+    from ..recording.signals import StopOnSignals
     from ..recording.simulate import simulate_to_bag
 
     scene = load_scene(args.scene)
@@ -85,13 +92,18 @@ def main(args):
         bag = f'{scene.name}_{datetime.now().strftime("%Y_%m_%d-%H_%M_%S")}'
     if Path(bag).exists():
         raise ValueError(f'{bag} exists already; give a new --bag directory')
-    summary = simulate_to_bag(
-        scene, bag, args.duration, rate=args.rate, integrator=args.integrator,
-        substeps=args.substeps, storage=args.storage,
-        start_time=start_time_nanoseconds(args.start_time), clock=args.clock,
-        namespace=args.namespace, world_frame=args.world_frame, body_frame=args.body_frame,
-        progress=not args.quiet)
+    start_time = start_time_nanoseconds(args.start_time)
+    with StopOnSignals() as signals:
+        summary = simulate_to_bag(
+            scene, bag, args.duration, rate=args.rate, integrator=args.integrator,
+            substeps=args.substeps, storage=args.storage, start_time=start_time,
+            clock=args.clock, namespace=args.namespace, world_frame=args.world_frame,
+            body_frame=args.body_frame, progress=not args.quiet, stop=signals.stop)
     print(summary)
     for topic, count in summary.message_counts.items():
         print(f'  {topic}: {count}')
-    return 0
+    if signals.received is not None:
+        print(f'rigid-body-sim simulate: {signals.received.name}: stopped after '
+              f'{summary.duration:g} of {args.duration:g} simulated s; the bag is complete up '
+              'to there', file=sys.stderr)
+    return signals.exit_code
