@@ -32,6 +32,7 @@ rewrites it into a complete one with index and summary.
 
 from collections import defaultdict
 from io import BytesIO
+from io import StringIO
 import json
 import os
 from pathlib import Path
@@ -59,6 +60,7 @@ from ruamel.yaml import YAML
 
 __all__ = [
     'BAG_VERSION',
+    'ROS_DISTRO',
     'STORAGES',
     'BagWriter',
     'INFINITE_DURATION',
@@ -70,6 +72,9 @@ __all__ = [
 
 BAG_VERSION = 9
 """The rosbag2 metadata version of ROS 2 Jazzy."""
+
+ROS_DISTRO = 'jazzy'
+"""The ``ros_distro`` of the bags' metadata, as rosbag2 Jazzy writes it."""
 
 STORAGES = ('mcap', 'sqlite3')
 """Storage formats: MCAP (rosbag2's default since Iron) and sqlite3."""
@@ -279,7 +284,7 @@ class _McapStorage(McapWriter):
 
     def close(self, version, metadata):
         self._drop_provisional_end()
-        super().close(version, metadata)
+        super().close(version, _as_jazzy(metadata))
 
     def _drop_provisional_end(self):
         # Whatever comes next (a chunk, the summary) is longer than the provisional end
@@ -307,6 +312,26 @@ class _Sqlite3Storage(Sqlite3Writer):
     def flush(self, sync):
         """Commit: what was written so far survives the process."""
         self.conn.commit()
+
+    def close(self, version, metadata):
+        super().close(version, _as_jazzy(metadata))
+
+
+def _as_jazzy(metadata):
+    """
+    Return rosbags' serialised bag metadata (YAML) with ``ros_distro: jazzy``.
+
+    rosbags' Writer.close writes ``ros_distro: rosbags`` into the metadata it hands the
+    storage (the MCAP 'rosbag2' metadata record, the sqlite3 metadata table) and has no
+    option for it; rosbag2 Jazzy writes its distribution, which the bags here are for.
+    """
+    document = YAML(typ='safe').load(metadata)
+    document['ros_distro'] = ROS_DISTRO
+    stream = StringIO()
+    yaml = YAML(typ='safe')
+    yaml.default_flow_style = False
+    yaml.dump(document, stream)
+    return stream.getvalue().strip()
 
 
 class _Writer(Writer):
@@ -575,7 +600,7 @@ class BagWriter:
             'files': [{'path': name, 'starting_time': {'nanoseconds_since_epoch': start},
                        'duration': {'nanoseconds': duration}, 'message_count': count}],
             'custom_data': dict(writer.custom_data) or None,
-            'ros_distro': 'rosbags',
+            'ros_distro': ROS_DISTRO,
         }
         document = {'rosbag2_bagfile_information': information}
         temporary = self.path / 'metadata.yaml.tmp'
