@@ -5,7 +5,9 @@ A scene is a YAML file naming a body, its initial state, the effects on it (grav
 pivot, drag, dissipation, external pushes), the default integrator and rate, and how to
 draw it.  Give a built-in name or a path to check a scene and print what it holds; an
 invalid file is reported with its key path and what is wrong (exit code 2).  --effects
-lists the effects a scene may name, with their parameters.
+lists every effect a scene may name, with its parameters and their defaults: read from the
+effect registry, it is the complete list (the schema comment in config/scenes/default.yaml
+documents the first few and points here).
 """
 
 import inspect
