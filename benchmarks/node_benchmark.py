@@ -170,7 +170,7 @@ def run_rate(rate, duration, warmup, trials, log_dir):
     log_path = log_dir / f'node_{int(rate)}hz.log'
     with open(log_path, 'w') as log:
         node = subprocess.Popen(
-            [sys.executable, '-m', 'rigid_body_sim.ros.node', '--ros-args',
+            [sys.executable, '-m', 'rigid_body_sim.ros.entry_point', '--ros-args',
              '-r', f'__ns:={namespace}', '-p', f'rate:={float(rate)}',
              '-p', 'input_timeout:=0.0', '-p', 'integrator:=buss'],
             stdout=log, stderr=subprocess.STDOUT, cwd=ROOT)

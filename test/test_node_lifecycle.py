@@ -70,6 +70,42 @@ def test_a_signal_ends_the_node_cleanly_with_exit_code_0(tmp_path, signal_number
     assert ' ticks, ' in output  # the shutdown summary: it stopped in order
 
 
+def _catches(pid, signal_number):
+    """Return whether the process has a handler installed for the signal (/proc SigCgt)."""
+    for line in open(f'/proc/{pid}/status'):
+        if line.startswith('SigCgt:'):
+            return bool(int(line.split()[1], 16) >> (signal_number - 1) & 1)
+    return False
+
+
+@pytest.mark.parametrize('signal_number', [signal.SIGINT, signal.SIGTERM])
+@pytest.mark.parametrize('delay', [0.0, 0.3], ids=['at_first_statement', 'while_importing'])
+def test_a_signal_during_start_up_ends_the_node_quietly_with_exit_code_0(
+        tmp_path, signal_number, delay):
+    """
+    Ctrl-C or SIGTERM before the node runs (it imports for 1-2 s): exit 0, no traceback.
+
+    The signal goes out once the executable's first statement has set its SIGTERM handler
+    (seen in /proc), then after `delay` s, while rclpy and the kernels are still loading.
+    """
+    node = NodeProcess(tmp_path / 'node.log', namespace=unique_namespace())
+    try:
+        deadline = time.monotonic() + 30.0
+        while not _catches(node.pid, signal.SIGTERM):
+            assert node.alive(), node.output()
+            assert time.monotonic() < deadline, 'the node never set its SIGTERM handler'
+            time.sleep(0.001)
+        time.sleep(delay)
+        node.send_signal(signal_number)
+        code = node.wait(15.0)
+    finally:
+        node.stop()
+    output = node.output()
+    assert STARTED not in output, 'the node had started: this did not test the start-up'
+    assert code == 0, output
+    assert 'Traceback' not in output, output
+
+
 # A scene file with one mistake: the pivot point has two coordinates.
 BROKEN_SCENE = """\
 name: broken
