@@ -78,16 +78,17 @@ class State:
             # Re-derive R from its quaternion so the stored pair agree and R is orthonormal to
             # round-off even if the input was only orthonormal to the tolerance.
             matrix = matrix_from_quaternion(quaternion)
-        self._set(quaternion, matrix, _vector(position, 'position', 'm'),
+        self._set(_frozen(quaternion), _frozen(matrix), _vector(position, 'position', 'm'),
                   _vector(linear_momentum, 'linear_momentum', 'kg m/s'),
                   _vector(angular_momentum, 'angular_momentum', 'kg m^2/s'))
 
     def _set(self, quaternion, matrix, position, linear_momentum, angular_momentum):
-        object.__setattr__(self, '_quaternion', _frozen(quaternion))
-        object.__setattr__(self, '_rotation', None if matrix is None else _frozen(matrix))
-        object.__setattr__(self, '_position', position)
-        object.__setattr__(self, '_linear_momentum', linear_momentum)
-        object.__setattr__(self, '_angular_momentum', angular_momentum)
+        # The arrays come read-only: every field of a State is frozen.
+        _set_quaternion(self, quaternion)
+        _set_rotation(self, matrix)
+        _set_position(self, position)
+        _set_linear_momentum(self, linear_momentum)
+        _set_angular_momentum(self, angular_momentum)
 
     @classmethod
     def _from_arrays(cls, quaternion, position, linear_momentum, angular_momentum):
@@ -101,8 +102,23 @@ class State:
         state = object.__new__(cls)
         x, y, z, w = quaternion.tolist()
         q = quaternion * (1.0 / math.sqrt(x * x + y * y + z * z + w * w))
-        state._set(q, None, _frozen(position), _frozen(linear_momentum),
+        state._set(_frozen(q), None, _frozen(position), _frozen(linear_momentum),
                    _frozen(angular_momentum))
+        return state
+
+    @classmethod
+    def _from_values(cls, values):
+        """
+        Build a state from a packed array [q (4), x, p, L] (a compiled kernel's state).
+
+        The values are copied into one read-only buffer whose four views are the fields, so
+        the caller may go on changing its array.  Trusted: no validation, and the quaternion
+        is taken as it is (the kernels normalise it after every turn), so a state read back
+        into a kernel continues the run bit for bit.
+        """
+        frozen = np.frombuffer(values.tobytes())
+        state = object.__new__(cls)
+        state._set(frozen[0:4], None, frozen[4:7], frozen[7:10], frozen[10:13])
         return state
 
     def __setattr__(self, name, value):
@@ -157,8 +173,7 @@ class State:
     def rotation(self):
         """Rotation matrix R, body to world (3x3, read-only)."""
         if self._rotation is None:
-            object.__setattr__(self, '_rotation', _frozen(matrix_from_quaternion(
-                self._quaternion)))
+            _set_rotation(self, _frozen(matrix_from_quaternion(self._quaternion)))
         return self._rotation
 
     @property
@@ -224,3 +239,12 @@ class State:
         return (f'State(quaternion={fmt(self._quaternion)}, position={fmt(self._position)}, '
                 f'linear_momentum={fmt(self._linear_momentum)}, '
                 f'angular_momentum={fmt(self._angular_momentum)})')
+
+
+# Slot setters, bypassing State.__setattr__ (which refuses every assignment): a State is
+# built once and never changed.
+_set_quaternion = State._quaternion.__set__
+_set_rotation = State._rotation.__set__
+_set_position = State._position.__set__
+_set_linear_momentum = State._linear_momentum.__set__
+_set_angular_momentum = State._angular_momentum.__set__
