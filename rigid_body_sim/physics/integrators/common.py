@@ -66,5 +66,12 @@ def kick_drift_kick(body, state, time, dt, wrench, drift):
 
 
 def free_translation(state, dt, mass):
-    """Return the COM position after dt s of force-free motion: x + dt p / m (exact)."""
+    """
+    Return the COM position after dt s of force-free motion: x + dt p / m (exact).
+
+    At rest (p = 0) nothing moves the COM: the position array itself is returned, not
+    recomputed, so translation costs nothing when nothing pushes it.
+    """
+    if not state.linear_momentum.any():
+        return state.position
     return state.position + dt * state.linear_momentum / mass

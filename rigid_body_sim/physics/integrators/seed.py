@@ -7,6 +7,8 @@ Simulation"); they differ in the effective angular velocity w.  World L is not t
 the rotation update, so torque-free motion conserves it exactly.
 """
 
+import numpy as np
+
 from .common import free_translation
 from .common import kick_drift_kick
 from .common import rotate_by_world_vector
@@ -34,8 +36,12 @@ def first_order(body, state, time, dt, wrench):
         return State._from_arrays(quaternion, position, state.linear_momentum,
                                   state.angular_momentum)
     force, torque = wrench(state, time)
-    return State._from_arrays(quaternion, position + 0.5 * dt * dt * force / body.mass,
-                              state.linear_momentum + dt * force,
+    linear_momentum = state.linear_momentum
+    if np.any(force):
+        # Only a force moves the COM from rest (a torque alone leaves it where it is).
+        position = position + 0.5 * dt * dt * force / body.mass
+        linear_momentum = linear_momentum + dt * force
+    return State._from_arrays(quaternion, position, linear_momentum,
                               state.angular_momentum + dt * torque)
 
 
