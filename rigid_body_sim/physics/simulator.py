@@ -10,8 +10,14 @@ import math
 
 import numpy as np
 
+from .effects.dissipation import Dissipation
 from .integrators import FAST_KERNELS
 from .integrators import get_integrator
+from .integrators.fast import body_values
+from .integrators.fast import CompiledIntegrator
+from .integrators.fast import LEVER_FORCE
+from .integrators.fast import packed_wrench
+from .integrators.fast import STATE_SIZE
 from .state import State
 
 __all__ = ['Simulator']
@@ -19,6 +25,12 @@ __all__ = ['Simulator']
 _FRAMES = ('world', 'body')
 # Steps per kernel call when a progress callback wants to hear about a long run.
 _PROGRESS_CHUNK = 20000
+
+# What takes the steps (Simulator._path), chosen once per configuration by _plan.
+COMPILED = 'compiled'  # one compiled run takes all the steps, a dissipation flow fused in
+KERNEL = 'kernel'  # a registry kernel without the packed form (exact) takes all the steps
+KERNEL_AND_FLOWS = 'kernel+flows'  # single kernel steps, flows composed around them here
+READABLE = 'readable'  # the readable step functions, effects evaluated every step
 
 
 def _checked_vector(value, name):
@@ -62,12 +74,18 @@ class Simulator:
         Only these are evaluated: with none, and no held wrench, the motion is torque-free
         and no force code runs.
     fast : bool
-        Use the integrator's compiled kernel when the wrench is a held one (default True).
-        The kernel equals the readable step to round-off.
+        Use the integrator's compiled kernel when the wrench is a held one (default True):
+        held and constant forces and torques, under a pivot too, and a dissipation flow
+        fused into the compiled loop.  The kernel equals the readable step to round-off.
 
     With a constraint (a pivot), :attr:`state` is always the physical state (COM position,
     linear momentum, angular momentum about the COM), and a state that is set is projected
     onto the constraint first (rotation and angular velocity kept).
+
+    The integrated state lives in one packed array (integrators/fast.py), advanced in place
+    by the compiled kernels between calls; the immutable :class:`State` is built from it
+    when :attr:`state` is read (step() and run() return it), so a step costs one kernel
+    call and one State, not a round trip through State objects.
 
     """
 
@@ -79,10 +97,16 @@ class Simulator:
         self._time_compensation = 0.0
         self._effects = tuple(effects)
         self._sort_effects()
+        # The integrated state, packed [q, x, p, L], and its four fields as views.
+        self._values = np.zeros(STATE_SIZE)
+        values = self._values
+        self._views = (values[0:4], values[4:7], values[7:10], values[10:13])
         self.state = state
         self._fast = bool(fast)
+        zero = np.zeros(3)
+        self._held = (zero, zero, zero, zero)
+        self._held_active = False
         self.integrator = integrator
-        self.set_wrench()
 
     def _sort_effects(self):
         """Sort the effects by what they do, once, so that a step runs only what is there."""
@@ -107,6 +131,8 @@ class Simulator:
         # The body the integrator advances: about the pivot under a pivot constraint.
         self._integrated_body = (self._body if self._constraint is None
                                  else self._constraint.body)
+        body = self._integrated_body
+        self._kernel_body = body_values(body.inertia, body.inertia_inverse, body.mass)
 
     # -- configuration
 
@@ -130,6 +156,7 @@ class Simulator:
         self._step = get_integrator(name)
         self._integrator_name = name
         self._kernel = FAST_KERNELS.get(name) if self._fast else None
+        self._plan()
 
     def set_wrench(self, force=None, torque=None, frame='world'):
         """
@@ -149,6 +176,7 @@ class Simulator:
         else:
             self._held = (zero, zero.copy(), force, torque)
         self._held_active = bool(np.any(force) or np.any(torque))
+        self._plan()
 
     def hold_wrench(self, force_world=None, torque_world=None, force_body=None,
                     torque_body=None):
@@ -165,6 +193,7 @@ class Simulator:
                  _checked_vector(torque_body, 'torque_body'))
         self._held = parts
         self._held_active = any(bool(np.any(part)) for part in parts)
+        self._plan()
 
     @property
     def held_wrench(self):
@@ -176,6 +205,11 @@ class Simulator:
     @property
     def state(self):
         """Get the current State (world frame)."""
+        if self._state is None:
+            if self._constraint is None:
+                self._state = self._integrated_state()
+            else:
+                self._state = State._from_values(self._constraint.expand_values(self._values))
         return self._state
 
     @state.setter
@@ -183,11 +217,24 @@ class Simulator:
         if not isinstance(state, State):
             raise ValueError(f'state must be a State; got {type(state).__name__}')
         if self._constraint is None:
-            self._integrated_state = state
+            integrated = state
         else:
             state = self._constraint.project(state)
-            self._integrated_state = self._constraint.reduce(state)
+            integrated = self._constraint.reduce(state)
+        self._store(integrated)
         self._state = state
+
+    def _store(self, integrated):
+        """Make `integrated` (a State of the integrated system) the current one."""
+        np.concatenate(integrated._fields(), out=self._values)
+        self._integrated = integrated
+        self._state = None
+
+    def _integrated_state(self):
+        """Return the State of the integrated system (the pivot system under a pivot)."""
+        if self._integrated is None:
+            self._integrated = State._from_values(self._values)
+        return self._integrated
 
     @property
     def time(self):
@@ -208,11 +255,12 @@ class Simulator:
 
     def energy(self):
         """Return the total energy in J: kinetic plus the effects' potential energies."""
-        energy = self._state.kinetic_energy(self._body)
+        state = self.state
+        energy = state.kinetic_energy(self._body)
         for effect in self._effects:
             potential = getattr(effect, 'potential_energy', None)
             if potential is not None:
-                energy += potential(self._body, self._state)
+                energy += potential(self._body, state)
         return energy
 
     def wrench_function(self):
@@ -250,8 +298,11 @@ class Simulator:
 
     def step(self, dt):
         """Advance one step of dt s; return the new State."""
-        self._advance(1, _checked_positive(dt, 'dt'))
-        return self._state
+        # A finite positive float needs no conversion (the node passes one every tick).
+        if dt.__class__ is not float or not 0.0 < dt < math.inf:
+            dt = _checked_positive(dt, 'dt')
+        self._advance(1, dt)
+        return self.state
 
     def run(self, duration, dt, progress=None):
         """
@@ -283,63 +334,111 @@ class Simulator:
             self._advance(1, remainder)
         if progress is not None:
             progress(1.0)
-        return self._state
+        return self.state
+
+    def _plan(self):
+        """
+        Choose, once per configuration (integrator, held wrench), what takes the steps.
+
+        The compiled kernels take held wrenches only (fixed in the world or in the body);
+        an effect's wrench is evaluated by the readable step functions.  A kernel without
+        the packed form of integrators/fast.py (exact) cannot take a force under a pivot
+        (its moment turns with the body).  A dissipation flow is fused into the compiled
+        run; other flows are composed here around single kernel steps.
+        """
+        kernel = self._kernel
+        self._wrench = self._packed_wrench()
+        self._run = None
+        compiled = isinstance(kernel, CompiledIntegrator)
+        if (kernel is None or self._pushing_effects
+                or (not compiled and np.any(self._wrench[LEVER_FORCE]))):
+            self._path = READABLE
+            return
+        flows = self._flows
+        if compiled:
+            self._method = kernel.method
+            if not flows:
+                self._damping = 0.0
+            elif len(flows) == 1 and type(flows[0]) is Dissipation:
+                self._damping = flows[0].damping
+            else:
+                self._path = KERNEL_AND_FLOWS
+                return
+            self._run = kernel.run
+            self._path = COMPILED
+        else:
+            self._path = KERNEL_AND_FLOWS if flows else KERNEL
+
+    def _packed_wrench(self):
+        """
+        Return the held wrench and the constant forces packed for the kernels (fast.py).
+
+        Free body: as held, the constant forces added to the world force.  Under a pivot
+        the pivot system is stepped, whose origin is the pivot, and the reaction there takes
+        every force: a force at the COM acts only by its moment r x F about the pivot
+        (r = R d), so a world force becomes the lever force at the arm d, and a body-fixed
+        one the body-fixed torque d x F_b (R d x R F_b = R (d x F_b)).  A torque is the same
+        about any point.
+        """
+        force_world, torque_world, force_body, torque_body = self._held
+        force_world = force_world + self._constant_force
+        if self._constraint is None:
+            return packed_wrench(force_world, torque_world, force_body, torque_body)
+        arm = self._constraint.offset_body
+        return packed_wrench(torque_world=torque_world,
+                             torque_body=torque_body + np.cross(arm, force_body),
+                             lever_force=force_world, lever_arm=arm)
 
     def _advance(self, steps, dt):
-        constraint, flows = self._constraint, self._flows
-        state = self._integrated_state
-        fast = self._runs_fast()
-        if fast and not flows:
-            state = self._kernel_steps(state, steps, dt)
+        run = self._run
+        if run is not None:
+            run(self._values, self._wrench, self._kernel_body, self._method, self._damping,
+                dt, steps)
+            self._integrated = self._state = None
+        elif self._path == KERNEL:
+            self._kernel_steps(steps, dt)
         else:
-            if fast:
-                step, wrench = self._kernel_step, None
-            else:
-                step, wrench = self._step, self.wrench_function()
-                if constraint is not None:
-                    wrench = constraint.wrench(wrench)
-            body, time, half = self._integrated_body, self._time, 0.5 * dt
-            for k in range(steps):
-                for effect in flows:
-                    state = effect.flow(body, state, half)
-                state = step(body, state, time + k * dt, dt, wrench)
-                for effect in reversed(flows):
-                    state = effect.flow(body, state, half)
-        self._integrated_state = state
-        self._state = state if constraint is None else constraint.expand(state)
+            self._compose(steps, dt)
         self._add_time(steps * dt)
 
-    def _runs_fast(self):
-        """
-        Return True when the compiled kernel can take the steps: a held wrench only.
+    def _compose(self, steps, dt):
+        """Take the steps with flow(dt/2), step(dt), flow(dt/2), the flows run here."""
+        constraint, flows = self._constraint, self._flows
+        if self._path == READABLE:
+            step, wrench = self._step, self.wrench_function()
+            if constraint is not None:
+                wrench = constraint.wrench(wrench)
+        else:
+            step, wrench = self._kernel_step, None
+        state = self._integrated_state()
+        body, time, half = self._integrated_body, self._time, 0.5 * dt
+        for k in range(steps):
+            for effect in flows:
+                state = effect.flow(body, state, half)
+            state = step(body, state, time + k * dt, dt, wrench)
+            for effect in reversed(flows):
+                state = effect.flow(body, state, half)
+        self._store(state)
 
-        Constant forces (gravity) are held too, except under a constraint, where a force at
-        the COM has a torque about the pivot that turns with the body.  Flows do not stop
-        it: they are composed with single kernel steps.
-        """
-        if self._kernel is None or self._pushing_effects:
-            return False
-        if self._constraint is None:
-            return True
-        force_world, _, force_body, _ = self._held
-        return not (np.any(force_world) or np.any(force_body) or np.any(self._constant_force))
+    def _runs_fast(self):
+        """Return True when a compiled kernel takes the steps (see :meth:`_plan`)."""
+        return self._path != READABLE
 
     def _kernel_step(self, body, state, time, dt, wrench):
         # The step-function form of one kernel step; the held wrench is the kernel's own.
-        return self._kernel_steps(state, 1, dt)
+        self._store(state)
+        self._kernel_steps(1, dt)
+        return self._integrated_state()
 
-    def _kernel_steps(self, state, steps, dt):
-        body = self._integrated_body
-        quaternion = np.array(state.quaternion)
-        position = np.array(state.position)
-        linear_momentum = np.array(state.linear_momentum)
-        angular_momentum = np.array(state.angular_momentum)
-        force_world, torque_world, force_body, torque_body = self._held
-        self._kernel(quaternion, position, linear_momentum, angular_momentum,
-                     body.inertia, body.inertia_inverse, body.mass,
-                     dt, steps, force_world + self._constant_force, torque_world, force_body,
-                     torque_body)
-        return State._from_arrays(quaternion, position, linear_momentum, angular_momentum)
+    def _kernel_steps(self, steps, dt):
+        kernel, wrench = self._kernel, self._wrench
+        if isinstance(kernel, CompiledIntegrator):
+            kernel.run(self._values, wrench, self._kernel_body, kernel.method, 0.0, dt, steps)
+        else:
+            body = self._integrated_body
+            kernel(*self._views, body.inertia, body.inertia_inverse, body.mass, dt, steps,
+                   wrench[0], wrench[1], wrench[2], wrench[3])
+        self._integrated = self._state = None
 
     def _add_time(self, increment):
         # Kahan summation: keeps the clock exact to round-off over millions of ticks, where a

@@ -56,8 +56,8 @@ class Dissipation(Effect):
 
     def flow(self, body, state, dt):
         """Return the state after dt s of dissipation alone: R turned, x, p and L unchanged."""
-        quaternion = _dissipation_flow(state.quaternion, state.angular_momentum,
-                                       body.inertia_inverse, self.damping, dt)
+        quaternion = dissipated_quaternion(state.quaternion, state.angular_momentum,
+                                           body.inertia_inverse, self.damping, dt)
         return State._from_arrays(quaternion, state.position, state.linear_momentum,
                                   state.angular_momentum)
 
@@ -106,8 +106,13 @@ def _turned(q, vx, vy, vz):
 
 
 @numba.njit(cache=True, nogil=True)
-def _dissipation_flow(q, angular_momentum, inertia_inverse, damping, dt):
-    """Return the quaternion after dt s of the dissipation flow (explicit midpoint on SO(3))."""
+def dissipated_quaternion(q, angular_momentum, inertia_inverse, damping, dt):
+    """
+    Return the quaternion after dt s of the dissipation flow (explicit midpoint on SO(3)).
+
+    The one definition of the flow: :meth:`Dissipation.flow` calls it, and the compiled
+    integrators (integrators/fast.py) fuse it into their steps.
+    """
     momentum_norm = math.sqrt(angular_momentum[0] ** 2 + angular_momentum[1] ** 2
                               + angular_momentum[2] ** 2)
     if momentum_norm == 0.0:

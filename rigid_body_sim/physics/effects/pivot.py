@@ -19,6 +19,7 @@ L_pivot = L_com + r x p.  Energy needs no special case: |p|^2/(2m) + omega . L_c
 omega . L_pivot / 2 (Koenig), and gravity adds m g z_com.
 """
 
+import numba
 import numpy as np
 
 from .registry import check_vector
@@ -85,6 +86,10 @@ class PivotConstraint:
         self.anchor = np.array(anchor, dtype=float)
         self._physical_body = body
         self._mass = body.mass
+        # What the compiled expansion needs, in one array (one argument to pass per call):
+        # I_pivot^{-1} row-major (9), d (3), anchor (3), m.
+        self._expansion = np.concatenate([self.body.inertia_inverse.reshape(9), d,
+                                          self.anchor, [self._mass]])
 
     def project(self, state):
         """
@@ -118,6 +123,15 @@ class PivotConstraint:
                                   linear_momentum,
                                   pivot_state.angular_momentum - cross(r, linear_momentum))
 
+    def expand_values(self, pivot_values):
+        """
+        Return the physical state of a packed pivot-system state, packed (compiled).
+
+        The same map as :meth:`expand` (tested to round-off) on the packed arrays of
+        integrators/fast.py [q, x, p, L]: the Simulator reads its state through it.
+        """
+        return _expanded_values(pivot_values, self._expansion)
+
     def angular_momentum_about_pivot(self, state):
         """Return L_pivot = L_com + r x p of a physical state, kg m^2/s, world frame."""
         r = state.rotation @ self.offset_body
@@ -145,3 +159,47 @@ class PivotConstraint:
 
         pivot_wrench.momentum_dependent = getattr(wrench, 'momentum_dependent', False)
         return pivot_wrench
+
+
+@numba.njit(cache=True, nogil=True)
+def _expanded_values(values, expansion):
+    """Compiled :meth:`PivotConstraint.expand` on packed [q, x, p, L] arrays (SI, world)."""
+    pivot_inertia_inverse = expansion[0:9].reshape((3, 3))
+    offset_body, anchor, mass = expansion[9:12], expansion[12:15], expansion[15]
+    x, y, z, w = values[0], values[1], values[2], values[3]
+    rotation = np.empty((3, 3))
+    rotation[0, 0] = 1.0 - 2.0 * (y * y + z * z)
+    rotation[0, 1] = 2.0 * (x * y - z * w)
+    rotation[0, 2] = 2.0 * (x * z + y * w)
+    rotation[1, 0] = 2.0 * (x * y + z * w)
+    rotation[1, 1] = 1.0 - 2.0 * (x * x + z * z)
+    rotation[1, 2] = 2.0 * (y * z - x * w)
+    rotation[2, 0] = 2.0 * (x * z - y * w)
+    rotation[2, 1] = 2.0 * (y * z + x * w)
+    rotation[2, 2] = 1.0 - 2.0 * (x * x + y * y)
+    angular_momentum = values[10:13]
+    # omega = R I_pivot^{-1} R^T L_pivot; r = R d; p = m omega x r; L_com = L_pivot - r x p.
+    momentum_body = np.zeros(3)
+    for i in range(3):
+        for j in range(3):
+            momentum_body[i] += rotation[j, i] * angular_momentum[j]
+    omega_body = np.zeros(3)
+    for i in range(3):
+        for j in range(3):
+            omega_body[i] += pivot_inertia_inverse[i, j] * momentum_body[j]
+    omega, r = np.zeros(3), np.zeros(3)
+    for i in range(3):
+        for j in range(3):
+            omega[i] += rotation[i, j] * omega_body[j]
+            r[i] += rotation[i, j] * offset_body[j]
+    linear_momentum = mass * np.array([omega[1] * r[2] - omega[2] * r[1],
+                                       omega[2] * r[0] - omega[0] * r[2],
+                                       omega[0] * r[1] - omega[1] * r[0]])
+    physical = np.empty(13)
+    physical[0:4] = values[0:4]
+    physical[4:7] = anchor + r
+    physical[7:10] = linear_momentum
+    physical[10] = angular_momentum[0] - (r[1] * linear_momentum[2] - r[2] * linear_momentum[1])
+    physical[11] = angular_momentum[1] - (r[2] * linear_momentum[0] - r[0] * linear_momentum[2])
+    physical[12] = angular_momentum[2] - (r[0] * linear_momentum[1] - r[1] * linear_momentum[0])
+    return physical

@@ -1,15 +1,42 @@
 """
-Compiled fast paths (numba) of the integrators, for runs under a held wrench.
+Compiled fast paths (numba) of the integrators, on packed arrays.
 
-Each kernel advances (quaternion, position, linear_momentum, angular_momentum) in place over
-`steps` steps.  The wrench is held constant in the world frame (force_world, torque_world)
-and in the body frame (force_body, torque_body, which turn with the body); that covers
-torque-free motion, the node's torque/wrench topics and uniform gravity.
+Each compiled integrator is a function
+
+    run(state, wrench, body, method, damping, dt, steps) -> moved
+
+that advances `state` in place over `steps` steps of dt s and returns the number of steps in
+which the position changed (zero when nothing pushes the origin and it is at rest: the
+translation is then skipped, not computed as x + 0).  The arrays are packed once by the
+caller (the Simulator keeps its state in this layout between calls), so a call passes seven
+arguments, not fourteen:
+
+state : (13,)  q (x, y, z, w, body to world) | x (m) | p (kg m/s) | L (kg m^2/s); world
+    frame, x, p and L of the body's origin (the COM of a free body, the pivot of a pivoted
+    one, see effects/pivot.py).
+wrench : (6, 3)  the held wrench, constant over the steps:
+    FORCE_WORLD   force through the origin, world frame (N)
+    TORQUE_WORLD  torque, world frame (N m)
+    FORCE_BODY    force through the origin fixed in the body, body frame (N); turns with it
+    TORQUE_BODY   torque fixed in the body, body frame (N m)
+    LEVER_FORCE   a world-fixed force (N) acting at the body point LEVER_ARM (m, body frame,
+    LEVER_ARM     from the origin); it enters by its moment (R r) x F about the origin only,
+                  as under a pivot, whose reaction takes the force itself (gravity on a top)
+body : (17,)  I_b^{-1} row-major (9, kg^-1 m^-2) | m (kg) | principal moments (3, kg m^2)
+    | principal frame quaternion (4); see :func:`body_values`.
+method : (n,)  the integrator's constants (Buss's augmentation; the splitting's axes and
+    stage coefficients).
+damping : float  the dissipation flow fused into every step as flow(dt/2), step(dt),
+    flow(dt/2), exactly as the Simulator composes effects.dissipation's flow; 0: none.
 
 They compute the same thing as the readable step functions beside them (tested to
-round-off), in the cheapest frame: turning by w in the world frame, exp(h [w]x) R, equals
-R exp(h [R^T w]x), so Buss's update is formed from body-frame vectors and applied on the
-right, q <- q * exp(h w_body), which avoids building I_w = R I_b R^T at all.
+round-off), with every part of the wrench evaluated at the same kick points, so each keeps
+its order.  They work in the cheapest frame: turning by w in the world frame,
+exp(h [w]x) R, equals R exp(h [R^T w]x), so Buss's update is formed from body-frame vectors
+and applied on the right, q <- q * exp(h w_body), which avoids building I_w = R I_b R^T.
+
+:class:`CompiledIntegrator` holds a run function with its method constants and is also
+callable with the registry's kernel signature (integrators/registry.py).
 """
 
 import functools
@@ -18,7 +45,76 @@ import math
 import numba
 import numpy as np
 
+from .principal import principal_frame
+from ..effects.dissipation import dissipated_quaternion
+
+__all__ = ['CompiledIntegrator', 'body_values', 'packed_wrench', 'FORCE_WORLD',
+           'TORQUE_WORLD', 'FORCE_BODY', 'TORQUE_BODY', 'LEVER_FORCE', 'LEVER_ARM',
+           'STATE_SIZE', 'BODY_SIZE', 'BODY_MASS', 'BODY_MOMENTS', 'BODY_FRAME']
+
 _jit = functools.partial(numba.njit, cache=True, nogil=True)
+
+# Rows of the packed wrench.
+FORCE_WORLD, TORQUE_WORLD, FORCE_BODY, TORQUE_BODY, LEVER_FORCE, LEVER_ARM = range(6)
+STATE_SIZE = 13
+BODY_SIZE = 17
+# Offsets in the packed body: mass, principal moments, principal frame quaternion.
+BODY_MASS, BODY_MOMENTS, BODY_FRAME = 9, 10, 13
+
+
+def body_values(inertia_body, inertia_body_inverse, mass):
+    """
+    Return the packed body (17,) of a body's mass properties (body frame, SI).
+
+    The principal frame comes from :func:`.principal.principal_frame`, the same function the
+    readable splitting and exact steps use, so both split in the very same frame.
+    """
+    frame = principal_frame(inertia_body)
+    return np.concatenate([np.asarray(inertia_body_inverse, dtype=float).reshape(9),
+                           [float(mass)], frame.moments, frame.quaternion])
+
+
+def packed_wrench(force_world=None, torque_world=None, force_body=None, torque_body=None,
+                  lever_force=None, lever_arm=None):
+    """Return the packed (6, 3) wrench; parts not given are zero (units: see module doc)."""
+    wrench = np.zeros((6, 3))
+    for row, part in ((FORCE_WORLD, force_world), (TORQUE_WORLD, torque_world),
+                      (FORCE_BODY, force_body), (TORQUE_BODY, torque_body),
+                      (LEVER_FORCE, lever_force), (LEVER_ARM, lever_arm)):
+        if part is not None:
+            wrench[row] = part
+    return wrench
+
+
+class CompiledIntegrator:
+    """
+    A compiled integrator: ``run`` on packed arrays and its ``method`` constants.
+
+    Calling it with the registry's kernel signature (quaternion, position, linear_momentum,
+    angular_momentum, inertia_body, inertia_body_inverse, mass, dt, steps, force_world,
+    torque_world, force_body, torque_body) packs the arrays, runs, and writes them back: the
+    form the tests and benchmarks call directly.  The Simulator calls ``run``.
+    """
+
+    def __init__(self, run, method=()):
+        self.run = run
+        self.method = np.array(method, dtype=float)
+
+    def __call__(self, quaternion, position, linear_momentum, angular_momentum, inertia_body,
+                 inertia_body_inverse, mass, dt, steps, force_world, torque_world, force_body,
+                 torque_body):
+        """Advance the four arrays in place by `steps` steps of dt s under a held wrench."""
+        state = np.concatenate([quaternion, position, linear_momentum, angular_momentum])
+        self.run(state, packed_wrench(force_world, torque_world, force_body, torque_body),
+                 body_values(inertia_body, inertia_body_inverse, mass), self.method, 0.0,
+                 float(dt), int(steps))
+        quaternion[:] = state[0:4]
+        position[:] = state[4:7]
+        linear_momentum[:] = state[7:10]
+        angular_momentum[:] = state[10:13]
+
+
+# -- small compiled helpers
 
 
 @_jit
@@ -77,77 +173,164 @@ def _turn_right(q, v):
 
 
 @_jit
-def _held_wrench(q, force_world, torque_world, force_body, torque_body):
-    m = _matrix(q)
-    return force_world + _mul(m, force_body), torque_world + _mul(m, torque_body)
+def _is_nonzero(v):
+    return v[0] != 0.0 or v[1] != 0.0 or v[2] != 0.0
 
 
 @_jit
-def _has_wrench(force_world, torque_world, force_body, torque_body):
+def pushes(wrench):
+    """
+    Return (pushed, forced) of a packed wrench.
+
+    pushed: some part is non-zero, so the momenta take kicks; forced: a force acts on the
+    origin (FORCE_WORLD or FORCE_BODY), so p changes and the position must be advanced even
+    from rest.  A lever force only turns the body.
+    """
+    forced = _is_nonzero(wrench[FORCE_WORLD]) or _is_nonzero(wrench[FORCE_BODY])
+    turned = (_is_nonzero(wrench[TORQUE_WORLD]) or _is_nonzero(wrench[TORQUE_BODY])
+              or (_is_nonzero(wrench[LEVER_FORCE]) and _is_nonzero(wrench[LEVER_ARM])))
+    return forced or turned, forced
+
+
+@_jit
+def _rotated(q, v):
+    """Return R v as a 3-tuple, R the rotation matrix of the unit quaternion q."""
+    x, y, z, w = q[0], q[1], q[2], q[3]
+    return ((1.0 - 2.0 * (y * y + z * z)) * v[0] + 2.0 * (x * y - z * w) * v[1]
+            + 2.0 * (x * z + y * w) * v[2],
+            2.0 * (x * y + z * w) * v[0] + (1.0 - 2.0 * (x * x + z * z)) * v[1]
+            + 2.0 * (y * z - x * w) * v[2],
+            2.0 * (x * z - y * w) * v[0] + 2.0 * (y * z + x * w) * v[1]
+            + (1.0 - 2.0 * (x * x + y * y)) * v[2])
+
+
+@_jit
+def wrench_at(q, wrench):
+    """
+    Return (F, tau), 3-tuples, of the held wrench with the body at the unit quaternion q.
+
+    F = F_w + R F_b through the origin; tau = tau_w + R tau_b + (R r) x F_lever about it
+    (world frame).  Scalars only: a kick allocates nothing.
+    """
+    force_world, torque_world = wrench[FORCE_WORLD], wrench[TORQUE_WORLD]
+    fx, fy, fz = _rotated(q, wrench[FORCE_BODY])
+    tx, ty, tz = _rotated(q, wrench[TORQUE_BODY])
+    lever = wrench[LEVER_FORCE]
+    if _is_nonzero(lever):
+        rx, ry, rz = _rotated(q, wrench[LEVER_ARM])
+        tx += ry * lever[2] - rz * lever[1]
+        ty += rz * lever[0] - rx * lever[2]
+        tz += rx * lever[1] - ry * lever[0]
+    return ((force_world[0] + fx, force_world[1] + fy, force_world[2] + fz),
+            (torque_world[0] + tx, torque_world[1] + ty, torque_world[2] + tz))
+
+
+@_jit
+def _kick(q, linear_momentum, angular_momentum, wrench, duration):
+    """Kick the momenta in place: p += h F, L += h tau, the held wrench taken at q."""
+    force, torque = wrench_at(q, wrench)
     for i in range(3):
-        if (force_world[i] != 0.0 or torque_world[i] != 0.0 or force_body[i] != 0.0
-                or torque_body[i] != 0.0):
-            return True
-    return False
+        linear_momentum[i] += duration * force[i]
+        angular_momentum[i] += duration * torque[i]
 
 
 @_jit
-def _first_order_steps(quaternion, position, linear_momentum, angular_momentum,
-                       inertia_body, inertia_body_inverse, mass, dt, steps,
-                       force_world, torque_world, force_body, torque_body):
-    pushed = _has_wrench(force_world, torque_world, force_body, torque_body)
+def dissipate(state, body, damping, duration):
+    """Apply the dissipation flow of effects.dissipation for `duration` s to q (in place)."""
+    state[0:4] = dissipated_quaternion(state[0:4], state[10:13],
+                                       body[0:9].reshape((3, 3)), damping, duration)
+
+
+@_jit
+def nonzero_momentum(state):
+    """Return True if the linear momentum of the packed state is not exactly zero."""
+    return _is_nonzero(state[7:10])
+
+
+# -- the seed's integrators (readable definitions: seed.py)
+
+
+@_jit
+def _first_order_run(state, wrench, body, method, damping, dt, steps):
+    quaternion, position = state[0:4], state[4:7]
+    linear_momentum, angular_momentum = state[7:10], state[10:13]
+    inertia_body_inverse = body[0:9].reshape((3, 3))
+    mass = body[BODY_MASS]
+    pushed, forced = pushes(wrench)
+    # Unforced, p is constant: a body at rest stays where it is without any arithmetic.
+    translates = forced or nonzero_momentum(state)
+    moved = 0
     for _ in range(steps):
+        if damping > 0.0:
+            dissipate(state, body, damping, 0.5 * dt)
         m = _matrix(quaternion)
         omega_body = _mul(inertia_body_inverse, _mul_transposed(m, angular_momentum))
         if pushed:
-            force, torque = _held_wrench(quaternion, force_world, torque_world, force_body,
-                                         torque_body)
-            position += dt * linear_momentum / mass + (0.5 * dt * dt / mass) * force
-            linear_momentum += dt * force
-            angular_momentum += dt * torque
-        else:
+            # The wrench at the start of the step, held over it (seed.first_order).
+            force, torque = wrench_at(quaternion, wrench)
+            if translates:
+                for i in range(3):
+                    position[i] += (dt * linear_momentum[i] / mass
+                                    + (0.5 * dt * dt / mass) * force[i])
+                moved += 1
+            for i in range(3):
+                linear_momentum[i] += dt * force[i]
+                angular_momentum[i] += dt * torque[i]
+        elif translates:
             position += dt * linear_momentum / mass
+            moved += 1
         _turn_right(quaternion, dt * omega_body)
+        if damping > 0.0:
+            dissipate(state, body, damping, 0.5 * dt)
+    return moved
 
 
 @_jit
-def _buss_steps(quaternion, position, linear_momentum, angular_momentum,
-                inertia_body, inertia_body_inverse, mass, dt, steps,
-                force_world, torque_world, force_body, torque_body, augmentation):
-    pushed = _has_wrench(force_world, torque_world, force_body, torque_body)
+def _buss_run(state, wrench, body, method, damping, dt, steps):
+    quaternion, position = state[0:4], state[4:7]
+    linear_momentum, angular_momentum = state[7:10], state[10:13]
+    inertia_body_inverse = body[0:9].reshape((3, 3))
+    mass = body[BODY_MASS]
+    pushed, forced = pushes(wrench)
+    translates = forced or nonzero_momentum(state)
     half = 0.5 * dt
-    twelfth = dt * dt / 12.0 * augmentation
+    twelfth = dt * dt / 12.0 * method[0]
+    moved = 0
     for _ in range(steps):
+        if damping > 0.0:
+            dissipate(state, body, damping, half)
         if pushed:
-            force, torque = _held_wrench(quaternion, force_world, torque_world, force_body,
-                                         torque_body)
-            linear_momentum += half * force
-            angular_momentum += half * torque
+            _kick(quaternion, linear_momentum, angular_momentum, wrench, half)
         m = _matrix(quaternion)
         momentum_body = _mul_transposed(m, angular_momentum)
         omega_body = _mul(inertia_body_inverse, momentum_body)
         alpha_body = _mul(inertia_body_inverse, -_cross(omega_body, momentum_body))
         effective = omega_body + half * alpha_body + twelfth * _cross(alpha_body, omega_body)
         _turn_right(quaternion, dt * effective)
-        position += dt * linear_momentum / mass
+        if translates:
+            position += dt * linear_momentum / mass
+            moved += 1
         if pushed:
-            force, torque = _held_wrench(quaternion, force_world, torque_world, force_body,
-                                         torque_body)
-            linear_momentum += half * force
-            angular_momentum += half * torque
+            _kick(quaternion, linear_momentum, angular_momentum, wrench, half)
+        if damping > 0.0:
+            dissipate(state, body, damping, half)
+    return moved
 
 
 def buss_kernel(augmented):
-    """Return the compiled Buss kernel, with (True) or without (False) the h^2/12 term."""
-    return functools.partial(_buss_steps, augmentation=1.0 if augmented else 0.0)
+    """Return the compiled Buss integrator, with (True) or without (False) the h^2/12 term."""
+    return CompiledIntegrator(_buss_run, (1.0 if augmented else 0.0,))
 
 
-first_order_kernel = _first_order_steps
+first_order_kernel = CompiledIntegrator(_first_order_run)
+
+
+# -- classical RK4 (readable definition: rk4.py)
 
 
 @_jit
-def _rk4_derivative(q, linear_momentum, angular_momentum, inertia_body_inverse, mass,
-                    force_world, torque_world, force_body, torque_body):
+def _rk4_derivative(q, linear_momentum, angular_momentum, inertia_body_inverse, mass, wrench,
+                    pushed):
     norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     unit = q / norm
     m = _matrix(unit)
@@ -158,30 +341,50 @@ def _rk4_derivative(q, linear_momentum, angular_momentum, inertia_body_inverse, 
     dq[1] = 0.5 * (-omega[0] * q[2] + omega[1] * q[3] + omega[2] * q[0])
     dq[2] = 0.5 * (omega[0] * q[1] - omega[1] * q[0] + omega[2] * q[3])
     dq[3] = 0.5 * (-omega[0] * q[0] - omega[1] * q[1] - omega[2] * q[2])
-    force, torque = _held_wrench(unit, force_world, torque_world, force_body, torque_body)
+    force, torque = np.zeros(3), np.zeros(3)
+    if pushed:
+        # The wrench at each stage's (normalised) orientation, as rk4.py samples it.
+        stage_force, stage_torque = wrench_at(unit, wrench)
+        for i in range(3):
+            force[i], torque[i] = stage_force[i], stage_torque[i]
     return dq, linear_momentum / mass, force, torque
 
 
 @_jit
-def _rk4_steps(quaternion, position, linear_momentum, angular_momentum,
-               inertia_body, inertia_body_inverse, mass, dt, steps,
-               force_world, torque_world, force_body, torque_body):
-    args = (inertia_body_inverse, mass, force_world, torque_world, force_body, torque_body)
+def _rk4_run(state, wrench, body, method, damping, dt, steps):
+    quaternion, position = state[0:4], state[4:7]
+    linear_momentum, angular_momentum = state[7:10], state[10:13]
+    inertia_body_inverse = body[0:9].reshape((3, 3))
+    mass = body[BODY_MASS]
+    pushed, forced = pushes(wrench)
+    translates = forced or nonzero_momentum(state)
+    moved = 0
     for _ in range(steps):
+        if damping > 0.0:
+            dissipate(state, body, damping, 0.5 * dt)
         q0, x0, p0, l0 = quaternion.copy(), position.copy(), linear_momentum.copy(), \
             angular_momentum.copy()
-        dq1, dx1, dp1, dl1 = _rk4_derivative(q0, p0, l0, *args)
+        dq1, dx1, dp1, dl1 = _rk4_derivative(q0, p0, l0, inertia_body_inverse, mass, wrench,
+                                             pushed)
         h = 0.5 * dt
-        dq2, dx2, dp2, dl2 = _rk4_derivative(q0 + h * dq1, p0 + h * dp1, l0 + h * dl1, *args)
-        dq3, dx3, dp3, dl3 = _rk4_derivative(q0 + h * dq2, p0 + h * dp2, l0 + h * dl2, *args)
+        dq2, dx2, dp2, dl2 = _rk4_derivative(q0 + h * dq1, p0 + h * dp1, l0 + h * dl1,
+                                             inertia_body_inverse, mass, wrench, pushed)
+        dq3, dx3, dp3, dl3 = _rk4_derivative(q0 + h * dq2, p0 + h * dp2, l0 + h * dl2,
+                                             inertia_body_inverse, mass, wrench, pushed)
         dq4, dx4, dp4, dl4 = _rk4_derivative(q0 + dt * dq3, p0 + dt * dp3, l0 + dt * dl3,
-                                             *args)
+                                             inertia_body_inverse, mass, wrench, pushed)
         s = dt / 6.0
         q = q0 + s * (dq1 + 2.0 * dq2 + 2.0 * dq3 + dq4)
         quaternion[:] = q / math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-        position[:] = x0 + s * (dx1 + 2.0 * dx2 + 2.0 * dx3 + dx4)
-        linear_momentum[:] = p0 + s * (dp1 + 2.0 * dp2 + 2.0 * dp3 + dp4)
-        angular_momentum[:] = l0 + s * (dl1 + 2.0 * dl2 + 2.0 * dl3 + dl4)
+        if translates:
+            position[:] = x0 + s * (dx1 + 2.0 * dx2 + 2.0 * dx3 + dx4)
+            moved += 1
+        if pushed:
+            linear_momentum[:] = p0 + s * (dp1 + 2.0 * dp2 + 2.0 * dp3 + dp4)
+            angular_momentum[:] = l0 + s * (dl1 + 2.0 * dl2 + 2.0 * dl3 + dl4)
+        if damping > 0.0:
+            dissipate(state, body, damping, 0.5 * dt)
+    return moved
 
 
-rk4_kernel = _rk4_steps
+rk4_kernel = CompiledIntegrator(_rk4_run)

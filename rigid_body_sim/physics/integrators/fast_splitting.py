@@ -4,16 +4,27 @@ Compiled fast paths (numba) of the `splitting` and `splitting4` integrators.
 The same flows as the readable :mod:`.splitting`, in the same order and with the same
 arithmetic (a sin/cos pair of the half angle per flow), on scalars; the tests prove both
 equal to round-off.  Each stage is kick(c h/2), free flow(c h), kick(c h/2) under the held
-wrench, as in the readable steps.
+wrench, as in the readable steps.  Packed arrays and the run signature: see :mod:`.fast`.
 """
 
 import functools
 import math
 
 import numba
-import numpy as np
 
-from .principal import principal_frame
+from .fast import BODY_FRAME
+from .fast import BODY_MASS
+from .fast import BODY_MOMENTS
+from .fast import CompiledIntegrator
+from .fast import dissipate
+from .fast import FORCE_BODY
+from .fast import FORCE_WORLD
+from .fast import LEVER_ARM
+from .fast import LEVER_FORCE
+from .fast import nonzero_momentum
+from .fast import pushes
+from .fast import TORQUE_BODY
+from .fast import TORQUE_WORLD
 
 __all__ = ['splitting_kernel_for']
 
@@ -45,12 +56,25 @@ def _rotate_inverse(q, vx, vy, vz):
 
 
 @_jit
-def _kick(q, linear_momentum, angular_momentum, half, force_world, torque_world, force_body,
-          torque_body):
-    """Kick the momenta in place: p += h F, L += h tau, F = F_w + R F_b, tau = tau_w + R tau_b."""
+def _kick(q, linear_momentum, angular_momentum, half, wrench):
+    """
+    Kick the momenta in place: p += h F, L += h tau, the held wrench taken at q.
+
+    F = F_w + R F_b, tau = tau_w + R tau_b + (R r) x F_lever (packed rows: see fast.py).
+    """
     conjugate = (-q[0], -q[1], -q[2], q[3])
+    force_body, torque_body = wrench[FORCE_BODY], wrench[TORQUE_BODY]
     fx, fy, fz = _rotate_inverse(conjugate, force_body[0], force_body[1], force_body[2])
     tx, ty, tz = _rotate_inverse(conjugate, torque_body[0], torque_body[1], torque_body[2])
+    lever = wrench[LEVER_FORCE]
+    if lever[0] != 0.0 or lever[1] != 0.0 or lever[2] != 0.0:
+        # The moment (R r) x F of a world force at the body point r.
+        arm = wrench[LEVER_ARM]
+        rx, ry, rz = _rotate_inverse(conjugate, arm[0], arm[1], arm[2])
+        tx += ry * lever[2] - rz * lever[1]
+        ty += rz * lever[0] - rx * lever[2]
+        tz += rx * lever[1] - ry * lever[0]
+    force_world, torque_world = wrench[FORCE_WORLD], wrench[TORQUE_WORLD]
     linear_momentum[0] += half * (force_world[0] + fx)
     linear_momentum[1] += half * (force_world[1] + fy)
     linear_momentum[2] += half * (force_world[2] + fz)
@@ -101,49 +125,46 @@ def _free_flow(q, lx, ly, lz, moments, frame, axes, dt):
 
 
 @_jit
-def _splitting_steps(quaternion, position, linear_momentum, angular_momentum, moments,
-                     frame_quaternion, mass, dt, steps, force_world, torque_world, force_body,
-                     torque_body, axes, coefficients):
-    pushed = False
-    for i in range(3):
-        if (force_world[i] != 0.0 or torque_world[i] != 0.0 or force_body[i] != 0.0
-                or torque_body[i] != 0.0):
-            pushed = True
-    frame = (frame_quaternion[0], frame_quaternion[1], frame_quaternion[2],
-             frame_quaternion[3])
-    q = (quaternion[0], quaternion[1], quaternion[2], quaternion[3])
+def _splitting_run(state, wrench, body, method, damping, dt, steps):
+    """Run the splitting (signature: fast.py); method = (outer, inner, central axis, c...)."""
+    linear_momentum, angular_momentum = state[7:10], state[10:13]
+    mass = body[BODY_MASS]
+    moments = body[BODY_MOMENTS:BODY_MOMENTS + 3]
+    frame = (body[BODY_FRAME], body[BODY_FRAME + 1], body[BODY_FRAME + 2], body[BODY_FRAME + 3])
+    axes = (int(method[0]), int(method[1]), int(method[2]))
+    coefficients = method[3:]
+    pushed, forced = pushes(wrench)
+    translates = forced or nonzero_momentum(state)
+    moved = 0
     for _ in range(steps):
+        if damping > 0.0:
+            dissipate(state, body, damping, 0.5 * dt)
+        q = (state[0], state[1], state[2], state[3])
         for coefficient in coefficients:
             stage = coefficient * dt
             if pushed:
-                _kick(q, linear_momentum, angular_momentum, 0.5 * stage, force_world,
-                      torque_world, force_body, torque_body)
+                _kick(q, linear_momentum, angular_momentum, 0.5 * stage, wrench)
             q = _free_flow(q, angular_momentum[0], angular_momentum[1], angular_momentum[2],
                            moments, frame, axes, stage)
-            for i in range(3):
-                position[i] += stage * linear_momentum[i] / mass
+            if translates:
+                for i in range(3):
+                    state[4 + i] += stage * linear_momentum[i] / mass
             if pushed:
-                _kick(q, linear_momentum, angular_momentum, 0.5 * stage, force_world,
-                      torque_world, force_body, torque_body)
-    quaternion[0], quaternion[1], quaternion[2], quaternion[3] = q
+                _kick(q, linear_momentum, angular_momentum, 0.5 * stage, wrench)
+        if translates:
+            moved += 1
+        state[0], state[1], state[2], state[3] = q
+        if damping > 0.0:
+            dissipate(state, body, damping, 0.5 * dt)
+    return moved
 
 
 def splitting_kernel_for(axes, coefficients):
     """
-    Return the kernel (registry signature) of a composition of Strang splitting steps.
+    Return the compiled integrator of a composition of Strang splitting steps.
 
     axes: principal axes (0, 1, 2 by ascending moment) of the outer, inner and central
     flows; coefficients: the stage lengths as fractions of dt ((1.0,) for Strang itself).
+    Callable with the registry's kernel signature, see :class:`.fast.CompiledIntegrator`.
     """
-    axes = np.array(axes, dtype=np.int64)
-    coefficients = np.array(coefficients, dtype=float)
-
-    def kernel(quaternion, position, linear_momentum, angular_momentum, inertia_body,
-               inertia_body_inverse, mass, dt, steps, force_world, torque_world, force_body,
-               torque_body):
-        frame = principal_frame(inertia_body)
-        _splitting_steps(quaternion, position, linear_momentum, angular_momentum,
-                         frame.moments, frame.quaternion, mass, dt, steps, force_world,
-                         torque_world, force_body, torque_body, axes, coefficients)
-
-    return kernel
+    return CompiledIntegrator(_splitting_run, tuple(axes) + tuple(coefficients))
