@@ -8,6 +8,7 @@ about the COM.
 
 import itertools
 import math
+import re
 
 import numpy as np
 import pytest
@@ -122,18 +123,33 @@ def test_three_points_make_a_valid_lamina():
     assert i3 == pytest.approx(i1 + i2, rel=1e-13)
 
 
+# Each message names the rule and the values: the offending entry, or for a degenerate set
+# its points (up to 4) and the singular values of their offsets from the COM (the spread
+# along each principal direction: one or none non-zero for collinear or coincident points,
+# the others zero to round-off, so only their count is matched).
 @pytest.mark.parametrize('masses, positions, message', [
-    ([1.0, 1.0, 1.0], [[0, 0, 0], [1, 1, 1], [2, 2, 2]], 'degenerate point set: 3 point'),
-    ([1.0, 2.0, 3.0, 4.0], [[1, 2, 3]] * 4, 'coincident or collinear'),
-    ([1.0, 1.0], [[0, 0, 0], [1, 0, 0]], 'need at least 3 non-collinear points'),
-    ([1.0], [[0, 0, 0]], 'degenerate point set: 1 point'),
+    ([1.0, 1.0, 1.0], [[0, 0, 0], [1, 1, 1], [2, 2, 2]],
+     re.escape('degenerate point set: 3 point(s) at [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], '
+               '[2.0, 2.0, 2.0]] m that are coincident or collinear')
+     + r'.*offsets from the COM: 2\.45, \S+, \S+ m\)'),
+    ([1.0, 2.0, 3.0, 4.0], [[1, 2, 3]] * 4,
+     r'4 point\(s\) at \[\[1\.0, 2\.0, 3\.0\], .*COM: 0, 0, 0 m\)'),
+    ([1.0, 1.0], [[0, 0, 0], [1, 0, 0]],
+     r'2 point\(s\) at .*COM: 0\.707, 0 m\); need at least 3 non-collinear points'),
+    ([1.0], [[0, 0, 0]], r'degenerate point set: 1 point\(s\) at \[\[0\.0, 0\.0, 0\.0\]\] m'),
+    ([1.0] * 5, [[k, 2 * k, 0] for k in range(5)],
+     r'degenerate point set: 5 point\(s\) that are .*COM: 7\.07, \S+, \S+ m\)'),
     (np.zeros(0), np.zeros((0, 3)), 'need at least 3 non-collinear points; got none'),
     ([1.0, 1.0, 1.0], [[0, 0], [1, 0], [0, 1]], r'positions must have shape \(n, 3\)'),
     ([1.0, 1.0], [[0, 0, 0], [1, 0, 0], [0, 1, 0]], r'n = len\(masses\) = 2'),
-    ([1.0, 0.0, 1.0], [[0, 0, 0], [1, 0, 0], [0, 1, 0]], r'must each be > 0 kg'),
-    ([1.0, -1.0, 1.0], [[0, 0, 0], [1, 0, 0], [0, 1, 0]], r'must each be > 0 kg'),
-    ([1.0, 1.0, 1.0], [[0, 0, 0], [1, math.nan, 0], [0, 1, 0]], 'must be finite'),
-    ([1.0, math.inf, 1.0], [[0, 0, 0], [1, 0, 0], [0, 1, 0]], 'must be finite'),
+    ([1.0, 0.0, 1.0], [[0, 0, 0], [1, 0, 0], [0, 1, 0]],
+     re.escape('point masses must each be > 0 kg; got [1.0, 0.0, 1.0]')),
+    ([1.0, -1.0, 1.0], [[0, 0, 0], [1, 0, 0], [0, 1, 0]],
+     re.escape('point masses must each be > 0 kg; got [1.0, -1.0, 1.0]')),
+    ([1.0, 1.0, 1.0], [[0, 0, 0], [1, math.nan, 0], [0, 1, 0]],
+     re.escape('point mass positions must be finite; got position 1 = [1.0, nan, 0.0] m')),
+    ([1.0, math.inf, 1.0], [[0, 0, 0], [1, 0, 0], [0, 1, 0]],
+     re.escape('point masses must be finite; got [1.0, inf, 1.0] kg')),
 ])
 def test_point_masses_reject_degenerate_and_malformed_sets(masses, positions, message):
     with pytest.raises(ValueError, match=message):
@@ -192,8 +208,8 @@ def test_mass_properties_are_read_only():
 
 
 @pytest.mark.parametrize('mass, message', [
-    (math.nan, 'mass must be finite'),
-    (math.inf, 'mass must be finite'),
+    (math.nan, 'mass must be finite; got nan'),
+    (math.inf, 'mass must be finite; got inf'),
     (0.0, 'mass must be > 0 kg; got 0'),
     (-2.0, 'mass must be > 0 kg; got -2'),
     ('heavy', 'mass must be a number in kg'),
@@ -205,17 +221,27 @@ def test_rigid_body_rejects_a_mass_that_is_not_positive_and_finite(mass, message
 
 
 @pytest.mark.parametrize('inertia, message', [
-    ((1.0, math.nan, 1.0), 'inertia must be finite'),
-    (np.diag([1.0, 1.0, math.inf]), 'inertia must be finite'),
+    ((1.0, math.nan, 1.0),
+     re.escape('inertia must be finite; got [[1.0, 0.0, 0.0], [0.0, nan, 0.0], '
+               '[0.0, 0.0, 1.0]]')),
+    (np.diag([1.0, 1.0, math.inf]), re.escape('got [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], '
+                                              '[0.0, 0.0, inf]]')),
     (np.eye(2), r'inertia must be a 3x3 tensor .* got shape \(2, 2\)'),
     ((1.0, 2.0, 3.0, 4.0), r'got shape \(4,\)'),
     ([[1.0, 0.1, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
      r'inertia tensor must be symmetric: I\[0\]\[1\] = 0.1 but I\[1\]\[0\] = 0'),
-    ((-1.0, 1.0, 1.0), 'inertia tensor must be positive definite'),
-    ((0.0, 1.0, 1.0), 'inertia tensor must be positive definite'),
-    (np.zeros((3, 3)), 'inertia tensor must be positive definite'),
-    ((1.0, 1.0, 3.0), r'triangle inequality I1 \+ I2 >= I3; got I1 \+ I2 = 2 < I3 = 3'),
-    ((1.0, 2.0, 3.0 * (1 + 1e-8)), 'no real body has these'),
+    ((-1.0, 1.0, 1.0), re.escape('inertia tensor must be positive definite (a body with '
+                                 'volume); got principal moments [-1.0, 1.0, 1.0] kg m^2')),
+    ((0.0, 1.0, 1.0), re.escape('positive definite (a body with volume); got principal '
+                                'moments [0.0, 1.0, 1.0] kg m^2')),
+    (np.zeros((3, 3)), re.escape('positive definite (a body with volume); got principal '
+                                 'moments [0.0, 0.0, 0.0] kg m^2')),
+    ((1.0, 1.0, 3.0), re.escape('triangle inequality I1 + I2 >= I3; got I1 + I2 = 2 < I3 = 3 '
+                                '(moments [1.0, 1.0, 3.0] kg m^2): no real body has these')),
+    ((1.0, 2.0, 3.0 * (1 + 1e-8)),
+     re.escape('got I1 + I2 = 3 < I3 = 3.00000003 (moments [1.0, 2.0, 3.00000003] kg m^2)')),
+    (np.diag([1.0, 1.0, 2.0 + 1e-9]),
+     re.escape('got I1 + I2 = 2 < I3 = 2 (moments [1.0, 1.0, 2.000000001] kg m^2)')),
 ])
 def test_rigid_body_rejects_an_impossible_inertia_tensor(inertia, message):
     with pytest.raises(ValueError, match=message):
@@ -241,14 +267,20 @@ def test_round_off_asymmetry_is_accepted_and_symmetrised():
 
 @pytest.mark.parametrize('make, message', [
     (lambda: RigidBody.box(1.0, (1.0, 2.0)), r'box size must have 3 value\(s\) in m; got 2'),
-    (lambda: RigidBody.box(1.0, (1.0, 0.0, 2.0)), 'box size must be > 0 m'),
-    (lambda: RigidBody.box(1.0, (1.0, math.nan, 2.0)), 'box size must be finite'),
-    (lambda: RigidBody.box(-1.0, (1.0, 1.0, 1.0)), 'mass must be > 0 kg'),
-    (lambda: RigidBody.cylinder(1.0, 0.0, 1.0), 'cylinder radius must be > 0 m'),
-    (lambda: RigidBody.cylinder(1.0, 1.0, -1.0), 'cylinder height must be > 0 m'),
-    (lambda: RigidBody.sphere(1.0, math.inf), 'sphere radius must be finite'),
-    (lambda: RigidBody.sphere(0.0, 1.0), 'mass must be > 0 kg'),
-    (lambda: RigidBody.ellipsoid(1.0, (1.0, 1.0, -1.0)), 'ellipsoid semi_axes must be > 0 m'),
+    (lambda: RigidBody.box(1.0, (1.0, 0.0, 2.0)),
+     re.escape('box size must be > 0 m; got [1.0, 0.0, 2.0]')),
+    (lambda: RigidBody.box(1.0, (1.0, math.nan, 2.0)),
+     re.escape('box size must be finite; got [1.0, nan, 2.0]')),
+    (lambda: RigidBody.box(-1.0, (1.0, 1.0, 1.0)), 'mass must be > 0 kg; got -1'),
+    (lambda: RigidBody.cylinder(1.0, 0.0, 1.0),
+     re.escape('cylinder radius must be > 0 m; got [0.0]')),
+    (lambda: RigidBody.cylinder(1.0, 1.0, -1.0),
+     re.escape('cylinder height must be > 0 m; got [-1.0]')),
+    (lambda: RigidBody.sphere(1.0, math.inf),
+     re.escape('sphere radius must be finite; got [inf]')),
+    (lambda: RigidBody.sphere(0.0, 1.0), 'mass must be > 0 kg; got 0'),
+    (lambda: RigidBody.ellipsoid(1.0, (1.0, 1.0, -1.0)),
+     re.escape('ellipsoid semi_axes must be > 0 m; got [1.0, 1.0, -1.0]')),
 ])
 def test_shape_constructors_reject_bad_dimensions(make, message):
     with pytest.raises(ValueError, match=message):

@@ -175,8 +175,12 @@ class RigidBody:
                 f'shape {r.shape}')
         if m.size == 0:
             raise ValueError('point masses: need at least 3 non-collinear points; got none')
-        if not (np.all(np.isfinite(m)) and np.all(np.isfinite(r))):
-            raise ValueError('point masses and positions must be finite')
+        if not np.all(np.isfinite(m)):
+            raise ValueError(f'point masses must be finite; got {m.tolist()} kg')
+        if not np.all(np.isfinite(r)):
+            bad = int(np.flatnonzero(~np.all(np.isfinite(r), axis=1))[0])
+            raise ValueError(
+                f'point mass positions must be finite; got position {bad} = {r[bad].tolist()} m')
         if np.any(m <= 0.0):
             raise ValueError(f'point masses must each be > 0 kg; got {m.tolist()}')
         total = float(np.sum(m))
@@ -186,9 +190,12 @@ class RigidBody:
         spread = np.linalg.svd(offsets, compute_uv=False) if m.size > 1 else np.zeros(1)
         extent = np.max(np.abs(offsets)) if m.size > 1 else 0.0
         if m.size < 3 or spread.size < 2 or spread[1] <= 1e-9 * max(spread[0], extent):
+            extents = ', '.join(f'{value:.3g}' for value in spread)
+            listed = f' at {r.tolist()} m' if m.size <= 4 else ''
             raise ValueError(
-                f'degenerate point set: {m.size} point(s) that are coincident or collinear '
-                'have zero inertia about their common line; need at least 3 non-collinear '
+                f'degenerate point set: {m.size} point(s){listed} that are coincident or '
+                'collinear have zero inertia about their common line (singular values of '
+                f'their offsets from the COM: {extents} m); need at least 3 non-collinear '
                 'points')
         squared = np.einsum('ij,ij->i', offsets, offsets)
         inertia = np.eye(3) * np.sum(m * squared) - np.einsum('i,ij,ik->jk', m, offsets, offsets)
