@@ -1,0 +1,397 @@
+"""
+The Simulator's compiled paths: what runs compiled, equal to the readable path, doing no more.
+
+What runs compiled (pivot with gravity, dissipation), that it equals the readable path and
+keeps each method's order, and that it computes only what the scene calls for.
+
+Frames world, units SI.  Round-off bounds: the compiled and readable paths evaluate the same
+formulas in a different order, each step adding a few ulp that then grow about linearly over
+a non-chaotic run; 10 eps per stage evaluation (steps x stages of the method) bounds that with
+a margin of about ten (measured: 1e-14 to 6e-13 over 500 steps).
+"""
+
+import math
+
+import numpy as np
+import pytest
+from reference import random_rotation
+from reference import reference_solution
+from reference import rotation_angle_between
+from reference import state_error
+from rigid_body_sim.physics import FAST_KERNELS
+from rigid_body_sim.physics import INTEGRATORS
+from rigid_body_sim.physics import RigidBody
+from rigid_body_sim.physics import Simulator
+from rigid_body_sim.physics import State
+from rigid_body_sim.physics.effects import Dissipation
+from rigid_body_sim.physics.effects import Gravity
+from rigid_body_sim.physics.effects import Pivot
+from rigid_body_sim.physics.integrators import fast
+from rigid_body_sim.physics.integrators.fast import CompiledIntegrator
+from rigid_body_sim.physics.rotations import cross
+from rigid_body_sim.physics.simulator import COMPILED
+from rigid_body_sim.physics.simulator import KERNEL_AND_FLOWS
+from rigid_body_sim.physics.simulator import READABLE
+from rigid_body_sim.scenes import load_scene
+from rigid_body_sim.scenes import scene_names
+
+EPS = np.finfo(float).eps
+COMPILED_NAMES = sorted(name for name, kernel in FAST_KERNELS.items()
+                        if isinstance(kernel, CompiledIntegrator))
+# Stage evaluations per step (splitting4: Suzuki's five stages; rk4: four derivatives).
+STAGES = {'first_order': 1, 'buss': 1, 'buss_plain': 1, 'rk4': 4, 'splitting': 1,
+          'splitting4': 5}
+GRAVITY = np.array([0.0, 0.0, -9.81])
+# The held wrench of the pivot problems: every part, so each reaches the kernel.
+HELD = {'force_world': (0.1, 0.0, 0.0), 'torque_world': (0.0, 0.01, 0.0),
+        'force_body': (0.05, 0.0, 0.1), 'torque_body': (0.0, 0.0, 0.002)}
+
+
+def test_every_compiled_integrator_is_covered():
+    # The tests below run every integrator with the packed form; a new one needs a stage count.
+    assert set(COMPILED_NAMES) == set(STAGES)
+
+
+def _round_off(name, steps):
+    return 10.0 * EPS * steps * STAGES[name]
+
+
+def _top():
+    """Return a box pivoted off every principal axis, spinning and tilted (body, state, pivot)."""
+    rng = np.random.default_rng(7)
+    body = RigidBody.box(0.5, (0.08, 0.05, 0.02))
+    state = State.from_velocity(body, rotation=random_rotation(rng),
+                                angular_velocity_body=(2.0, -3.0, 25.0))
+    return body, state, Pivot(point=(0.01, -0.02, -0.06), anchor=(0.1, 0.0, 0.2))
+
+
+def _pivot_simulator(name, fast_path, held=True):
+    body, state, pivot = _top()
+    simulator = Simulator(body, state, integrator=name, effects=[pivot, Gravity()],
+                          fast=fast_path)
+    if held:
+        simulator.hold_wrench(**HELD)
+    return simulator
+
+
+def _assert_states_agree(state, other, tolerance):
+    assert rotation_angle_between(state.rotation, other.rotation) <= tolerance
+    for a, b in ((state.position, other.position),
+                 (state.linear_momentum, other.linear_momentum),
+                 (state.angular_momentum, other.angular_momentum)):
+        assert np.linalg.norm(a - b) <= tolerance * max(1.0, np.linalg.norm(b)), (a, b)
+
+
+# -- 1. a constant force under a pivot: compiled, equal to the readable path, orders kept
+
+
+@pytest.mark.parametrize('name', COMPILED_NAMES)
+def test_pivot_with_gravity_runs_compiled_and_equals_the_readable_path(name):
+    compiled, readable = _pivot_simulator(name, True), _pivot_simulator(name, False)
+    assert compiled._path == COMPILED
+    assert readable._path == READABLE
+    steps = 500
+    compiled.run(steps * 1e-3, 1e-3)
+    readable.run(steps * 1e-3, 1e-3)
+    # The body turned well away from the start: a dropped lever torque could not hide.
+    assert rotation_angle_between(compiled.state.rotation, _top()[1].rotation) > 1.0
+    _assert_states_agree(compiled.state, readable.state, _round_off(name, steps))
+    assert compiled.time == readable.time
+
+
+def test_a_kernel_without_the_packed_form_never_drops_the_lever_torque():
+    # exact's registry kernel takes held world/body wrenches only: under a pivot a world
+    # force (gravity) must send the steps to the readable path, or its moment would be lost.
+    assert not isinstance(FAST_KERNELS['exact'], CompiledIntegrator)
+    assert _pivot_simulator('exact', True)._path == READABLE
+    body, state, pivot = _top()
+    simulator = Simulator(body, state, integrator='exact', effects=[pivot])
+    # A body-fixed force under a pivot is the body-fixed torque d x F_b: the kernel takes it.
+    simulator.hold_wrench(torque_world=HELD['torque_world'], force_body=HELD['force_body'])
+    assert simulator._path != READABLE
+    simulator.hold_wrench(force_world=HELD['force_world'])
+    assert simulator._path == READABLE
+
+
+def _pivot_reference(duration):
+    """Return the physical state after `duration` s, from DOP853 on the pivot system."""
+    body, state, pivot = _top()
+    constraint = pivot.constrain(body)
+    torque_world = np.array(HELD['torque_world'])
+    torque_body = np.array(HELD['torque_body'])
+    force_world = np.array(HELD['force_world']) + body.mass * GRAVITY
+    force_body = np.array(HELD['force_body'])
+
+    def wrench(pivot_state, time):
+        # About the pivot: the torques, and the moment of every force at the COM, r = R d.
+        rotation = pivot_state.rotation
+        r = rotation @ constraint.offset_body
+        force = force_world + rotation @ force_body
+        return np.zeros(3), torque_world + rotation @ torque_body + cross(r, force)
+
+    start = constraint.reduce(constraint.project(state))
+    return constraint.expand(reference_solution(constraint.body, start, duration, wrench))
+
+
+# (order, coarse steps over 0.5 s): the coarse error well below 0.05, the fine one far above
+# the reference's ~1e-12 (both asserted).
+PIVOT_ORDERS = {'first_order': (1, 80000), 'buss': (2, 400), 'buss_plain': (2, 400),
+                'rk4': (4, 100), 'splitting': (2, 200), 'splitting4': (4, 50)}
+
+
+def test_every_compiled_integrator_has_a_pivot_convergence_case():
+    assert set(PIVOT_ORDERS) == set(COMPILED_NAMES)
+    for name, (order, _) in PIVOT_ORDERS.items():
+        assert INTEGRATORS[name].order == order
+
+
+@pytest.mark.parametrize('name', COMPILED_NAMES)
+def test_compiled_pivot_with_gravity_keeps_the_method_order(name):
+    order, steps = PIVOT_ORDERS[name]
+    duration = 0.5
+    reference = _pivot_reference(duration)
+    body = _top()[0]
+    errors = []
+    for count in (steps, 2 * steps):
+        simulator = _pivot_simulator(name, True)
+        assert simulator._path == COMPILED
+        errors.append(state_error(simulator.run(duration, duration / count), reference,
+                                  0.1, body.mass)['total'])
+    coarse, fine = errors
+    assert coarse < 0.05 and fine > 1e-10, errors
+    observed = math.log2(coarse / fine)
+    # As test_integrator_convergence: within 0.3 of the nominal order (4th: >= 3.7).
+    if order == 4:
+        assert observed >= order - 0.3, observed
+    else:
+        assert abs(observed - order) <= 0.3, observed
+
+
+def test_compiled_pivot_expansion_equals_the_readable_one():
+    rng = np.random.default_rng(11)
+    body, _, pivot = _top()
+    constraint = pivot.constrain(body)
+    # omega = I_pivot^{-1} R^T L, then two rotations and two cross products: a few eps each,
+    # amplified by the conditioning of the inertia about the pivot (~7 here).
+    tolerance = 32 * EPS * np.linalg.cond(constraint.body.inertia)
+    for _ in range(20):
+        pivot_state = State(random_rotation(rng), pivot.anchor, np.zeros(3),
+                            rng.normal(size=3))
+        readable = constraint.expand(pivot_state)
+        compiled = State._from_values(constraint.expand_values(
+            np.concatenate(pivot_state._fields())))
+        _assert_states_agree(compiled, readable, tolerance)
+
+
+# -- 2. the dissipation flow fused into the compiled loop
+
+
+@pytest.mark.parametrize('name', COMPILED_NAMES)
+def test_dissipation_is_fused_into_the_compiled_run_and_equals_the_composition(name):
+    rng = np.random.default_rng(12)
+    body = RigidBody(1.0, (1.0, 2.0, 3.0))
+    state = State.from_velocity(body, rotation=random_rotation(rng),
+                                angular_velocity_body=(0.4, 3.0, 0.3))
+    fused = Simulator(body, state, integrator=name, effects=[Dissipation(0.05)])
+    composed = Simulator(body, state, integrator=name, effects=[Dissipation(0.05)], fast=False)
+    assert fused._path == COMPILED
+    steps = 500
+    fused.run(steps * 0.01, 0.01)
+    composed.run(steps * 0.01, 0.01)
+    # The spin left the middle axis: the flow did act.
+    assert abs(fused.state.angular_velocity_body(body)[1]) < 2.5
+    _assert_states_agree(fused.state, composed.state, _round_off(name, steps))
+    # Neither the flow nor a torque-free step touches world L.
+    np.testing.assert_array_equal(fused.state.angular_momentum, state.angular_momentum)
+
+
+def test_a_flow_the_kernels_do_not_know_is_composed_around_kernel_steps():
+    body = RigidBody(1.0, (1.0, 2.0, 3.0))
+    state = State.from_velocity(body, angular_velocity_body=(0.4, 3.0, 0.3))
+
+    class SlowDissipation(Dissipation):
+        """A subclass: the Simulator cannot know its flow is the compiled one."""
+
+    composed = Simulator(body, state, effects=[SlowDissipation(0.05)])
+    readable = Simulator(body, state, effects=[SlowDissipation(0.05)], fast=False)
+    assert composed._path == KERNEL_AND_FLOWS
+    composed.run(1.0, 0.01)
+    readable.run(1.0, 0.01)
+    _assert_states_agree(composed.state, readable.state, _round_off('buss', 100))
+
+
+# -- 3. translation only when something moves the COM
+
+
+def _packed(state):
+    return np.concatenate(state._fields())
+
+
+def _body_values(body):
+    return fast.body_values(body.inertia, body.inertia_inverse, body.mass)
+
+
+@pytest.mark.parametrize('name', COMPILED_NAMES)
+def test_compiled_kernels_skip_the_translation_of_a_com_at_rest(name):
+    body = RigidBody(2.0, (1.0, 1.6, 2.2))
+    start = State.from_velocity(body, position=(1.0, -2.0, 0.5),
+                                angular_velocity_body=(0.8, -0.5, 1.1))
+    kernel, steps, dt = FAST_KERNELS[name], 100, 0.01
+    values = _packed(start)
+    # A torque and a lever force turn the body but push no COM.
+    wrench = fast.packed_wrench(torque_world=(0.1, 0.2, 0.0), lever_force=(0.0, 0.0, -5.0),
+                                lever_arm=(0.0, 0.0, 0.1))
+    moved = kernel.run(values, wrench, _body_values(body), kernel.method, 0.0, dt, steps)
+    assert moved == 0
+    np.testing.assert_array_equal(values[4:10], _packed(start)[4:10])
+    assert not np.array_equal(values[10:13], start.angular_momentum)
+    # From rest under a force, the COM moves every step.
+    values = _packed(start)
+    moved = kernel.run(values, fast.packed_wrench(force_world=(0.0, 0.0, -1.0)),
+                       _body_values(body), kernel.method, 0.0, dt, steps)
+    assert moved == steps
+    np.testing.assert_allclose(values[4:7], start.position + 0.5 * (-1.0 / body.mass)
+                               * (steps * dt) ** 2 * np.array([0.0, 0.0, 1.0]), atol=1e-14)
+
+
+@pytest.mark.parametrize('name', COMPILED_NAMES)
+def test_unforced_com_moves_uniformly_on_the_compiled_path(name):
+    body = RigidBody(2.0, (1.0, 1.6, 2.2))
+    start = State.from_velocity(body, position=(1.0, -2.0, 0.5), velocity=(0.3, -0.2, 0.6),
+                                angular_velocity_body=(0.8, -0.5, 1.1))
+    kernel, steps, dt = FAST_KERNELS[name], 1000, 0.01
+    values = _packed(start)
+    moved = kernel.run(values, fast.packed_wrench(torque_body=(0.0, 0.1, 0.0)),
+                       _body_values(body), kernel.method, 0.0, dt, steps)
+    assert moved == steps
+    np.testing.assert_array_equal(values[7:10], start.linear_momentum)
+    expected = start.position + steps * dt * start.velocity(body)
+    # x + dt v added 1000 times (1000 rounded additions of ~|x| eps each).
+    np.testing.assert_allclose(values[4:7], expected, rtol=0,
+                               atol=steps * EPS * np.max(np.abs(expected)))
+
+
+@pytest.mark.parametrize('name', ['first_order', 'buss', 'buss_plain', 'splitting',
+                                  'splitting4', 'exact'])
+def test_readable_steps_do_not_recompute_a_com_at_rest(name):
+    # The position array itself comes back: nothing was computed for it (rk4's readable
+    # step integrates x like every other variable).
+    body = RigidBody(2.0, (1.0, 1.6, 2.2))
+    start = State.from_velocity(body, position=(1.0, -2.0, 0.5),
+                                angular_velocity_body=(0.8, -0.5, 1.1))
+
+    def torque_only(state, time):
+        return np.zeros(3), np.array([0.1, 0.2, 0.0])
+
+    for wrench in (None, torque_only):
+        state = start
+        for _ in range(3):
+            state = INTEGRATORS[name](body, state, 0.0, 0.01, wrench)
+        assert state.position is start.position
+
+
+class SpyIntegrator(CompiledIntegrator):
+    """A compiled integrator that records what every run is given and how often x moved."""
+
+    def __init__(self, compiled):
+        super().__init__(self._record, compiled.method)
+        self._compiled_run = compiled.run
+        self.calls = []
+
+    def _record(self, state, wrench, body, method, damping, dt, steps):
+        moved = self._compiled_run(state, wrench, body, method, damping, dt, steps)
+        self.calls.append((wrench.copy(), damping, steps, moved))
+        return moved
+
+
+def _spied_scene(monkeypatch, name):
+    scene = load_scene(name)
+    spy = SpyIntegrator(FAST_KERNELS[scene.integrator])
+    monkeypatch.setitem(FAST_KERNELS, scene.integrator, spy)
+    return scene, scene.simulator(), spy
+
+
+def _torque_free_scenes():
+    return [name for name in scene_names()
+            if all(effect.effect_name == 'external_wrench' for effect in load_scene(name).effects)]
+
+
+def test_torque_free_scenes_pass_the_kernel_no_wrench_and_move_no_com(monkeypatch):
+    names = _torque_free_scenes()
+    assert {'default', 't_handle', 'van_zon'} <= set(names)
+    for name in names:
+        scene, simulator, spy = _spied_scene(monkeypatch, name)
+        assert simulator._path == COMPILED, name
+        assert simulator.wrench_function() is None
+        simulator.run(50 * scene.dt, scene.dt)
+        for _ in range(5):
+            simulator.step(scene.dt)
+        assert len(spy.calls) == 6
+        for wrench, damping, _, moved in spy.calls:
+            assert not np.any(wrench) and damping == 0.0, name
+            # The kernel's own decision: no kick code runs, and x (at rest) is never touched.
+            assert fast.pushes(wrench) == (False, False)
+            assert moved == 0
+
+
+def test_pivot_scenes_turn_by_the_lever_alone_and_never_translate(monkeypatch):
+    for name in ('heavy_top', 'bike_wheel'):
+        scene, simulator, spy = _spied_scene(monkeypatch, name)
+        assert simulator._path == COMPILED
+        simulator.run(100 * scene.dt, scene.dt)
+        (wrench, _, steps, moved), = spy.calls
+        assert steps == 100 and moved == 0
+        assert fast.pushes(wrench) == (True, False)
+        np.testing.assert_array_equal(wrench[fast.LEVER_FORCE], scene.body.mass * GRAVITY)
+        assert not np.any(wrench[[fast.FORCE_WORLD, fast.FORCE_BODY]])
+
+
+def test_thrown_box_moves_its_com_every_step_and_flat_spin_fuses_its_flow(monkeypatch):
+    scene, simulator, spy = _spied_scene(monkeypatch, 'thrown_box')
+    simulator.run(10 * scene.dt, scene.dt)
+    assert spy.calls[0][3] == 10
+    scene, simulator, spy = _spied_scene(monkeypatch, 'flat_spin')
+    simulator.run(10 * scene.dt, scene.dt)
+    assert spy.calls[0][1] == scene.effects[0].damping
+
+
+# -- 4. one fast path for the node (step per tick) and the offline tools (run)
+
+
+@pytest.mark.parametrize('name', ['default', 'heavy_top', 'flat_spin', 'thrown_box'])
+def test_single_steps_and_one_run_give_the_same_trajectory_bit_for_bit(name):
+    scene = load_scene(name)
+    ticked, bulk = scene.simulator(), scene.simulator()
+    for k in range(200):
+        ticked.step(scene.dt)
+        if k % 7 == 0:
+            # Reading the state (as the node does to publish) must not disturb the run.
+            assert ticked.state.rotation.shape == (3, 3)
+    bulk.run(200 * scene.dt, scene.dt)
+    assert ticked.state == bulk.state
+    assert ticked.time == bulk.time
+
+
+def test_a_returned_state_is_an_immutable_snapshot():
+    scene = load_scene('heavy_top')
+    simulator = scene.simulator()
+    first = simulator.step(scene.dt)
+    copy = [np.array(a) for a in first._fields()]
+    simulator.step(scene.dt)
+    simulator.run(0.1, scene.dt)
+    for kept, now in zip(copy, first._fields()):
+        np.testing.assert_array_equal(now, kept)
+    with pytest.raises(ValueError):
+        first.quaternion[0] = 0.0
+    assert simulator.state is simulator.state
+    assert simulator.state != first
+
+
+def test_setting_the_state_restarts_from_it_exactly():
+    scene = load_scene('t_handle')
+    simulator = scene.simulator()
+    simulator.run(1.0, scene.dt)
+    simulator.state = scene.state
+    assert simulator.state is scene.state
+    again = scene.simulator()
+    assert simulator.run(1.0, scene.dt) == again.run(1.0, scene.dt)
