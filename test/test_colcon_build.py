@@ -153,8 +153,8 @@ def _help_of_installed(install, executable):
 
 @pytest.mark.xfail(strict=True, reason=(
     'rigid_body_node has no --help handling: it ignores the argument, starts simulating '
-    'the default scene and runs until stopped (reported; the node is not this test\'s to '
-    'change).  strict: this turns into a failure once --help works, to drop the mark.'))
+    'the default scene and runs until stopped (reported; this test does not change the node).  '
+    'strict: this turns into a failure once --help works, to drop the mark.'))
 def test_colcon_build_installs_the_node_and_its_help_exits_with_usage(colcon_install):
     """``ros2 run rigid_body_sim rigid_body_node --help`` prints usage and exits 0."""
     executable = colcon_install / PACKAGE_NAME / 'lib' / PACKAGE_NAME / 'rigid_body_node'
