@@ -16,8 +16,9 @@ class Gravity(Effect):
     Uniform gravity: force m g through the COM, no torque about it; potential -m g . x.
 
     The force is constant in the world and in time, so the Simulator folds it into the held
-    wrench (:meth:`constant_force`) and the compiled fast path still runs; :meth:`wrench`
-    is the same force for callers that sum effects themselves.
+    wrench (:meth:`constant_force`) and the compiled fast path still runs, on a pivot too
+    (there its moment (R d) x m g about the pivot is the kernels' lever torque);
+    :meth:`wrench` is the same force for callers that sum effects themselves.
 
     Parameters
     ----------

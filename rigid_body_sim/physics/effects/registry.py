@@ -8,13 +8,15 @@ told by which of these it has (all optional; frames world, units SI):
   about the COM (N m).  Evaluated inside every step (the readable integrators).
 - ``constant_force(body) -> force``: the effect is a force fixed in the world and in time
   (uniform gravity).  The Simulator folds it into the held wrench, so the compiled fast path
-  still runs, and does not call ``wrench`` at all.
+  still runs (under a pivot too, as the lever force of the packed wrench: its moment about
+  the pivot turns with the body), and does not call ``wrench`` at all.
 - ``momentum_dependent = True``: the wrench depends on the momenta (drag); the integrators
   then keep their order for it (see ``integrators.common.kick``).
 - ``potential_energy(body, state)``: its potential energy in J, added by Simulator.energy().
 - ``flow(body, state, dt) -> State``: a change of the state that is not a wrench (internal
   dissipation), composed with each integrator step symmetrically: flow(dt/2), step(dt),
-  flow(dt/2) (Strang).
+  flow(dt/2) (Strang).  The compiled kernels fuse the :class:`Dissipation` flow into their
+  loop; any other flow is composed by the Simulator around single kernel steps.
 - ``constrain(body) -> constraint``: a holonomic constraint (a pivot); see
   :class:`rigid_body_sim.physics.effects.pivot.PivotConstraint` for what the Simulator uses.
 - ``accepts_external_wrench = True``: the body may be pushed from outside (the node's
