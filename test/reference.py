@@ -21,6 +21,7 @@ from scipy.special import ellipk
 
 __all__ = [
     'body_rates_symmetric_top',
+    'first_order_energy_gain_rate',
     'random_rotation',
     'rotation_angle_between',
     'reference_solution',
@@ -186,3 +187,25 @@ def body_rates_symmetric_top(moments, axis, angular_velocity_body, time):
     result[b] = math.cos(angle) * omega[b] - math.sin(angle) * omega[c]
     result[c] = math.sin(angle) * omega[b] + math.cos(angle) * omega[c]
     return result
+
+
+def first_order_energy_gain_rate(body, state, dt):
+    """
+    Return the rate (J/s) at which the seed's first-order method gains kinetic energy.
+
+    Torque-free, one step of R <- exp(h [omega]x) R misses the exact increment
+    exp(h omega + h^2/2 alpha + O(h^3)) by the world rotation -h^2/2 alpha, alpha =
+    I_w^{-1} (-omega x L).  Turning R by a small world rotation d changes
+    T = 1/2 L . I_w^{-1} L by d . (omega x L) (L held), so each step gains
+
+        dT = h^2/2 (omega x L)^T I_w^{-1} (omega x L) >= 0,
+
+    i.e. dT/dt = h/2 (omega x L)^T I_w^{-1} (omega x L) to leading order: never negative,
+    proportional to dt, zero only for a steady spin about a principal axis.  `state` is
+    world frame, `dt` in s.
+    """
+    rotation = state.rotation
+    omega = state.angular_velocity(body)
+    gyroscopic = np.cross(omega, state.angular_momentum)
+    inverse_world = rotation @ body.inertia_inverse @ rotation.T
+    return 0.5 * dt * float(gyroscopic @ inverse_world @ gyroscopic)
