@@ -12,9 +12,15 @@ import numpy as np
 import pytest
 from rigid_body_sim.cli import main as cli_main
 from rigid_body_sim.recording.bag_writer import BagWriter
+from rigid_body_sim.recording.plot import apex_index
+from rigid_body_sim.recording.plot import BagMotion
 from rigid_body_sim.recording.plot import com_moves
+from rigid_body_sim.recording.plot import conserved_quantities
+from rigid_body_sim.recording.plot import oscillations
+from rigid_body_sim.recording.plot import plane_of_motion
 from rigid_body_sim.recording.plot import plot_bag
 from rigid_body_sim.recording.plot import read_motion
+from rigid_body_sim.recording.plot import symmetry_axis
 from rigid_body_sim.recording.simulate import simulate_to_bag
 from rigid_body_sim.scenes import load_scene
 
@@ -42,7 +48,9 @@ def test_rotational_energy_and_momentum_from_the_messages_equal_the_simulators(v
         energies.append(0.5 * omega @ scene.body.inertia @ omega)
     energies = np.array(energies)
     assert len(motion.time) == 200
-    np.testing.assert_allclose(motion.time, 0.01 * np.arange(200), rtol=0, atol=1e-12)
+    # Simulated time from the scene's start: tick k at k / rate, the last at 2 s.
+    np.testing.assert_allclose(motion.time, 0.01 * np.arange(1, 201), rtol=0, atol=1e-12)
+    assert motion.time_is_simulated and motion.time[-1] == 2.0
     assert np.max(np.abs(motion.rotational_energy - energies) / energies) <= ROUND_OFF
     np.testing.assert_allclose(motion.angular_velocity_body, omegas, rtol=0,
                                atol=ROUND_OFF * np.abs(omegas).max())
@@ -71,10 +79,152 @@ def test_com_panel_follows_whether_the_com_moves(tmp_path, van_zon):
     # The exact parabola of the scene: z(t) - z(0) = v_z t - g t^2 / 2 after the first tick.
     state = load_scene('thrown_box').state
     velocity = state.velocity(load_scene('thrown_box').body)
-    t = motion.time + 0.01
+    t = motion.time
     expected = state.position[2] + velocity[2] * t - 0.5 * 9.81 * t * t
     np.testing.assert_allclose(motion.position[:, 2], expected, rtol=0, atol=1e-12)
     assert plot_bag(thrown, tmp_path / 'thrown.png').is_file()
+
+
+def test_time_axis_is_simulated_time_from_the_start_or_wall_time_from_the_first_message():
+    quaternion = np.tile([0.0, 0.0, 0.0, 1.0], (3, 1))
+    zeros = np.zeros((3, 3))
+
+    def motion(stamps, custom=None):
+        return BagMotion(stamps, quaternion, zeros, zeros, zeros, custom, 'bag')
+
+    # An offline bag names its start; the node's publish_clock stamps are simulated time.
+    offline = motion([12_510_000_000, 12_520_000_000, 12_530_000_000],
+                     {'rigid_body_sim.start_time': '12500000000'})
+    assert offline.time_is_simulated
+    np.testing.assert_allclose(offline.time, [0.01, 0.02, 0.03], rtol=0, atol=1e-12)
+    clock = motion([10_000_000, 20_000_000, 30_000_000])
+    assert clock.time_is_simulated and clock.time[-1] == 0.03
+    # Wall-clock stamps (2024): from the first message.
+    wall = motion([1_700_000_000_000_000_000 + k * 10_000_000 for k in range(3)])
+    assert not wall.time_is_simulated and wall.time[0] == 0.0 and wall.time[-1] == 0.02
+
+
+@pytest.fixture(scope='module')
+def heavy_top_bags(tmp_path_factory):
+    """The heavy top, 1 s at 1 kHz and at 2 kHz: (scene, {rate: BagMotion})."""
+    directory = tmp_path_factory.mktemp('top')
+    scene = load_scene('heavy_top')
+    motions = {}
+    for rate in (1000.0, 2000.0):
+        simulate_to_bag(scene, directory / f'top_{rate:g}', 1.0, rate=rate)
+        motions[rate] = read_motion(directory / f'top_{rate:g}')
+    return scene, motions
+
+
+def test_a_pivot_scene_shows_energy_vertical_and_spin_momentum_as_the_simulator_has_them(
+        heavy_top_bags):
+    """
+    E, L_p . z and L . e3 from the messages are the simulator's, to round-off.
+
+    Each is a sum of a few products of quantities of one scale (T_rot, 1/2 m v^2, m g z;
+    L and m r x v), each rounded a few times: 32 u of the sum of the terms' sizes bounds the
+    difference, as for T_rot above.
+    """
+    scene, motions = heavy_top_bags
+    motion = motions[1000.0]
+    title, quantities = conserved_quantities(motion)
+    energy, vertical, spin = quantities
+    assert title.startswith('Conserved about the pivot')
+    assert all(q.conserved for q in quantities)
+    simulator = scene.simulator()
+    pivot = next(e for e in scene.effects if e.effect_name == 'pivot')
+    energies, vertical_momenta, spins = [], [], []
+    for _ in range(1000):
+        simulator.step(0.001)
+        state = simulator.state
+        energies.append(simulator.energy())
+        vertical_momenta.append(pivot.angular_momentum_about_pivot(scene.body, state)[2])
+        omega = state.angular_velocity_body(scene.body)
+        spins.append(scene.body.inertia[2, 2] * omega[2])
+    mass = scene.body.mass
+    velocity = motion.velocity
+    sizes = (np.abs(motion.rotational_energy)
+             + 0.5 * mass * np.einsum('ni,ni->n', velocity, velocity)
+             + mass * 9.81 * np.abs(motion.position[:, 2]))
+    assert np.all(np.abs(energy.values - energies) <= ROUND_OFF * sizes)
+    momentum_size = np.linalg.norm(motion.angular_momentum, axis=1) + mass * np.linalg.norm(
+        np.cross(motion.position, velocity), axis=1)
+    assert np.all(np.abs(vertical.values - vertical_momenta) <= ROUND_OFF * momentum_size)
+    assert np.all(np.abs(spin.values - spins) <= ROUND_OFF * momentum_size)
+
+
+def test_a_pivot_scenes_conserved_quantities_drift_as_the_integrator_order_says(
+        heavy_top_bags):
+    """
+    L_p . z stays to round-off; E and L . e3 drift as a second-order method's error does.
+
+    The weight's torque about the pivot, r x (0, 0, -m g), has a z component
+    r_x 0 - r_y 0 = 0 exactly, so the integrator never changes L_p . z: what is left is the
+    round-off of L + m r x v (32 u of |L_p|).  E and L . e3 are conserved by the physics
+    only: the method (buss, second order) drifts them by O(h^2) over a fixed time, so
+    halving the step divides the largest drift over 1 s by 4 (more where the method does
+    better), never less than 3.5; meanwhile T_rot, traded against the potential energy,
+    varies a hundred times more.
+    """
+    _, motions = heavy_top_bags
+    drifts = {}
+    for rate, motion in motions.items():
+        _, quantities = conserved_quantities(motion)
+        drifts[rate] = [float(np.max(np.abs(q.drift))) for q in quantities]
+    energy, vertical, spin = drifts[1000.0]
+    assert vertical <= ROUND_OFF and drifts[2000.0][1] <= ROUND_OFF
+    assert energy / drifts[2000.0][0] >= 3.5, drifts
+    assert spin / drifts[2000.0][2] >= 3.5, drifts
+    rotational = motions[1000.0].rotational_energy
+    assert np.ptp(rotational) / rotational[0] > 100.0 * max(energy, spin)
+
+
+def test_conserved_quantities_follow_the_effects(tmp_path, van_zon):
+    bag, _ = van_zon
+    title, (rotational, magnitude) = conserved_quantities(read_motion(bag))
+    assert 'without torque' in title and rotational.conserved and magnitude.conserved
+    simulate_to_bag(load_scene('flat_spin'), tmp_path / 'flat', 2.0)
+    title, (magnitude, rotational) = conserved_quantities(read_motion(tmp_path / 'flat'))
+    assert magnitude.conserved and not rotational.conserved
+    assert 'dissipation' in title and np.max(np.abs(magnitude.drift)) <= ROUND_OFF
+    assert rotational.drift[-1] < 0.0
+    # A live bag names no effects: torque-free assumed, and said so.
+    motion = read_motion(bag)
+    motion.custom_data = {}
+    title, _ = conserved_quantities(motion)
+    assert 'does not name the effects' in title
+
+
+def test_the_symmetry_axis_is_the_one_of_the_odd_moment():
+    np.testing.assert_array_equal(np.abs(symmetry_axis(np.diag([2.0, 2.0, 3.0]))), [0, 0, 1])
+    np.testing.assert_array_equal(np.abs(symmetry_axis(np.diag([1.0, 4.0, 4.0]))), [1, 0, 0])
+    assert symmetry_axis(np.diag([1.0, 2.0, 3.0])) is None
+    assert symmetry_axis(np.diag([2.0, 2.0, 2.0])) is None
+
+
+def test_oscillations_count_swings_across_the_range_not_round_off():
+    time = np.linspace(0.0, 1.0, 10001)
+    assert oscillations(np.cos(2 * np.pi * 50 * time)) == 50.0
+    assert oscillations(150.0 + 1e-13 * np.sin(2 * np.pi * 900 * time)) == 0.0
+    # A drift with a small ripple: one rise, the ripple below the trigger's band.
+    assert oscillations(time + 0.1 * np.sin(2 * np.pi * 200 * time)) == 0.5
+
+
+def test_the_com_panel_shows_the_plane_of_the_throw_and_its_apex(tmp_path):
+    scene = load_scene('thrown_box')
+    simulate_to_bag(scene, tmp_path / 'thrown', 1.0)
+    motion = read_motion(tmp_path / 'thrown')
+    assert plane_of_motion(motion.position) == (0, 2, 1)  # x-z: thrown along x and up
+    apex = apex_index(motion)
+    # The apex is the tick nearest v_z / g after the throw.
+    v_z = scene.state.velocity(scene.body)[2]
+    assert abs(motion.time[apex] - v_z / 9.81) <= 0.005
+    top = read_motion(tmp_path / 'thrown')
+    top.custom_data['rigid_body_sim.effect_parameters'] = '[{"effect": "pivot"}]'
+    assert apex_index(top) is None
+    for name, duration in (('heavy_top', 0.5), ('flat_spin', 2.0)):
+        simulate_to_bag(load_scene(name), tmp_path / name, duration)
+        assert plot_bag(tmp_path / name).is_file()
 
 
 def test_cli_plots_and_reports_bags_it_cannot_plot(tmp_path, van_zon, capsys):

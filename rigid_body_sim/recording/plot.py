@@ -1,28 +1,53 @@
 """
-Plot the motion recorded in a bag, from the messages alone.
+Plot the motion recorded in a bag, and the quantities the physics conserves in it.
 
-Everything comes from two of the node's topics, so any bag of the node works (recorded
-live, by ``ros2 bag record``, or written offline), with no knowledge of the body:
+The motion comes from two of the node's topics, so any bag of the node works (recorded
+live, by ``ros2 bag record``, or written offline):
 
-- ``odom`` (nav_msgs/Odometry): the orientation q and COM position in the world frame, and
-  the body-frame angular velocity Omega (the node gives odom's twist in the body frame);
+- ``odom`` (nav_msgs/Odometry): the orientation q and COM position x in the world frame,
+  and in the body frame the COM velocity and the angular velocity Omega (the node gives
+  odom's twist in the body frame);
 - ``angular_momentum`` (geometry_msgs/Vector3Stamped): L about the COM, world frame.
 
-Rotational kinetic energy needs no inertia: T_rot = 1/2 omega . L = 1/2 Omega . (R^T L),
-with R the rotation of q.  Messages of the two topics are paired by their header stamp
-(each tick stamps all of them alike).  Translational energy would need the mass, which no
-message carries, so the energy plotted is the rotational one: constant when the body is
-torque-free about its COM (a free body, also under uniform gravity), not under a pivot or
-drag.
+Messages of the two topics are paired by their header stamp (each tick stamps all alike).
 
-The figure (matplotlib, Agg backend) has four panels: Omega's components against time;
-the relative drift of T_rot and |L| against time; the orientation as the paths the tips of
-the body's x, y, z axes trace on the unit sphere (world frame), until the busiest has gone
-round four times (an axis spinning many times faster than the others, such as a top's,
-shows only its ends); and the COM path when the COM moves, else the polhode (the path of
-Omega in the body frame).
+Time.  The time axis is simulated time from the scene's start: an offline bag names the
+stamp of simulated time 0 in its custom data, and the node's stamps with ``publish_clock``
+are simulated time already; so a 5 s run at 100 Hz shows ticks at 0.01 .. 5 s.  A live bag
+stamped with the wall clock is shown from its first message.
+
+Conserved quantities.  What is conserved depends on the scene's effects.  An offline bag
+names them, their parameters and the body's mass and inertia in its custom data (keys
+``rigid_body_sim.*``); a live bag carries none of it and is treated as torque-free, which
+the panel says.
+
+- Torque-free about the COM (no effect, or uniform gravity, which acts at the COM):
+  the rotational energy T_rot = 1/2 Omega . (R^T L), which needs no inertia, and |L|.
+- Internal dissipation: |L| (internal friction exerts no external torque), while T_rot
+  drains toward the spin about the major axis.
+- A pivot (a body point held fixed), with or without gravity: the total energy
+  E = T_rot + 1/2 m |v|^2 - m g . x (the pivot's reaction does no work: its point does not
+  move); the angular momentum about the pivot, L_p = L + m (x - a) x v (a the anchor),
+  along gravity (the weight's torque about the pivot is horizontal), all of it without
+  gravity; and for a body symmetric about an axis e3 through the pivot (a Lagrange top,
+  a wheel on its axle) L . e3 = I3 omega3, as the torque r x m g is normal to e3.
+- Drag: none.
+
+Each drift is relative to a physical scale: the energy's to the initial kinetic energy
+(the potential's zero is arbitrary), a momentum's to the initial |L| (a component may start
+at zero).
+
+The figure (matplotlib, Agg backend) has four panels: Omega's components against time (one
+spinning many times faster than the others on an axis of its own; a component oscillating
+too fast for the pixels as its envelope); the drift of the conserved quantities; the
+orientation as the paths the tips of the body axes trace on the unit sphere (until the
+busiest has gone round four times; an axis spinning many times faster than the others,
+such as a top's, shows only its ends); and when the COM moves its path in the plane it
+moves in (with equal scales) and its height z(t) with the apex, else the polhode (the path
+of Omega in the body frame).
 """
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +55,19 @@ from rosbags.rosbag2 import Reader
 
 from .bag_writer import typestore
 
-__all__ = ['BagMotion', 'com_moves', 'read_motion', 'plot_bag', 'plot_motion']
+__all__ = [
+    'BagMotion',
+    'ConservedQuantity',
+    'apex_index',
+    'com_moves',
+    'conserved_quantities',
+    'oscillations',
+    'plane_of_motion',
+    'plot_bag',
+    'plot_motion',
+    'read_motion',
+    'symmetry_axis',
+]
 
 _ODOMETRY = 'nav_msgs/msg/Odometry'
 _VECTOR3_STAMPED = 'geometry_msgs/msg/Vector3Stamped'
@@ -46,6 +83,19 @@ _DRAWN_TURNS = 4
 # Points per 3D path: more only slow the drawing down, the lines look the same.
 _PATH_POINTS = 6000
 _CUSTOM_PREFIX = 'rigid_body_sim.'
+# A time series with more oscillations than this over the panel's ~600 pixel columns
+# fills its band nearly solid (a cycle in fewer than ~15 columns, two lines each): it is
+# drawn as its envelope.
+_ENVELOPE_CYCLES = 40
+# Above this many oscillations a line is drawn thin, so neighbouring cycles stay apart.
+_THIN_CYCLES = 10
+# Points of an envelope: about the panel's width in pixels.
+_ENVELOPE_BINS = 500
+# Stamps before this (one year after the epoch, ns) are simulated time, not the wall clock.
+_SIMULATED_STAMPS_BEFORE = 365 * 86400 * 10**9
+# Two principal moments closer than this (relative to the largest) are equal: the body is
+# symmetric about the third axis.
+_SYMMETRY_TOLERANCE = 1e-9
 
 
 class BagMotion:
@@ -55,32 +105,40 @@ class BagMotion:
     Attributes
     ----------
     time : ndarray (n,)
-        Header stamps in s, from the first.
-    start_stamp : int
-        The first header stamp, ns.
+        Simulated time in s from the scene's start (see the module docstring), or, for a
+        bag stamped with the wall clock, s from the first message.
+    time_is_simulated : bool
+        Whether `time` is simulated time from the start.
+    stamps : ndarray (n,) of int64
+        The header stamps, ns.
     quaternion : ndarray (n, 4)
         Orientation (x, y, z, w), body to world.
     position : ndarray (n, 3)
         COM position in m, world frame.
+    velocity_body : ndarray (n, 3)
+        COM velocity in m/s, body frame (odom's twist.linear).
     angular_velocity_body : ndarray (n, 3)
         Omega in rad/s, body frame.
     angular_momentum : ndarray (n, 3)
-        L in kg m^2/s, world frame.
+        L about the COM in kg m^2/s, world frame.
     custom_data : dict
-        The bag's custom data (scene, integrator, ... of an offline run).
+        The bag's custom data (scene, integrator, mass, effects, ... of an offline run).
 
     """
 
     def __init__(self, stamps, quaternion, position, angular_velocity_body, angular_momentum,
-                 custom_data, name):
-        stamps = np.asarray(stamps, dtype=np.int64)
-        self.start_stamp = int(stamps[0])
-        self.time = (stamps - stamps[0]) * 1e-9
+                 custom_data, name, velocity_body=None):
+        self.stamps = np.asarray(stamps, dtype=np.int64)
+        self.custom_data = dict(custom_data or {})
+        origin, self.time_is_simulated = _time_origin(self.stamps, self.custom_data)
+        # Division, not * 1e-9: correctly rounded, so tick 500 at 100 Hz reads 5.0 exactly.
+        self.time = (self.stamps - origin) / 1e9
         self.quaternion = np.asarray(quaternion, dtype=float)
         self.position = np.asarray(position, dtype=float)
         self.angular_velocity_body = np.asarray(angular_velocity_body, dtype=float)
         self.angular_momentum = np.asarray(angular_momentum, dtype=float)
-        self.custom_data = dict(custom_data or {})
+        self.velocity_body = (np.zeros_like(self.position) if velocity_body is None
+                              else np.asarray(velocity_body, dtype=float))
         self.name = name
 
     @property
@@ -94,6 +152,11 @@ class BagMotion:
         ], -2)
 
     @property
+    def velocity(self):
+        """Return the COM velocity v = R v_body in m/s, world frame, (n, 3)."""
+        return np.einsum('nij,nj->ni', self.rotation, self.velocity_body)
+
+    @property
     def rotational_energy(self):
         """Return T_rot = 1/2 Omega . (R^T L) in J, (n,)."""
         momentum_body = np.einsum('nji,nj->ni', self.rotation, self.angular_momentum)
@@ -103,6 +166,198 @@ class BagMotion:
     def momentum_magnitude(self):
         """Return |L| in kg m^2/s, (n,)."""
         return np.linalg.norm(self.angular_momentum, axis=1)
+
+    def custom(self, key, default=None):
+        """Return the custom data value ``rigid_body_sim.<key>`` (a string), or `default`."""
+        return self.custom_data.get(_CUSTOM_PREFIX + key, default)
+
+    @property
+    def mass(self):
+        """Return the body's mass in kg from the custom data, or None if the bag lacks it."""
+        value = self.custom('mass')
+        return None if value is None else float(value)
+
+    @property
+    def inertia(self):
+        """Return the inertia about the COM (3, 3) in kg m^2, body frame, or None."""
+        value = self.custom('inertia')
+        return None if value is None else np.array(value.split(), dtype=float).reshape(3, 3)
+
+    @property
+    def effects(self):
+        """
+        Return the scene's effects as a list of {'effect': name, parameter: value}, or None.
+
+        None when the bag does not name them (a live recording); an offline bag of an
+        older version names them without parameters.
+        """
+        parameters = self.custom('effect_parameters')
+        if parameters is not None:
+            return json.loads(parameters)
+        names = self.custom('effects')
+        if names is None:
+            return None
+        return [{'effect': name.strip()} for name in names.split(',')
+                if name.strip() and name.strip() != 'none']
+
+    def total_energy(self, gravity):
+        """Return E = T_rot + 1/2 m |v|^2 - m g . x in J, (n,); `gravity` in m/s^2 or None."""
+        mass = self.mass
+        velocity = self.velocity
+        energy = self.rotational_energy + 0.5 * mass * np.einsum('ni,ni->n', velocity, velocity)
+        if gravity is not None:
+            energy -= mass * (self.position @ np.asarray(gravity, dtype=float))
+        return energy
+
+    def angular_momentum_about(self, point):
+        """Return L_p = L + m (x - p) x v in kg m^2/s about the world point `point`, (n, 3)."""
+        arm = self.position - np.asarray(point, dtype=float)
+        return self.angular_momentum + self.mass * np.cross(arm, self.velocity)
+
+
+def _time_origin(stamps, custom_data):
+    """Return (stamp of time 0 in ns, whether the time is simulated time)."""
+    start = custom_data.get(_CUSTOM_PREFIX + 'start_time')
+    if start is not None:
+        return int(start), True
+    if stamps[0] < _SIMULATED_STAMPS_BEFORE:
+        return 0, True
+    return int(stamps[0]), False
+
+
+class ConservedQuantity:
+    """
+    A quantity the physics of the scene conserves (or, with `conserved` False, shown anyway).
+
+    Attributes
+    ----------
+    label : str
+        Its name in mathtext, e.g. '$E = T + V$'.
+    values : ndarray (n,)
+        Its value at each tick.
+    unit : str
+        Its unit.
+    scale, scale_label : float, str
+        The physical scale its drift is divided by, and that scale's name.
+    conserved : bool
+        Whether the physics conserves it here.
+
+    """
+
+    def __init__(self, label, values, unit, scale, scale_label, conserved=True):
+        self.label = label
+        self.values = np.asarray(values, dtype=float)
+        self.unit = unit
+        self.scale = float(scale)
+        self.scale_label = scale_label
+        self.conserved = conserved
+
+    @property
+    def drift(self):
+        """Return (X(t) - X(first)) / scale (absolute if the scale is 0)."""
+        change = self.values - self.values[0]
+        return change / self.scale if self.scale != 0.0 else change
+
+
+def _effect(effects, name):
+    for effect in effects:
+        if effect.get('effect') == name:
+            return effect
+    return None
+
+
+def symmetry_axis(inertia):
+    """
+    Return the unit axis (body frame) a body is symmetric about, or None.
+
+    A body is symmetric about the principal axis of its odd moment when the other two are
+    equal (to 1e-9 of the largest); `inertia` is (3, 3) in kg m^2 about the COM.
+    """
+    moments, axes = np.linalg.eigh(inertia)
+    tolerance = _SYMMETRY_TOLERANCE * moments[-1]
+    if abs(moments[1] - moments[0]) <= tolerance and abs(moments[2] - moments[1]) > tolerance:
+        return axes[:, 2]
+    if abs(moments[2] - moments[1]) <= tolerance and abs(moments[1] - moments[0]) > tolerance:
+        return axes[:, 0]
+    return None
+
+
+def conserved_quantities(motion):
+    """
+    Return (title, [ConservedQuantity]) of what the scene of `motion` conserves.
+
+    See the module docstring for the physics; the title says what is conserved and why.
+    """
+    rotational = ConservedQuantity(
+        '$T_{rot} = \\frac{1}{2}\\,\\Omega \\cdot R^T L$', motion.rotational_energy, 'J',
+        motion.rotational_energy[0], '$T_{rot}(0)$')
+    magnitude = ConservedQuantity('$|L|$', motion.momentum_magnitude, 'kg m$^2$/s',
+                                  motion.momentum_magnitude[0], '$|L(0)|$')
+    effects = motion.effects
+    if effects is None:
+        return ('Drift of $T_{rot}$ and $|L|$ (conserved if torque-free about the COM; the '
+                'bag does not name the effects)', [rotational, magnitude])
+    names = {effect['effect'] for effect in effects}
+    if 'drag' in names or ('pivot' in names and 'dissipation' in names):
+        for quantity in (rotational, magnitude):
+            quantity.conserved = False
+        return (f'$T_{{rot}}$ and $|L|$: not conserved here ({", ".join(sorted(names))})',
+                [rotational, magnitude])
+    if 'pivot' in names:
+        pivot = _effect(effects, 'pivot')
+        if motion.mass is None or 'anchor' not in pivot:
+            for quantity in (rotational, magnitude):
+                quantity.conserved = False
+            return ('$T_{rot}$ and $|L|$: not conserved here (the pivot torques the body; the '
+                    'bag lacks its parameters)', [rotational, magnitude])
+        return _pivot_quantities(motion, pivot, _effect(effects, 'gravity'))
+    if 'dissipation' in names:
+        rotational.conserved = False
+        return ('$|L|$ is conserved; internal dissipation drains $T_{rot}$',
+                [magnitude, rotational])
+    return 'Conserved without torque about the COM: drift of $T_{rot}$ and $|L|$', \
+        [rotational, magnitude]
+
+
+def _pivot_quantities(motion, pivot, gravity):
+    """The conserved quantities of a body turning about a fixed point (see module docstring)."""
+    acceleration = None if gravity is None else np.asarray(gravity['acceleration'], float)
+    velocity = motion.velocity
+    kinetic = motion.rotational_energy[0] + 0.5 * motion.mass * float(velocity[0] @ velocity[0])
+    quantities = [ConservedQuantity(
+        '$E = T + V$' if acceleration is not None else '$E = T$',
+        motion.total_energy(acceleration), 'J', kinetic, '$T(0)$')]
+    about_pivot = motion.angular_momentum_about(pivot['anchor'])
+    scale = float(np.linalg.norm(about_pivot[0]))
+    if acceleration is not None and np.any(acceleration):
+        up = -acceleration / np.linalg.norm(acceleration)
+        if np.allclose(up, (0.0, 0.0, 1.0)):
+            label = '$L_{p,z}$ (world z, about the pivot)'
+        else:
+            label = '$L_p \\cdot \\hat{u}$ (up, about the pivot)'
+        quantities.append(ConservedQuantity(label, about_pivot @ up, 'kg m$^2$/s', scale,
+                                            '$|L_p(0)|$'))
+    else:
+        quantities.append(ConservedQuantity('$|L_p|$ (about the pivot)',
+                                            np.linalg.norm(about_pivot, axis=1), 'kg m$^2$/s',
+                                            scale, '$|L_p(0)|$'))
+    inertia = motion.inertia
+    axis = None if inertia is None else symmetry_axis(inertia)
+    point = np.asarray(pivot.get('point', (0.0, 0.0, 0.0)), dtype=float)
+    if axis is not None and np.linalg.norm(np.cross(point, axis)) <= \
+            _SYMMETRY_TOLERANCE * max(np.linalg.norm(point), 1e-300):
+        # The symmetry axis in the world frame at each tick; its sign as given.
+        axis_world = np.einsum('nij,j->ni', motion.rotation, axis)
+        along = np.einsum('ni,ni->n', motion.angular_momentum, axis_world)
+        name = {0: 'x', 1: 'y', 2: 'z'}.get(int(np.argmax(np.abs(axis))), '3')
+        quantities.append(ConservedQuantity(
+            f'$L \\cdot e_3$ (body {name} axis: symmetry axis through the pivot)', along,
+            'kg m$^2$/s', scale, '$|L_p(0)|$'))
+    title = 'Conserved about the pivot: energy, ' + (
+        'vertical $L_p$' if len(quantities) > 1 and acceleration is not None else '$|L_p|$')
+    if len(quantities) == 3:
+        title += ', spin $L \\cdot e_3$'
+    return title, quantities
 
 
 def _find_topic(connections, suffix, message_type, namespace):
@@ -145,12 +400,13 @@ def read_motion(bag, namespace=''):
                 message = store.deserialize_cdr(raw, connection.msgtype)
                 stamp = message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
                 if connection.topic == odom.topic:
-                    pose, twist = message.pose.pose, message.twist.twist.angular
+                    pose, twist = message.pose.pose, message.twist.twist
                     odometry[stamp] = (
                         (pose.orientation.x, pose.orientation.y, pose.orientation.z,
                          pose.orientation.w),
                         (pose.position.x, pose.position.y, pose.position.z),
-                        (twist.x, twist.y, twist.z))
+                        (twist.angular.x, twist.angular.y, twist.angular.z),
+                        (twist.linear.x, twist.linear.y, twist.linear.z))
                 else:
                     vector = message.vector
                     momentum[stamp] = (vector.x, vector.y, vector.z)
@@ -167,14 +423,61 @@ def read_motion(bag, namespace=''):
     rows = [odometry[stamp] for stamp in stamps]
     return BagMotion(stamps, [row[0] for row in rows], [row[1] for row in rows],
                      [row[2] for row in rows], [momentum[stamp] for stamp in stamps],
-                     custom, bag.name)
+                     custom, bag.name, velocity_body=[row[3] for row in rows])
 
 
-def _relative_drift(values):
-    reference = values[0]
-    if reference == 0.0:
-        return values - reference, 'absolute'
-    return (values - reference) / abs(reference), 'relative'
+def oscillations(values):
+    """
+    Return how many times `values` swings across the middle of its range, halved (cycles).
+
+    A swing counts when the series goes from below 30% of its range to above 70% or back
+    (a Schmitt trigger), so round-off and small ripples do not count; a series constant to
+    1e-9 of its size has none.
+    """
+    values = np.asarray(values, dtype=float)
+    low, high = float(values.min()), float(values.max())
+    if high - low <= 1e-9 * max(abs(low), abs(high), 1e-300):
+        return 0.0
+    level = (values - low) / (high - low)
+    state = np.full(values.shape, np.nan)
+    state[level < 0.3] = 0.0
+    state[level > 0.7] = 1.0
+    known = state[~np.isnan(state)]
+    return float(np.count_nonzero(np.diff(known))) / 2.0
+
+
+def _draw_series(axes, time, values, color, label):
+    """Draw a time series: a line, thin when it oscillates fast, an envelope when faster."""
+    cycles = oscillations(values)
+    if cycles <= _ENVELOPE_CYCLES:
+        width = 0.6 if cycles > _THIN_CYCLES else 1.5
+        return axes.plot(time, values, color=color, linewidth=width, label=label)[0]
+    # The envelope: the running minimum and maximum over three mean periods, so every
+    # window holds whole cycles' extremes (and a beat of two frequencies does not make the
+    # edges flicker); then one point per pixel column.
+    from scipy.ndimage import maximum_filter1d
+    from scipy.ndimage import minimum_filter1d
+
+    window = int(np.ceil(3.0 * len(values) / cycles))
+    upper = maximum_filter1d(values, window, mode='nearest')
+    lower = minimum_filter1d(values, window, mode='nearest')
+    stride = max(1, len(values) // _ENVELOPE_BINS)
+    picked = np.r_[np.arange(0, len(values), stride), len(values) - 1]
+    # Light fill and solid edges: two overlapping envelopes stay apart.
+    for edge in (lower, upper):
+        axes.plot(time[picked], edge[picked], color=color, linewidth=0.8)
+    return axes.fill_between(time[picked], lower[picked], upper[picked], color=color,
+                             alpha=0.15, linewidth=0.0,
+                             label=f'{label}: {cycles:.0f} oscillations, envelope')
+
+
+def _power_of_ten(values):
+    """Return k such that values / 10^k reads with a few digits (0 for ordinary sizes)."""
+    largest = float(np.max(np.abs(values))) if np.size(values) else 0.0
+    if largest == 0.0 or not np.isfinite(largest):
+        return 0
+    k = int(np.floor(np.log10(largest)))
+    return 0 if -2 <= k <= 2 else k
 
 
 def plot_motion(motion, out):
@@ -183,50 +486,115 @@ def plot_motion(motion, out):
     matplotlib.use('Agg')
     from matplotlib import pyplot
 
-    figure = pyplot.figure(figsize=(13.0, 10.0), layout='constrained')
+    figure = pyplot.figure(figsize=(14.0, 11.0), layout='constrained')
     grid = figure.add_gridspec(2, 2)
-    time = motion.time
+    time_label = 'simulated time [s]' if motion.time_is_simulated else \
+        'time since the first message [s]'
+    _angular_velocity_panel(figure, grid[0, 0], motion, time_label)
+    _conserved_panel(figure.add_subplot(grid[0, 1]), motion, time_label)
+    _orientation_panel(figure.add_subplot(grid[1, 0], projection='3d'), motion)
+    if com_moves(motion):
+        _com_panel(figure, grid[1, 1], motion, time_label)
+    else:
+        _polhode_panel(figure.add_subplot(grid[1, 1], projection='3d'), motion)
+    figure.suptitle(_title(motion))
+    out = Path(out)
+    figure.savefig(out, dpi=100)
+    pyplot.close(figure)
+    return out
 
-    axes = figure.add_subplot(grid[0, 0])
+
+def _angular_velocity_panel(figure, cell, motion, time_label):
+    time = motion.time
     omega = motion.angular_velocity_body
     peaks = np.abs(omega).max(axis=0)
     order = np.argsort(peaks)
     # A fast spin about one axis would flatten the other two components to a line: it
-    # then gets the right-hand axis of its own.
+    # gets an axes of its own below, with its own scale.
     dominant = order[2] if peaks[order[2]] > 10.0 * max(peaks[order[1]], 1e-300) else None
-    lines = []
-    for k, (label, color) in enumerate(zip('xyz', _AXIS_COLORS)):
-        target = axes
+    if dominant is None:
+        axes = figure.add_subplot(cell)
+        lower = None
+    else:
+        cells = cell.subgridspec(2, 1, height_ratios=(3, 1))
+        axes = figure.add_subplot(cells[0])
+        lower = figure.add_subplot(cells[1], sharex=axes)
+    handles = []
+    for k, (name, color) in enumerate(zip('xyz', _AXIS_COLORS)):
+        label = f'$\\Omega_{name}$'
         if k == dominant:
-            target = axes.twinx()
-            target.set_ylabel(f'$\\Omega_{label}$ [rad/s] (right axis)', color=color)
-            target.tick_params(axis='y', colors=color)
-        lines += target.plot(time, omega[:, k], color=color, label=f'$\\Omega_{label}$')
-    axes.set(title='Angular velocity in the body frame', xlabel='time [s]',
-             ylabel='$\\Omega$ [rad/s]')
-    axes.legend(lines, [line.get_label() for line in lines], loc='best')
+            lower.plot(time, omega[:, k], color=color, label=label)
+            lower.set_ylabel(f'$\\Omega_{name}$ [rad/s]')
+            # Its own scale, in plain numbers: no "+1.5e2" offset to add in one's head.
+            lower.ticklabel_format(axis='y', style='plain', useOffset=False)
+            lower.yaxis.set_major_locator(_ticker().MaxNLocator(4))
+            lower.set_xlabel(time_label)
+            lower.grid(True, alpha=0.3)
+            lower.legend(loc='best', fontsize='small')
+            continue
+        handles.append(_draw_series(axes, time, omega[:, k], color, label))
+    title = 'Angular velocity in the body frame'
+    if dominant is not None:
+        title += f' ($\\Omega_{"xyz"[dominant]}$ below, on its own scale)'
+        axes.tick_params(labelbottom=False)
+    else:
+        axes.set_xlabel(time_label)
+    axes.set(title=title, ylabel='$\\Omega$ [rad/s]')
+    axes.legend(handles=handles, loc='best', fontsize='small')
     axes.grid(True, alpha=0.3)
 
-    axes = figure.add_subplot(grid[0, 1])
-    energy, energy_kind = _relative_drift(motion.rotational_energy)
-    magnitude, magnitude_kind = _relative_drift(motion.momentum_magnitude)
-    axes.plot(time, energy, color='tab:orange',
-              label=f'$T_{{rot}} = \\frac{{1}}{{2}}\\omega\\cdot L$ ({energy_kind}; '
-                    f'$T_0$ = {motion.rotational_energy[0]:.6g} J)')
-    axes.plot(time, magnitude, color='tab:purple', linestyle='--',
-              label=f'$|L|$ ({magnitude_kind}; $|L_0|$ = {motion.momentum_magnitude[0]:.6g} '
-                    'kg m$^2$/s)')
-    title = 'Drift of rotational energy and $|L|$ since the first message'
-    torques = _torque_effects(motion)
-    if torques:
-        title += f'\n(not conserved here: torque about the COM from {", ".join(torques)})'
-    axes.set(title=title, xlabel='time [s]', ylabel='(X(t) - X(0)) / |X(0)|')
-    axes.ticklabel_format(axis='y', style='sci', scilimits=(-2, 3), useMathText=True)
+
+def _ticker():
+    """Return matplotlib.ticker (imported with matplotlib, after the Agg backend is set)."""
+    from matplotlib import ticker
+    return ticker
+
+
+def _conserved_panel(axes, motion, time_label):
+    title, quantities = conserved_quantities(motion)
+    drifts = [quantity.drift for quantity in quantities]
+    k = _power_of_ten(np.concatenate(drifts))
+    styles = ('-', '--', '-.')
+    colors = ('tab:orange', 'tab:purple', 'tab:cyan')
+    for quantity, drift, style, color in zip(quantities, drifts, styles, colors):
+        first = quantity.values[0]
+        if abs(first) <= 1e-12 * abs(quantity.scale):
+            first = 0.0  # round-off of a zero component
+        label = (f'{quantity.label}: first {first:.6g} {quantity.unit}; '
+                 f'drift / {quantity.scale_label}')
+        if not quantity.conserved:
+            label += ' (not conserved)'
+        axes.plot(motion.time, drift / 10.0**k, linestyle=style, color=color, label=label)
+    scale = f' [$\\times 10^{{{k}}}$]' if k else ''
+    axes.set(title=_wrapped(title), xlabel=time_label,
+             ylabel=f'(X(t) $-$ X(first)) / scale{scale}')
+    axes.ticklabel_format(axis='y', style='plain', useOffset=False)
     axes.legend(loc='best', fontsize='small')
     axes.grid(True, alpha=0.3)
 
-    stride = max(1, -(-len(time) // _PATH_POINTS))
-    axes = figure.add_subplot(grid[1, 0], projection='3d')
+
+def _wrapped(title, width=70):
+    """Break a title over two lines at a space near `width` characters (mathtext kept)."""
+    if len(title) <= width:
+        return title
+    cut = title.rfind(' ', 0, width)
+    while cut > 0 and title[:cut].count('$') % 2:
+        cut = title.rfind(' ', 0, cut)
+    return title if cut <= 0 else title[:cut] + '\n' + title[cut + 1:]
+
+
+def _tidy_3d(axes, ticks=4):
+    """Few ticks, small labels, no offset text: 3D tick labels otherwise collide."""
+    ticker = _ticker()
+    for axis in (axes.xaxis, axes.yaxis, axes.zaxis):
+        axis.set_major_locator(ticker.MaxNLocator(ticks))
+        formatter = ticker.ScalarFormatter(useOffset=False)
+        axis.set_major_formatter(formatter)
+    axes.tick_params(labelsize='small', pad=0)
+
+
+def _orientation_panel(axes, motion):
+    time = motion.time
     _unit_sphere(axes)
     rotation = motion.rotation
     # Distance each axis tip has travelled on the sphere up to each message (rad).
@@ -261,39 +629,96 @@ def plot_motion(motion, out):
         axes.scatter(*last, color=color, marker='s', s=25)
     shown = 'o start, \u25a1 end' if end == len(time) else \
         f'o start, \u25a1 at {time[end - 1]:.3g} s: the first {_DRAWN_TURNS} turns'
-    axes.set(title=f'Orientation: body axes on the unit sphere ({shown})',
+    axes.set(title=f'Orientation: body axes on the unit sphere\n({shown})',
              xlabel='world x', ylabel='world y', zlabel='world z')
     _equal_3d(axes, np.array([[-1.0, -1.0, -1.0], [1.0, 1.0, 1.0]]))
+    for set_ticks in (axes.set_xticks, axes.set_yticks, axes.set_zticks):
+        set_ticks([-1.0, 0.0, 1.0])
+    axes.tick_params(labelsize='small', pad=0)
     axes.legend(loc='upper left', fontsize='small')
 
-    axes = figure.add_subplot(grid[1, 1], projection='3d')
+
+def _polhode_panel(axes, motion):
+    omega = motion.angular_velocity_body
+    stride = max(1, -(-len(omega) // _PATH_POINTS))
+    path = np.vstack((omega[::stride], omega[-1:]))
+    axes.plot(path[:, 0], path[:, 1], path[:, 2], color='tab:blue', linewidth=0.8)
+    axes.scatter(*omega[0], color='tab:green', marker='o', s=30, label='start')
+    axes.scatter(*omega[-1], color='tab:red', marker='s', s=30, label='end')
+    at = ', '.join(f'{c:.3g}' for c in motion.position[0])
+    axes.set(title=f'Polhode: $\\Omega$ in the body frame\n(COM at rest at ({at}) m)',
+             xlabel='$\\Omega_x$ [rad/s]', ylabel='$\\Omega_y$ [rad/s]',
+             zlabel='$\\Omega_z$ [rad/s]')
+    _equal_3d(axes, omega)
+    _tidy_3d(axes)
+    axes.legend(loc='upper left', fontsize='small')
+
+
+def _com_panel(figure, cell, motion, time_label):
+    """The COM's path in the plane it moves in (equal scales) and its height against time."""
     position = motion.position
-    if com_moves(motion):
-        path = np.vstack((position[::stride], position[-1:]))
-        axes.plot(path[:, 0], path[:, 1], path[:, 2], color='tab:blue')
-        axes.scatter(*position[0], color='tab:green', marker='o', s=30, label='start')
-        axes.scatter(*position[-1], color='tab:red', marker='s', s=30, label='end')
-        axes.set(title='Centre of mass path (world frame)', xlabel='x [m]', ylabel='y [m]',
-                 zlabel='z [m]')
-        _equal_3d(axes, position)
-    else:
-        omega = motion.angular_velocity_body
-        path = np.vstack((omega[::stride], omega[-1:]))
-        axes.plot(path[:, 0], path[:, 1], path[:, 2], color='tab:blue', linewidth=0.8)
-        axes.scatter(*omega[0], color='tab:green', marker='o', s=30, label='start')
-        axes.scatter(*omega[-1], color='tab:red', marker='s', s=30, label='end')
-        at = ', '.join(f'{c:.3g}' for c in position[0])
-        axes.set(title=f'Polhode: $\\Omega$ in the body frame (COM at rest at ({at}) m)',
-                 xlabel='$\\Omega_x$ [rad/s]', ylabel='$\\Omega_y$ [rad/s]',
-                 zlabel='$\\Omega_z$ [rad/s]')
-        _equal_3d(axes, omega)
-    axes.legend(loc='upper left', fontsize='small')
+    time = motion.time
+    cells = cell.subgridspec(1, 2, width_ratios=(1.0, 1.0))
+    first, second, normal = plane_of_motion(position)
+    names = 'xyz'
+    stride = max(1, -(-len(time) // _PATH_POINTS))
+    path = np.vstack((position[::stride], position[-1:]))
+    axes = figure.add_subplot(cells[0])
+    axes.plot(path[:, first], path[:, second], color='tab:blue', linewidth=1.0)
+    axes.scatter(position[0, first], position[0, second], color='tab:green', marker='o',
+                 s=30, label='start', zorder=3)
+    axes.scatter(position[-1, first], position[-1, second], color='tab:red', marker='s',
+                 s=30, label='end', zorder=3)
+    axes.set_aspect('equal', adjustable='datalim')
+    spread = np.ptp(position[:, normal])
+    axes.set(title=f'COM path in the {names[first]}-{names[second]} plane\n'
+                   f'({names[normal]} spans {spread:.3g} m)',
+             xlabel=f'{names[first]} [m]', ylabel=f'{names[second]} [m]')
+    axes.legend(loc='best', fontsize='small')
+    axes.grid(True, alpha=0.3)
 
-    figure.suptitle(_title(motion))
-    out = Path(out)
-    figure.savefig(out, dpi=110)
-    pyplot.close(figure)
-    return out
+    axes = figure.add_subplot(cells[1])
+    height = position[:, 2]
+    line = _draw_series(axes, time, height, 'tab:blue', 'z')
+    apex = apex_index(motion)
+    if apex is not None:
+        # A throw's apex: where the vertical velocity changes sign.
+        axes.plot(time[apex], height[apex], marker='^', color='tab:red')
+        # The label inside the arch, off the curve, with an arrow to the apex.
+        axes.annotate(f'apex z = {height[apex]:.4g} m\nat t = {time[apex]:.3g} s',
+                      (time[apex], height[apex]), xytext=(0.5, 0.4),
+                      textcoords='axes fraction', ha='center', va='center', fontsize='small',
+                      arrowprops={'arrowstyle': '->', 'color': '0.4'})
+    if hasattr(line, 'get_paths'):
+        axes.legend(loc='best', fontsize='small')
+    axes.set(title='COM height', xlabel=time_label, ylabel='z [m]')
+    axes.ticklabel_format(axis='y', style='plain', useOffset=False)
+    axes.grid(True, alpha=0.3)
+
+
+def plane_of_motion(position):
+    """
+    Return (first, second, normal) axis indices of the coordinate plane the COM moves in.
+
+    The plane normal to the axis along which the path spans least: x-z for a throw along x,
+    x-y for a top's COM circling above its pivot.  `position` is (n, 3), world frame.
+    """
+    normal = int(np.argmin(np.ptp(position, axis=0)))
+    first, second = [k for k in range(3) if k != normal]
+    return first, second, normal
+
+
+def apex_index(motion):
+    """
+    Return the tick of a thrown body's apex (its highest COM, world z), or None.
+
+    None when the highest point is the first or last tick (no apex inside the bag) or the
+    body is held by a pivot (its COM bobs up and down, with no single apex).
+    """
+    height = motion.position[:, 2]
+    apex = int(np.argmax(height))
+    held = any(effect['effect'] == 'pivot' for effect in (motion.effects or []))
+    return apex if 0 < apex < len(height) - 1 and not held else None
 
 
 def com_moves(motion):
@@ -301,18 +726,12 @@ def com_moves(motion):
     return bool(np.ptp(motion.position, axis=0).max() > _MOTION_THRESHOLD)
 
 
-def _torque_effects(motion):
-    # Offline bags name the scene's effects; those that torque the body about its COM
-    # (dissipation keeps |L| but drains the energy).
-    effects = motion.custom_data.get(_CUSTOM_PREFIX + 'effects', '')
-    return [name for name in (e.strip() for e in effects.split(','))
-            if name in ('pivot', 'drag', 'dissipation')]
-
-
 def _title(motion):
     custom = {key[len(_CUSTOM_PREFIX):]: value for key, value in motion.custom_data.items()
               if key.startswith(_CUSTOM_PREFIX)}
-    parts = [f'bag {motion.name}', f'{len(motion.time)} ticks over {motion.time[-1]:g} s']
+    span = f'{len(motion.time)} ticks to {motion.time[-1]:g} s' if motion.time_is_simulated \
+        else f'{len(motion.time)} ticks over {motion.time[-1]:g} s'
+    parts = [f'bag {motion.name}', span]
     if 'scene' in custom:
         parts.append(f'scene {custom["scene"]}')
     if 'integrator' in custom:

@@ -19,6 +19,7 @@ for a bag that looks like a live recording.  Successive stamps are exactly 1e9/r
 apart when that is a whole number of ns, else within 1 ns of it.
 """
 
+import json
 import math
 import time
 
@@ -44,6 +45,7 @@ __all__ = [
     'CLOCK_TOPIC',
     'DIAGNOSTICS_TOPIC',
     'SimulationSummary',
+    'effect_parameters_json',
     'message_type_name',
     'simulate_to_bag',
     'stamp_nanoseconds',
@@ -305,6 +307,25 @@ def _progress_bar(duration):
                            '[{elapsed}<{remaining}, {rate_fmt}]')
 
 
+def effect_parameters_json(scene):
+    """
+    Return the scene's effects and their parameters as JSON, for the bag's custom data.
+
+    A list, in the scene's order, of {"effect": name, parameter: value, ...} with the
+    effects' public attributes (SI units, world or body frame as each effect defines them;
+    vectors as lists, floats exactly: JSON writes the shortest repr that reads back
+    equal).  The plot reads the pivot's point and anchor and gravity's acceleration.
+    """
+    effects = []
+    for name, effect in zip(scene.effect_names(), scene.effects):
+        parameters = {'effect': name}
+        for key, value in vars(effect).items():
+            if not key.startswith('_'):
+                parameters[key] = value.tolist() if isinstance(value, np.ndarray) else value
+        effects.append(parameters)
+    return json.dumps(effects)
+
+
 def _set_custom_data(writer, scene, simulator, rate, substeps, start_time):
     # What the plot and a reader of the bag may want to know about the run; the node's
     # messages carry none of it.
@@ -319,6 +340,7 @@ def _set_custom_data(writer, scene, simulator, rate, substeps, start_time):
         'mass': f'{body.mass:.17g}',
         'inertia': ' '.join(f'{value:.17g}' for value in body.inertia.ravel()),
         'effects': ', '.join(scene.effect_names()) or 'none',
+        'effect_parameters': effect_parameters_json(scene),
         'writer': 'rigid-body-sim simulate',
     }
     for key, value in values.items():

@@ -2,10 +2,13 @@
 Plot the motion in a bag of the node: angular velocity, drift of energy and |L|, orientation.
 
 Reads the node's odom and angular_momentum topics (any bag: `rigid-body-sim simulate`,
-`rigid-body-sim record`, `ros2 bag record`) and draws four panels into a PNG: the body-frame
-angular velocity against time; the relative drift of the rotational kinetic energy
-1/2 omega.L and of |L| (both from the messages alone: no inertia needed); the paths of the
-body axes on the unit sphere; and the COM path when the COM moves, else the polhode.
+`rigid-body-sim record`, `ros2 bag record`) and draws four panels into a PNG, against
+simulated time from the scene's start: the body-frame angular velocity (a fast spin on a
+scale of its own, fast oscillations as their envelope); the drift of what the scene
+conserves (torque-free: 1/2 omega.L and |L|; with a pivot: the total energy, L about the
+pivot along gravity and, for a symmetric body, L.e3; mass and effects come from an offline
+bag's custom data); the paths of the body axes on the unit sphere; and, when the COM moves,
+its path in the plane it moves in and its height z(t) with the apex, else the polhode.
 
 Typical use:
   rigid-body-sim simulate --scene tennis_racket --duration 30 --bag racket
