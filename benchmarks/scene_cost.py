@@ -7,10 +7,12 @@ Usage: .venv/bin/python benchmarks/scene_cost.py [--seconds S] [--repeats K]
 For each scene, the scene's simulator (its integrator, step and effects) and a Simulator of
 the same body, state, integrator and step with no effects are timed: in one run() call
 (bulk, as the offline tools do) and one step() call per tick (as the node does).  Each
-timing is the median over K repeats of about S seconds of work, after a warm-up run (so
-numba compilation is not counted), in microseconds per step.  The ratio of the two bulk
-columns is the price of the scene's effects.  'path' says whether the compiled kernel or
-the readable integrator takes the steps.
+timing is CPU time of this process (time.process_time: the machine may be loaded), the
+median over K repeats of about S CPU seconds of work, after a warm-up run (so numba
+compilation is not counted), in microseconds per step.  The ratio of the two bulk columns
+is the price of the scene's effects.  'path' says what takes the steps: 'compiled' (one
+compiled run, a dissipation flow fused in), 'kernel' or 'kernel+flows' (a registry kernel,
+flows composed around it in Python) or 'readable' (the readable integrator).
 """
 
 import argparse
@@ -26,16 +28,16 @@ def microseconds_per_step(make_simulator, dt, seconds, repeats, per_tick):
     """Return the median us/step of fresh simulators over `repeats` timed runs."""
     def timed(steps):
         simulator = make_simulator()
-        started = time.perf_counter()
+        started = time.process_time()
         if per_tick:
             for _ in range(steps):
                 simulator.step(dt)
         else:
             simulator.run(steps * dt, dt)
-        return (time.perf_counter() - started) / steps
+        return (time.process_time() - started) / steps
 
     # Warm up (compilation, caches) and size the runs to about `seconds` each.
-    estimate = min(timed(200), timed(200))
+    estimate = max(min(timed(1000), timed(1000)), 1e-8)
     steps = max(200, int(seconds / estimate))
     return statistics.median(timed(steps) for _ in range(repeats)) * 1e6
 
@@ -45,12 +47,12 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--seconds', type=float, default=0.3,
-                        help='work per timed run in s (default 0.3)')
+                        help='CPU work per timed run in s (default 0.3)')
     parser.add_argument('--repeats', type=int, default=5, help='timed runs (default 5)')
     args = parser.parse_args()
-    print(f'{"scene":<14} {"integrator":<10} {"Hz":>5} {"effects":<26} {"path":<9}'
+    print(f'{"scene":<14} {"integrator":<10} {"Hz":>5} {"effects":<26} {"path":<13}'
           f'{"with":>9} {"free":>8} {"ratio":>6}   {"tick with":>9} {"tick free":>9}')
-    print(f'{"":<14} {"":<10} {"":>5} {"":<26} {"":<9}{"us/step (run)":>17} {"":>6}   '
+    print(f'{"":<14} {"":<10} {"":>5} {"":<26} {"":<13}{"us/step (run)":>17} {"":>6}   '
           f'{"us/step (step)":>19}')
     for name in scene_names():
         scene = load_scene(name)
@@ -63,10 +65,10 @@ def main():
 
         timings = [microseconds_per_step(make, scene.dt, args.seconds, args.repeats, tick)
                    for tick in (False, True) for make in (with_effects, torque_free)]
-        # _runs_fast is private; read here only to label the table.
-        path = 'kernel' if scene.simulator()._runs_fast() else 'readable'
+        # _path is private; read here only to label the table.
+        path = scene.simulator()._path
         effects = ', '.join(scene.effect_names()) or '-'
-        print(f'{name:<14} {scene.integrator:<10} {scene.rate:>5g} {effects:<26} {path:<9}'
+        print(f'{name:<14} {scene.integrator:<10} {scene.rate:>5g} {effects:<26} {path:<13}'
               f'{timings[0]:>9.2f} {timings[1]:>8.2f} {timings[0] / timings[1]:>6.1f}   '
               f'{timings[2]:>9.2f} {timings[3]:>9.2f}')
 

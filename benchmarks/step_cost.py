@@ -1,13 +1,17 @@
 #!/usr/bin/env python3
 """
-Print the time per step of each integrator inside Simulator.run (median of repeats).
+Print the CPU time per step of each integrator: in one Simulator.run and per step() call.
 
 Usage: .venv/bin/python benchmarks/step_cost.py [--steps N] [--repeats K]
 
 Each integrator runs the default T-handle body torque-free, and again under a held
-body-frame torque, for N steps per repeat after a warm-up run (so numba compilation is not
-counted); the median over K repeats is printed in microseconds per step, for the fast
-(compiled) path and for the readable reference definitions.
+body-frame torque, after a warm-up run (so numba compilation is not counted).  Times are
+CPU time of this process (time.process_time, not wall-clock: the machine may be loaded),
+the median over K repeats, in microseconds per step:
+
+- run: N steps in one Simulator.run call (the offline tools, the benchmark);
+- step(): one Simulator.step call per step, as the node ticks (N / 10 calls);
+- readable: Simulator.run with fast=False, the readable reference definitions (N / 100).
 """
 
 import argparse
@@ -19,20 +23,30 @@ from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import Simulator
 from rigid_body_sim.scenes import load_scene
 
+DT = 1e-3
 
-def microseconds_per_step(name, steps, repeats, fast, torque):
-    """Return the median us/step of `name` over `repeats` runs of `steps` steps."""
+
+def _simulator(name, fast, torque):
     scene = load_scene('default')
     simulator = Simulator(scene.body, scene.state, integrator=name, fast=fast)
     if torque:
         simulator.set_wrench(torque=[0.01, 0.0, 0.02], frame='body')
-    dt = 1e-3
-    simulator.run(min(steps, 1000) * dt, dt)
+    return simulator
+
+
+def microseconds_per_step(name, steps, repeats, fast, torque, per_call):
+    """Return the median CPU us/step of `name` over `repeats` timed runs of `steps` steps."""
+    simulator = _simulator(name, fast, torque)
+    simulator.run(min(steps, 1000) * DT, DT)
     samples = []
     for _ in range(repeats):
-        started = time.perf_counter()
-        simulator.run(steps * dt, dt)
-        samples.append((time.perf_counter() - started) / steps * 1e6)
+        started = time.process_time()
+        if per_call:
+            for _ in range(steps):
+                simulator.step(DT)
+        else:
+            simulator.run(steps * DT, DT)
+        samples.append((time.process_time() - started) / steps * 1e6)
     return statistics.median(samples)
 
 
@@ -43,19 +57,26 @@ def main():
     parser.add_argument('--steps', type=int, default=200000)
     parser.add_argument('--repeats', type=int, default=5)
     args = parser.parse_args()
-    print(f'{"integrator":<12} {"fast, free":>11} {"fast, torque":>13} '
-          f'{"readable, free":>15} {"readable, torque":>17}   (us/step, median of '
-          f'{args.repeats})')
+    columns = (('run', True, False), ('step()', True, True), ('readable', False, False))
+    header = ''.join(f'{f"{label}, {kind}":>17}' for label, _, _ in columns
+                     for kind in ('free', 'torque'))
+    print(f'{"integrator":<12}{header}   (CPU us/step, median of {args.repeats})')
     for name in sorted(INTEGRATORS):
         row = []
-        for fast in (True, False):
-            steps = args.steps if fast else max(args.steps // 100, 200)
+        for _, fast, per_call in columns:
+            if not fast:
+                steps = max(args.steps // 100, 200)
+            elif per_call:
+                steps = max(args.steps // 10, 1000)
+            else:
+                steps = args.steps
             for torque in (False, True):
                 if fast and name not in FAST_KERNELS:
                     row.append('n/a')
                     continue
-                row.append(f'{microseconds_per_step(name, steps, args.repeats, fast, torque):.3f}')
-        print(f'{name:<12} {row[0]:>11} {row[1]:>13} {row[2]:>15} {row[3]:>17}')
+                cost = microseconds_per_step(name, steps, args.repeats, fast, torque, per_call)
+                row.append(f'{cost:.3f}')
+        print(f'{name:<12}' + ''.join(f'{cell:>17}' for cell in row))
 
 
 if __name__ == '__main__':
