@@ -15,9 +15,13 @@ from .integrators import FAST_KERNELS
 from .integrators import get_integrator
 from .integrators.fast import body_values
 from .integrators.fast import CompiledIntegrator
+from .integrators.fast import FORCE_BODY
+from .integrators.fast import FORCE_WORLD
 from .integrators.fast import LEVER_FORCE
 from .integrators.fast import packed_wrench
 from .integrators.fast import STATE_SIZE
+from .integrators.fast import TORQUE_BODY
+from .integrators.fast import TORQUE_WORLD
 from .state import State
 
 __all__ = ['Simulator']
@@ -103,8 +107,7 @@ class Simulator:
         self._views = (values[0:4], values[4:7], values[7:10], values[10:13])
         self.state = state
         self._fast = bool(fast)
-        zero = np.zeros(3)
-        self._held = (zero, zero, zero, zero)
+        self._held = tuple(np.zeros(3) for _ in range(4))
         self._held_active = False
         self.integrator = integrator
 
@@ -437,7 +440,8 @@ class Simulator:
         else:
             body = self._integrated_body
             kernel(*self._views, body.inertia, body.inertia_inverse, body.mass, dt, steps,
-                   wrench[0], wrench[1], wrench[2], wrench[3])
+                   wrench[FORCE_WORLD], wrench[TORQUE_WORLD], wrench[FORCE_BODY],
+                   wrench[TORQUE_BODY])
         self._integrated = self._state = None
 
     def _add_time(self, increment):
