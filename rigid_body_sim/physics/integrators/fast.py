@@ -236,7 +236,13 @@ def _kick(q, linear_momentum, angular_momentum, wrench, duration):
 
 @_jit
 def dissipate(state, body, damping, duration):
-    """Apply the dissipation flow of effects.dissipation for `duration` s to q (in place)."""
+    """
+    Apply the dissipation flow of effects.dissipation for `duration` s to q (in place).
+
+    Its one definition is compiled into these kernels: numba's cache does not see edits to
+    a function in another file, so after changing dissipated_quaternion delete the cached
+    kernels (integrators/__pycache__/*.nbi, *.nbc); the fused == composed test catches it.
+    """
     state[0:4] = dissipated_quaternion(state[0:4], state[10:13],
                                        body[0:9].reshape((3, 3)), damping, duration)
 
