@@ -6,6 +6,8 @@ see topics, a client over real DDS.
 """
 
 import signal
+import subprocess
+import sys
 import time
 
 from node_harness import Client
@@ -15,6 +17,7 @@ from node_harness import PACKAGE_ROOT
 from node_harness import unique_namespace
 import numpy as np
 import pytest
+from rigid_body_sim.ros.parameters import PARAMETERS
 from test_colcon_build import colcon_install  # noqa: F401  (the fixture: one colcon build)
 from visualization_msgs.msg import Marker
 
@@ -104,6 +107,20 @@ def test_a_signal_during_start_up_ends_the_node_quietly_with_exit_code_0(
     assert STARTED not in output, 'the node had started: this did not test the start-up'
     assert code == 0, output
     assert 'Traceback' not in output, output
+
+
+def test_help_lists_the_interface_and_every_parameter_and_exits_0():
+    """rigid_body_node --help teaches: topics, services, each parameter; nothing starts."""
+    result = subprocess.run([sys.executable, '-m', 'rigid_body_sim.ros.entry_point', '--help'],
+                            capture_output=True, text=True, timeout=60, cwd=PACKAGE_ROOT)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith('usage: rigid_body_node')
+    for name in ('pose', 'twist', 'angular_momentum', 'odom', 'marker', '/diagnostics',
+                 'torque', 'wrench', 'reset', 'pause', 'heavy_top'):
+        assert name in result.stdout, name
+    for spec in PARAMETERS:
+        assert f'  {spec.name} (' in result.stdout, spec.name
+    assert STARTED not in result.stdout + result.stderr
 
 
 # A scene file with one mistake: the pivot point has two coordinates.

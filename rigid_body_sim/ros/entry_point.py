@@ -19,10 +19,21 @@ def _interrupt(signal_number, frame):
     raise KeyboardInterrupt
 
 
+def _asks_for_help(arguments):
+    # Only before --ros-args: what follows it belongs to ROS.
+    ours = arguments[1:arguments.index('--ros-args')] if '--ros-args' in arguments \
+        else arguments[1:]
+    return '-h' in ours or '--help' in ours
+
+
 def main(args=None):
     """Run the node (see :func:`rigid_body_sim.ros.node.main`); return the exit code."""
     signal.signal(signal.SIGTERM, _interrupt)
     try:
+        if _asks_for_help(sys.argv if args is None else args):
+            from .node_help import help_text
+            print(help_text())
+            return 0
         from .node import main as run_node
     except KeyboardInterrupt:
         return 0
