@@ -5,10 +5,20 @@ Each run ends with the same sanity checks: every state variable finite, R orthon
 proper to 1e-12, and (torque-free) world L bit-identical to its initial value, which every
 method here guarantees because no step writes L without a wrench.
 
-Accuracy bounds follow the method order p: a global error of at most C (|omega| dt)^p per
-radian turned, C = 10 (an order-of-magnitude error constant), i.e.
-C (|omega| dt)^p |omega| t over a time t.  first_order is checked for sanity only where its
-O(dt) energy drift makes a closed-form comparison over 1e5 steps meaningless.
+Accuracy is checked so that a lost order is caught: each accuracy test runs 1e5 steps at dt
+and 2e5 steps at dt / 2 over the same span and requires the ratio of the two errors to be
+2^q within CONVERGENCE_FACTOR, q the order observed for that quantity (at least the method's
+order; a lost order halves the ratio), and bounds the error at dt by K (|omega| dt)^q
+(|omega| t for errors that grow with time), K a few times the measured constant, given beside
+each.  first_order gains energy at the rate derived in reference.first_order_energy_gain_rate;
+where that gain widens a nutation exponentially (a spin about the axis of largest inertia) a
+closed-form comparison over 1e5 steps is meaningless, and it is checked for sanity only.
+
+Huge spin (3 rad per step): the section's comment derives, for a nearly spherical body, the
+factor by which each seed method changes the nutation per step; it is not made small by
+resolving the nutation, so every seed method keeps only one extreme axis stable at that
+step (the exponential-map methods the axis of smallest inertia, rk4 the largest), and
+`exact` keeps both.
 """
 
 import math
@@ -16,10 +26,12 @@ import math
 import numpy as np
 import pytest
 from reference import body_rates_symmetric_top
+from reference import first_order_energy_gain_rate
 from reference import random_rotation
 from reference import reference_solution
 from reference import rotation_angle_between
 from reference import torque_free_omega_period
+from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import RigidBody
 from rigid_body_sim.physics import Simulator
 from rigid_body_sim.physics import State
@@ -27,9 +39,12 @@ from rigid_body_sim.physics import State
 EPS = np.finfo(float).eps
 ORDERS = {'first_order': 1, 'buss': 2, 'buss_plain': 2, 'rk4': 4}
 ACCURATE = ('buss', 'buss_plain', 'rk4')
+SEED_METHODS = tuple(sorted(ORDERS))
 LONG_RUN = 100_000
-ERROR_CONSTANT = 10.0
 SANITY_TOLERANCE = 1e-12
+# Errors at dt and dt / 2 over one span: their ratio must be 2^q within this factor.  The
+# measured ratios are within 1.1 of 2^q; a lost order halves the ratio.
+CONVERGENCE_FACTOR = 1.3
 
 
 def _rotation_about(vector):
@@ -54,8 +69,16 @@ def _assert_sane(state, angular_momentum=None):
         np.testing.assert_array_equal(state.angular_momentum, angular_momentum)
 
 
-def _accuracy_bound(name, omega, dt, duration):
-    return ERROR_CONSTANT * (omega * dt) ** ORDERS[name] * omega * duration
+def _errors_at_dt_and_half(measure, dt):
+    """Return measure(dt, 1e5) and measure(dt / 2, 2e5): errors over one span of 1e5 dt."""
+    return measure(dt, LONG_RUN), measure(0.5 * dt, 2 * LONG_RUN)
+
+
+def _assert_converges_at_order(coarse, fine, order):
+    """Assert that halving dt divides the error by 2^order within CONVERGENCE_FACTOR."""
+    ratio = coarse / fine
+    assert 2.0 ** order / CONVERGENCE_FACTOR <= ratio <= 2.0 ** order * CONVERGENCE_FACTOR, \
+        (coarse, fine, ratio)
 
 
 def _initial_rotation(seed):
@@ -130,27 +153,47 @@ def test_closed_form_period_agrees_with_the_reference_solution():
 # -- symmetric and spherical tops
 
 
+# name: (dt, observed order q, K) for the body rates, error <= K (|Omega| dt)^q |Omega| t.
+# Measured K: buss 0.15, buss_plain 0.11 (dt 1e-3, 100 s; ratios 3.99); rk4 0.0125 (dt 4e-3,
+# 400 s; ratios 15.5, and 14.6 for the split body, whose 1e-12 split moves it ~2e-10 off the
+# symmetric closed form: at dt 1e-3 rk4's error, 5e-11, would drown in that).
+SYMMETRIC_TOP_ACCURACY = {'buss': (1e-3, 2, 0.5), 'buss_plain': (1e-3, 2, 0.5),
+                          'rk4': (4e-3, 4, 0.05)}
+
+
 @pytest.mark.parametrize('moments', [(1.0, 1.0, 2.0), (1.0, 1.0 * (1 + 1e-12), 2.0)],
                          ids=['exact', 'split_1e-12'])
 @pytest.mark.parametrize('name', ACCURATE)
 def test_symmetric_top_body_rates_precess_at_the_closed_form_rate(name, moments):
+    """
+    (Omega1, Omega2) turn at -(I3 - I1) / I1 Omega3 with Omega3 constant; errors at the order.
+
+    first_order is left out: its energy gain (test_conservation) widens the nutation about
+    axis 3, the axis of largest inertia, exponentially (measured: 0.27 relative error after
+    1e5 steps of 1e-3 s, 0.033 at 5e-4 s), so the closed form is no yardstick for it.
+    """
     body = RigidBody(1.0, moments)
     assert body.is_symmetric_top
     omega_body = np.array([0.3, 0.4, 2.0])
+    omega = np.linalg.norm(omega_body)
     state = State.from_velocity(body, rotation=_initial_rotation(2),
                                 angular_velocity_body=omega_body)
-    simulator = Simulator(body, state, integrator=name)
-    dt = 1e-3
-    worst = 0.0
-    for _ in range(100):
-        current = simulator.run(1000 * dt, dt)
-        # (Omega1, Omega2) turn at -(I3 - I1) / I1 Omega3; Omega3 is constant.
-        exact = body_rates_symmetric_top(moments, 2, omega_body, simulator.time)
-        error = np.linalg.norm(current.angular_velocity_body(body) - exact)
-        worst = max(worst, error / np.linalg.norm(omega_body))
-    _assert_sane(simulator.state, state.angular_momentum)
-    omega = np.linalg.norm(omega_body)
-    assert worst <= _accuracy_bound(name, omega, dt, simulator.time)
+
+    def worst_error(dt, steps):
+        simulator = Simulator(body, state, integrator=name)
+        worst = 0.0
+        for _ in range(100):
+            current = simulator.run(steps // 100 * dt, dt)
+            exact = body_rates_symmetric_top(moments, 2, omega_body, simulator.time)
+            error = np.linalg.norm(current.angular_velocity_body(body) - exact)
+            worst = max(worst, error / omega)
+        _assert_sane(simulator.state, state.angular_momentum)
+        return worst
+
+    dt, order, constant = SYMMETRIC_TOP_ACCURACY[name]
+    coarse, fine = _errors_at_dt_and_half(worst_error, dt)
+    _assert_converges_at_order(coarse, fine, order)
+    assert coarse <= constant * (omega * dt) ** order * omega * LONG_RUN * dt
 
 
 @pytest.mark.parametrize('fast', [True, False], ids=['fast', 'readable'])
@@ -191,29 +234,86 @@ def test_spherical_top_turns_at_constant_omega(name, turn_per_step, fast):
 # -- extreme inertia tensors
 
 
-@pytest.mark.parametrize('name', sorted(ORDERS))
-def test_flat_plate_on_the_triangle_inequality_runs_cleanly(name):
-    # Four point masses in the plane z = 0: I3 = I1 + I2 exactly (a lamina).
+# name: (dt, observed order q, K) for the energy, max |E / E0 - 1| <= K (|omega| dt)^q.
+# Measured K: buss 0.095, buss_plain 0.070 (dt 1e-3; ratios 4.40, 4.37); rk4's energy
+# converges one order beyond the method (ratio 31.0 at dt 4e-3; at 1e-3 it is near
+# round-off): measured K 4.5 for q = 5.
+FLAT_PLATE_ACCURACY = {'buss': (1e-3, 2, 0.4), 'buss_plain': (1e-3, 2, 0.4),
+                       'rk4': (4e-3, 5, 20.0)}
+
+
+def _flat_plate():
+    """Four point masses in the plane z = 0: I3 = I1 + I2 exactly (a lamina), tumbling."""
     positions = [[0.0, 0.0, 0.0], [0.6, 0.0, 0.0], [0.6, 0.3, 0.0], [-0.1, 0.4, 0.0]]
     body = RigidBody.from_point_masses([1.0, 2.0, 1.5, 0.5], positions)
-    i1, i2, i3 = body.principal_moments
-    assert i3 == pytest.approx(i1 + i2, rel=1e-13)
     state = State.from_velocity(body, rotation=_initial_rotation(4),
                                 angular_velocity_body=(0.7, -1.1, 0.9))
-    simulator = Simulator(body, state, integrator=name)
+    return body, state
+
+
+@pytest.mark.parametrize('name', ACCURATE)
+def test_flat_plate_on_the_triangle_inequality_keeps_energy_at_the_order(name):
+    body, state = _flat_plate()
+    i1, i2, i3 = body.principal_moments
+    assert i3 == pytest.approx(i1 + i2, rel=1e-13)
+    omega = np.linalg.norm(state.angular_velocity(body))
+
+    def worst_energy_error(dt, steps):
+        simulator = Simulator(body, state, integrator=name)
+        initial_energy = simulator.energy()
+        worst = 0.0
+        for _ in range(100):
+            simulator.run(steps // 100 * dt, dt)
+            worst = max(worst, abs(simulator.energy() / initial_energy - 1.0))
+        _assert_sane(simulator.state, state.angular_momentum)
+        return worst
+
+    dt, order, constant = FLAT_PLATE_ACCURACY[name]
+    coarse, fine = _errors_at_dt_and_half(worst_energy_error, dt)
+    _assert_converges_at_order(coarse, fine, order)
+    assert coarse <= constant * (omega * dt) ** order
+
+
+def test_flat_plate_first_order_gains_energy_at_the_derived_rate():
+    """
+    first_order on the lamina: the energy gain over 1e5 steps follows its derived rate.
+
+    Same check as test_conservation's (reference.first_order_energy_gain_rate integrated
+    along the run, next order O((|omega| dt)^2) relative; measured 0.70 (|omega| dt)^2), so a
+    lost order is caught; halving dt halves the gain within 2 gain / E (measured ratio 2.01
+    with a gain of 5.3 %).
+    """
+    body, state = _flat_plate()
+    omega = np.linalg.norm(state.angular_velocity(body))
+    energy = state.kinetic_energy(body)
+
+    def gain_and_derived(dt, steps):
+        simulator = Simulator(body, state, integrator='first_order')
+        rate, derived = first_order_energy_gain_rate(body, state, dt), 0.0
+        for _ in range(steps // 10):
+            current = simulator.run(10 * dt, dt)
+            following = first_order_energy_gain_rate(body, current, dt)
+            derived += 5.0 * dt * (rate + following)
+            rate = following
+        _assert_sane(simulator.state, state.angular_momentum)
+        return simulator.energy() - energy, derived
+
     dt = 1e-3
-    initial_energy = simulator.energy()
-    worst = 0.0
-    for _ in range(100):
-        simulator.run(1000 * dt, dt)
-        worst = max(worst, abs(simulator.energy() / initial_energy - 1.0))
-    _assert_sane(simulator.state, state.angular_momentum)
-    if name != 'first_order':
-        omega = np.linalg.norm(state.angular_velocity(body))
-        assert worst <= (omega * dt) ** ORDERS[name]
+    (gain, derived), (gain_half, derived_half) = _errors_at_dt_and_half(gain_and_derived, dt)
+    assert gain > 0.0
+    assert gain == pytest.approx(derived, rel=2.0 * (omega * dt) ** 2)
+    assert gain_half == pytest.approx(derived_half, rel=2.0 * (omega * dt / 2) ** 2)
+    assert gain / gain_half == pytest.approx(2.0, rel=2.0 * gain / energy)
 
 
-@pytest.mark.parametrize('name', sorted(ORDERS))
+# name: (dt, observed order q, K) for the needle axis, error <= K (|omega| dt)^q |omega| t;
+# for rk4 only ratio >= 2^4 / factor is required (see the test).  Measured at dt 1e-3:
+# buss K 0.0092 with q = 3 (ratio 8.0: one order beyond the method for this axis),
+# buss_plain K 0.031 (ratio 4.0), rk4 K 3.6 (ratio 259).
+NEEDLE_ACCURACY = {'buss': (1e-3, 3, 0.04), 'buss_plain': (1e-3, 2, 0.1), 'rk4': (1e-3, 4, 15.0)}
+
+
+@pytest.mark.parametrize('name', SEED_METHODS)
 def test_needle_with_inertia_ratio_1e6_keeps_its_axis_precessing_about_l(name):
     """
     A needle, I = (1e-6, 1, 1): its axis e1 precesses about L at |L| / I_perp exactly.
@@ -221,25 +321,38 @@ def test_needle_with_inertia_ratio_1e6_keeps_its_axis_precessing_about_l(name):
     The spin about the needle axis, Omega1 = (R^T L)_1 / I1, amplifies any orientation error
     by |L| / I1 ~ 1e6, so it is not compared; the axis direction is well conditioned.
     first_order is unstable for this body at this step (its energy error grows ~100-fold
-    within the run), so it is checked for sanity only.
+    within the run), so it is checked for sanity only.  rk4's stages feel that
+    amplification too: its error falls faster than its order (ratio ~2^8, not the asymptotic
+    regime, so its K exceeds 1), and only at least its order is required of it.
     """
     moments = (1e-6, 1.0, 1.0)
     body = RigidBody(1.0, moments)
     state = State.from_velocity(body, rotation=_initial_rotation(5),
                                 angular_velocity_body=(1.0, 0.5, 0.3))
     angular_momentum = state.angular_momentum
-    simulator = Simulator(body, state, integrator=name)
-    dt = 1e-3
-    worst = 0.0
-    for _ in range(100):
-        current = simulator.run(1000 * dt, dt)
-        exact_axis = _rotation_about(angular_momentum * simulator.time / moments[1]) @ \
-            state.rotation[:, 0]
-        worst = max(worst, np.linalg.norm(current.rotation[:, 0] - exact_axis))
-    _assert_sane(simulator.state, angular_momentum)
-    if name != 'first_order':
-        omega = np.linalg.norm(state.angular_velocity(body))
-        assert worst <= _accuracy_bound(name, omega, dt, simulator.time)
+    omega = np.linalg.norm(state.angular_velocity(body))
+
+    def worst_axis_error(dt, steps):
+        simulator = Simulator(body, state, integrator=name)
+        worst = 0.0
+        for _ in range(100):
+            current = simulator.run(steps // 100 * dt, dt)
+            exact_axis = _rotation_about(angular_momentum * simulator.time / moments[1]) @ \
+                state.rotation[:, 0]
+            worst = max(worst, np.linalg.norm(current.rotation[:, 0] - exact_axis))
+        _assert_sane(simulator.state, angular_momentum)
+        return worst
+
+    if name == 'first_order':
+        worst_axis_error(1e-3, LONG_RUN)
+        return
+    dt, order, constant = NEEDLE_ACCURACY[name]
+    coarse, fine = _errors_at_dt_and_half(worst_axis_error, dt)
+    if name == 'rk4':
+        assert coarse / fine >= 2.0 ** order / CONVERGENCE_FACTOR, (coarse, fine)
+    else:
+        _assert_converges_at_order(coarse, fine, order)
+    assert coarse <= constant * (omega * dt) ** order * omega * LONG_RUN * dt
 
 
 @pytest.mark.parametrize('name', sorted(ORDERS))
@@ -254,15 +367,252 @@ def test_needle_spinning_one_radian_per_step_stays_finite_and_keeps_l(name):
     _assert_sane(final, state.angular_momentum)
 
 
-@pytest.mark.parametrize('name', sorted(ORDERS))
-def test_asymmetric_body_at_three_radians_per_step_stays_finite_and_keeps_l(name):
-    body = RigidBody(1.0, (1.0, 2.0, 3.0))
+# -- huge spin: 3 rad per step
+#
+# Near a steady spin about a principal axis a, write the body angular momentum
+# m = R^T L = |m| e_a + m_perp and I^{-1} = E / I_a + D, D = diag(1/I_j - 1/I_a) (D_a = 0).
+# |m| = |L| is exact for every method here, so the energy error that moves the polhode is
+# that of Q = m . D m = 2 T - |L|^2 / I_a, the anisotropic part of 2 T: the sensitivity x
+# relative energy error of _extreme_axis_amplitudes is exactly dQ / Q, and the polhode's
+# semi-axes^2 are proportional to Q.  Euler's equations give dm/dt = m x D m: in the plane
+# normal to e_a, with e_a x acting as i, one exact step moves m_perp by
+# i h |m| (D m)_perp, along the level set of Q.
+#
+# The exponential-map methods update m <- exp(-h [W]x) m with W = m / I_a + V.  To first
+# order in D (a nearly spherical body) the derivative of the exponential map gives
+# dm_perp = h |m| (1 - exp(-i theta)) / theta V_perp, theta = h |m| / I_a the turn per step;
+# the exact step needs V_perp = g(theta) (D m)_perp with g = x / (1 - exp(-x)), x = i theta,
+# i.e. g = (theta/2) cot(theta/2) + i theta/2 = 1 + i theta/2 - theta^2/12 - ...  The
+# methods have V_perp = c(theta) (D m)_perp with c = 1 (first_order: W = I^{-1} m),
+# 1 + i theta/2 (buss_plain: + h/2 alpha) and 1 + i theta/2 + theta^2/12 (buss: the
+# h^2/12 alpha x omega term enters with the sign opposite to g's theta^2 term, because Buss's
+# w also drops h^2/6 d^2omega/dt^2, which dominates here: the anisotropic part of omega turns
+# with the body at theta / h).  rk4 on the quaternion: its stages turn about m itself, so
+# their first-order variations sum to h F(x) with F(x) = 1 + x + x^2/2 + x^3/6, x = i theta/2;
+# after normalisation c / g = F(x) / P(x), P = F + x^4/24 its stability polynomial.
+#
+# So one step multiplies a symmetric body's m_perp by 1 + i kappa c/g, kappa = h |m| D_b:
+# Q changes by the factor exp(-2 kappa Im(c/g)) per step, to first order in kappa.  At
+# theta = 3: Im(c/g) = -0.663 (first_order), -1.090 (buss), -0.593 (buss_plain), +0.223
+# (rk4).  The exponential-map methods gain energy at any theta (Im < 0): they drive the
+# spin away from the axis of largest inertia (Q > 0 grows) towards the smallest (Q < 0
+# shrinks), and keep only that one; rk4 loses energy and does the reverse.  Per radian of
+# nutation (kappa |c/g| per step) Q changes by a factor exp(2 |Im(c/g)| / |c/g|),
+# independent of the anisotropy: resolving the nutation does not help, only a small theta
+# does (Im(c/g) ~ -theta/2, -theta^3/12, -theta^3/24, +theta^5/768).  `exact` has c = g.
+
+
+def _nutation_factor(name, turn):
+    """
+    Return c(theta) / g(theta) of the comment above for the method `name`.
+
+    Its imaginary part sets the energy drift of a nearly spherical body spinning `turn` rad
+    per step about a principal axis (`exact`: 1, no drift).
+    """
+    x = 1j * turn
+    g = x / (1.0 - np.exp(-x))
+    if name == 'rk4':
+        z = 0.5 * x
+        taylor = 1.0 + z + z ** 2 / 2 + z ** 3 / 6
+        return taylor / (taylor + z ** 4 / 24)
+    c = {'first_order': 1.0, 'buss_plain': 1.0 + 0.5 * x, 'buss': 1.0 + 0.5 * x - x * x / 12,
+         'exact': g}[name]
+    return c / g
+
+
+def _anisotropic_energy(body, state, axis):
+    """Return Q = m . D m (kg m^2 / s^2 ... i.e. 2 T - |L|^2 / I_a, in J x 2), m = R^T L."""
+    moments = np.diag(body.inertia)
+    body_momentum = state.rotation.T @ state.angular_momentum
+    weights = 1.0 / moments - 1.0 / moments[axis]
+    return float(np.sum(weights * body_momentum ** 2))
+
+
+@pytest.mark.parametrize('name, small_turn_series, at_three_radians', [
+    ('first_order', lambda turn: -turn / 2, -0.663),
+    ('buss', lambda turn: -turn ** 3 / 12, -1.090),
+    ('buss_plain', lambda turn: -turn ** 3 / 24, -0.593),
+    ('rk4', lambda turn: turn ** 5 / 768, 0.223),
+])
+def test_nutation_factor_matches_its_series_and_quoted_values(
+        name, small_turn_series, at_three_radians):
+    # The closed forms against the small-theta series and the values at 3 rad quoted above.
+    turn = 1e-2
+    assert _nutation_factor(name, turn).imag == pytest.approx(small_turn_series(turn),
+                                                              rel=1e-3)
+    assert _nutation_factor(name, 3.0).imag == pytest.approx(at_three_radians, abs=5e-4)
+    assert _nutation_factor('exact', 3.0) == 1.0
+    assert 'exact' in INTEGRATORS
+
+
+# A nearly spherical rotor, moments 1 and 1 + 1e-5 kg m^2, at 3000 rad/s: 3 rad per step of
+# 1 ms, while its nutation turns only kappa ~ 3e-5 rad per step (resolved).
+NEAR_SPHERE_RUNS = {
+    'oblate_axis_3': ((1.0, 1.0, 1.0 + 1e-5), (0.3, 0.0, 3000.0), 2),
+    'prolate_axis_1': ((1.0, 1.0 + 1e-5, 1.0 + 1e-5), (3000.0, 0.3, 0.0), 0),
+}
+
+
+@pytest.mark.parametrize('case', sorted(NEAR_SPHERE_RUNS))
+@pytest.mark.parametrize('name', SEED_METHODS + ('exact',))
+def test_three_radians_per_step_nutation_grows_or_shrinks_at_the_derived_rate(name, case):
+    """
+    At 3 rad per step a resolved nutation still drifts, by exp(-2 kappa Im(c/g)) per step.
+
+    1e5 steps on a nearly symmetric, nearly spherical body (see the comment above): the
+    measured log(Q_end / Q_0) must equal -2 N kappa Im(c/g).  The derivation drops terms
+    of relative order kappa (3e-5) and of the squared tilt (1e-8): measured agreement
+    1.0e-5 (first_order), 3.8e-6 (buss), 1.8e-5 (buss_plain), 4.5e-5 (rk4), so 5 kappa is
+    allowed.  `exact` must keep Q to round-off: the orientation's round-off, ~N eps in
+    angle, moves m_perp by N eps |m|, i.e. log Q by 2 N eps / tilt.
+    """
+    moments, omega_body, axis = NEAR_SPHERE_RUNS[case]
+    body = RigidBody(1.0, moments)
     state = State.from_velocity(body, rotation=_initial_rotation(7),
-                                angular_velocity_body=(30.0, 20.0, 3000.0))
-    assert np.linalg.norm(state.angular_velocity(body)) * 1e-3 >= 3.0
+                                angular_velocity_body=omega_body)
+    dt = 1e-3
+    magnitude = np.linalg.norm(state.angular_momentum)
+    turn = dt * magnitude / moments[axis]
+    assert turn >= 3.0
+    other = (axis + 1) % 3
+    kappa = dt * magnitude * (1.0 / moments[other] - 1.0 / moments[axis])
     simulator = Simulator(body, state, integrator=name)
-    final = simulator.run(LONG_RUN * 1e-3, 1e-3)
+    final = simulator.run(LONG_RUN * dt, dt)
     _assert_sane(final, state.angular_momentum)
+    measured = math.log(_anisotropic_energy(body, final, axis)
+                        / _anisotropic_energy(body, state, axis))
+    derived = -2.0 * LONG_RUN * kappa * _nutation_factor(name, turn).imag
+    if name == 'exact':
+        tilt = np.linalg.norm(np.delete(omega_body, axis)) / abs(omega_body[axis])
+        assert abs(measured) <= 2.0 * LONG_RUN * EPS / tilt
+    else:
+        # Several e-folds either way (|derived| 1.3 to 6.5), so the sign is tested too.
+        assert measured == pytest.approx(derived, rel=5.0 * abs(kappa))
+
+
+def _sampled_amplitudes(body, state, name, axis, dt, sample_steps, checkpoint=LONG_RUN):
+    """
+    Return the largest |Omega_j|, j != axis, over 1e5 steps sampled every sample_steps.
+
+    Also returns the state after `checkpoint` steps (a multiple of sample_steps).
+    """
+    others = [j for j in range(3) if j != axis]
+    simulator = Simulator(body, state, integrator=name)
+    worst = np.zeros(2)
+    for sample in range(1, LONG_RUN // sample_steps + 1):
+        current = simulator.run(sample_steps * dt, dt)
+        worst = np.maximum(worst, np.abs(current.angular_velocity_body(body)[others]))
+        if sample * sample_steps == checkpoint:
+            kept = current
+    _assert_sane(simulator.state, state.angular_momentum)
+    return worst, kept
+
+
+def _linearised_log_growth_range(name, moments, axis, magnitude, dt, steps):
+    """
+    Return bounds on log(Q_N / Q_0) after N = `steps` steps from the linearised step.
+
+    In the plane normal to the spin axis a (principal coordinates b, c in cyclic order,
+    e_a x acting as J) one step maps m_perp <- M m_perp with
+    M = E + h |m| (Re(c/g) J D - Im(c/g) D) (the comment above, D = diag(D_b, D_c)).
+    With M = V diag(mu) V^{-1} and Q = |S m_perp|^2, S = |D|^(1/2):
+    2 N log min|mu| - 2 log cond(S V) <= log(Q_N / Q_0) <= 2 N log max|mu| + 2 log cond(S V).
+    """
+    others = [(axis + 1) % 3, (axis + 2) % 3]
+    weights = np.array([1.0 / moments[j] - 1.0 / moments[axis] for j in others])
+    factor = _nutation_factor(name, dt * magnitude / moments[axis])
+    quarter_turn = np.array([[0.0, -1.0], [1.0, 0.0]])
+    step = np.eye(2) + dt * magnitude * (factor.real * quarter_turn @ np.diag(weights)
+                                         - factor.imag * np.diag(weights))
+    multipliers, vectors = np.linalg.eig(step)
+    spread = 2.0 * math.log(np.linalg.cond(np.diag(np.sqrt(np.abs(weights))) @ vectors))
+    moduli = np.abs(multipliers)
+    return (2.0 * steps * math.log(moduli.min()) - spread,
+            2.0 * steps * math.log(moduli.max()) + spread)
+
+
+# An asymmetric nearly spherical rotor (a slightly irregular die), moments 1, 1 + 1e-4 and
+# 1 + 2e-4 kg m^2, at 3000 rad/s about an extreme axis: 3 rad per step of 1 ms, nutation
+# 4.2e-4 rad per step (resolved: a period of ~1.5e4 steps, 6.7 periods in the run).
+# Each method is run on the axis the sign of its Im(c/g) says it keeps.
+KEPT_AXIS_RUNS = [('first_order', 0), ('buss', 0), ('buss_plain', 0), ('rk4', 2),
+                  ('exact', 0), ('exact', 2)]
+
+
+@pytest.mark.parametrize('name, axis', KEPT_AXIS_RUNS,
+                         ids=[f'{name}-axis_{axis + 1}' for name, axis in KEPT_AXIS_RUNS])
+def test_three_radians_per_step_each_method_keeps_the_axis_its_energy_drift_favours(
+        name, axis):
+    """
+    Huge spin (3 rad per step) with resolved nutation: the stable axis stays stable.
+
+    The polhode bound of test_spin_about_the_extreme_axes_stays_stable with the energy
+    error derived above: the semi-axes^2 scale with Q, and each step changes Q by
+    2 (D m) . dm = -2 h |m| Im(c/g) |D m_perp|^2 (first order in kappa), of the sign that
+    shrinks |Q| on the kept axis, so no rate may exceed its initial semi-axis beyond
+    round-off (N eps |Omega| / semi-axis: see the rate test).  The seed methods' nutation
+    dies out on this axis, after 2e4 steps by the factor that the linearised 2x2 step
+    predicts (_linearised_log_growth_range; measured log(Q / Q_0) -8.9, -19.1, -10.4,
+    -3.9 for first_order, buss, buss_plain, rk4), and grows on the other axis (the rate
+    test); `exact` keeps it on both axes, each rate reaching most of its semi-axis.
+    """
+    moments = (1.0, 1.0 + 1e-4, 1.0 + 2e-4)
+    omega_body = np.full(3, 2.0)
+    omega_body[axis] = 3000.0
+    body = RigidBody(1.0, moments)
+    state = State.from_velocity(body, rotation=_initial_rotation(7),
+                                angular_velocity_body=omega_body)
+    dt = 1e-3
+    magnitude = np.linalg.norm(state.angular_momentum)
+    turn = dt * magnitude / moments[axis]
+    assert turn >= 3.0
+    others, amplitudes, _ = _extreme_axis_amplitudes(moments, omega_body, axis)
+    checkpoint = 20_000
+    worst, early = _sampled_amplitudes(body, state, name, axis, dt, 10, checkpoint)
+    round_off = LONG_RUN * EPS * np.linalg.norm(omega_body) / amplitudes
+    assert np.all(worst <= amplitudes * (1.0 + round_off)), (worst / amplitudes - 1.0)
+    if name == 'exact':
+        assert np.all(worst >= 0.9 * amplitudes), (worst, amplitudes)
+    else:
+        low, high = _linearised_log_growth_range(name, moments, axis, magnitude, dt,
+                                                 checkpoint)
+        measured = math.log(_anisotropic_energy(body, early, axis)
+                            / _anisotropic_energy(body, state, axis))
+        assert low <= measured <= high < 0.0, (low, measured, high)
+
+
+@pytest.mark.parametrize('name', SEED_METHODS + ('exact',))
+def test_unresolved_nutation_at_three_radians_per_step(name):
+    """
+    I = (1, 2, 3) spun at 3000 rad/s about axis 3 with a nudge: the nutation is unresolved.
+
+    Near the stable axis 3 the body rates oscillate at
+    Omega3 sqrt((I3 - I1)(I3 - I2) / (I1 I2)), for (1, 2, 3) exactly Omega3: the nutation
+    turns 3 rad per step, as fast as the body, and no explicit method with this step can
+    follow it (nor is the near-sphere analysis above valid: the anisotropy is of order 1).
+    Measured: first_order and rk4 end spinning about axis 1 (energy +200 %), buss and
+    buss_plain leave axis 3 too (+130 %, +77 %).  So the seed methods are held to a valid
+    state only (finite, R orthonormal, world L exact), and `exact`, which follows the
+    elliptic-function solution at any step, to the stability of the axis: the polhode
+    bound with its round-off (N eps |Omega| / semi-axis, measured deviation < 1e-8) and each
+    rate reaching most of its semi-axis.
+    """
+    moments = (1.0, 2.0, 3.0)
+    body = RigidBody(1.0, moments)
+    omega_body = (30.0, 20.0, 3000.0)
+    state = State.from_velocity(body, rotation=_initial_rotation(7),
+                                angular_velocity_body=omega_body)
+    dt = 1e-3
+    assert np.linalg.norm(state.angular_velocity(body)) * dt >= 3.0
+    if name != 'exact':
+        final = Simulator(body, state, integrator=name).run(LONG_RUN * dt, dt)
+        _assert_sane(final, state.angular_momentum)
+        return
+    _, amplitudes, _ = _extreme_axis_amplitudes(moments, omega_body, 2)
+    worst, _ = _sampled_amplitudes(body, state, name, 2, dt, 10)
+    round_off = LONG_RUN * EPS * np.linalg.norm(omega_body) / amplitudes
+    assert np.all(worst <= amplitudes * (1.0 + round_off)), (worst / amplitudes - 1.0)
+    assert np.all(worst >= 0.9 * amplitudes), (worst, amplitudes)
 
 
 # -- stability of the extreme axes
@@ -280,9 +630,11 @@ def _extreme_axis_amplitudes(moments, omega_body, axis):
     inertia = np.asarray(moments, dtype=float)
     omega = np.asarray(omega_body, dtype=float)
     energy = 0.5 * np.sum(inertia * omega ** 2)
-    constant = np.sum((inertia * omega) ** 2) - 2.0 * energy * inertia[axis]
     others = [j for j in range(3) if j != axis]
     coefficients = np.array([inertia[j] * (inertia[j] - inertia[axis]) for j in others])
+    # L^2 - 2 E I_a summed term by term (the axis term is zero): no cancellation between
+    # L^2 and 2 E I_a, which agree to 1e-10 for a fast, nearly spherical rotor.
+    constant = float(coefficients @ omega[others] ** 2)
     return others, np.sqrt(constant / coefficients), 2.0 * energy * inertia[axis] / abs(constant)
 
 
@@ -290,8 +642,17 @@ def _extreme_axis_amplitudes(moments, omega_body, axis):
     ((2.0, 0.02, 0.0), 0), ((2.0, 0.0, 0.02), 0),
     ((0.02, 0.0, 2.0), 2), ((0.0, 0.02, 2.0), 2),
 ], ids=['axis_1_nudge_2', 'axis_1_nudge_3', 'axis_3_nudge_1', 'axis_3_nudge_2'])
-@pytest.mark.parametrize('name', ACCURATE)
+@pytest.mark.parametrize('name', SEED_METHODS)
 def test_spin_about_the_extreme_axes_stays_stable(name, omega_body, axis):
+    """
+    A nudged spin about axis 1 or 3 of I = (1, 2, 3) stays on its polhode over 1e5 steps.
+
+    first_order is held to its derived energy gain (reference.first_order_energy_gain_rate,
+    integrated along the run; the trapezoid over 0.2 s samples is within 1e-4 of the
+    measured gain, hence the 1e-3 margin): about axis 3, the axis of largest inertia, that
+    gain widens the polhode (measured 1.557x its initial semi-axes after 100 s, allowed
+    1.568x), about axis 1 it narrows it.
+    """
     moments = (1.0, 2.0, 3.0)
     body = RigidBody(1.0, moments)
     state = State.from_velocity(body, rotation=_initial_rotation(8),
@@ -299,16 +660,24 @@ def test_spin_about_the_extreme_axes_stays_stable(name, omega_body, axis):
     simulator = Simulator(body, state, integrator=name)
     dt = 1e-3
     others, amplitudes, sensitivity = _extreme_axis_amplitudes(moments, omega_body, axis)
-    # The numerical energy stays within (|omega| dt)^p (test_conservation); that widens
-    # the ellipse's semi-axes^2 by at most sensitivity * (|omega| dt)^p.
-    omega = np.linalg.norm(omega_body)
-    allowed = amplitudes * math.sqrt(1.0 + sensitivity * (omega * dt) ** ORDERS[name])
+    energy = state.kinetic_energy(body)
+    rate, gain = first_order_energy_gain_rate(body, state, dt), 0.0
     worst = np.zeros(2)
     for _ in range(LONG_RUN // 200):
         # Samples 0.2 s apart catch each maximum of the ~3 s oscillation within 2 %.
-        rates = simulator.run(200 * dt, dt).angular_velocity_body(body)
-        worst = np.maximum(worst, np.abs(rates[others]))
+        current = simulator.run(200 * dt, dt)
+        worst = np.maximum(worst, np.abs(current.angular_velocity_body(body)[others]))
+        following = first_order_energy_gain_rate(body, current, dt)
+        gain += 100.0 * dt * (rate + following)
+        rate = following
     _assert_sane(simulator.state, state.angular_momentum)
+    if name == 'first_order':
+        relative_energy_error = 1.001 * gain / energy
+    else:
+        # The numerical energy stays within (|omega| dt)^p (test_conservation).
+        relative_energy_error = (np.linalg.norm(omega_body) * dt) ** ORDERS[name]
+    # An energy error widens the ellipse's semi-axes^2 by sensitivity * that error.
+    allowed = amplitudes * math.sqrt(1.0 + sensitivity * relative_energy_error)
     assert np.all(worst <= allowed), (worst, amplitudes)
     # The perturbation really oscillated: each rate reached most of its amplitude.
     assert np.all(worst >= 0.9 * amplitudes), (worst, amplitudes)
@@ -351,24 +720,6 @@ def test_nanosecond_steps_follow_the_reference(name):
                                atol=LONG_RUN * 4 * EPS * np.max(np.abs(expected)))
 
 
-@pytest.mark.parametrize('name', sorted(ORDERS))
-def test_clock_near_a_million_seconds_advances_exactly(name):
-    body = RigidBody(1.0, (1.0, 2.0, 3.0))
-    state = State.from_velocity(body, rotation=_initial_rotation(11),
-                                angular_velocity_body=(0.4, 1.0, 0.6))
-    start = 1e6
-    late = Simulator(body, state, integrator=name)
-    late.reset(state, time=start)
-    early = Simulator(body, state, integrator=name)
-    dt = 1e-3
-    late.run(LONG_RUN * dt, dt)
-    early.run(LONG_RUN * dt, dt)
-    # Torque-free motion does not depend on the clock: the same state bit for bit.
-    assert late.state == early.state
-    _assert_sane(late.state, state.angular_momentum)
-    assert late.time == start + LONG_RUN * dt
-
-
 def test_compensated_clock_stays_exact_over_many_small_steps_near_a_million_seconds():
     body = RigidBody(1.0, (1.0, 2.0, 3.0))
     simulator = Simulator(body, State.from_velocity(body, angular_velocity_body=(0, 1, 0)))
@@ -385,32 +736,68 @@ def test_compensated_clock_stays_exact_over_many_small_steps_near_a_million_seco
     assert abs(plain - (start + steps * dt)) > 100 * np.spacing(start)
 
 
-@pytest.mark.parametrize('name', sorted(ORDERS))
-def test_time_dependent_wrench_sees_the_clock_near_a_million_seconds(name):
+class _TorqueWave:
+    """A world torque tau0 cos(w (t - t0)), w = 1 rad/s, from a clock origin t0 (s)."""
+
+    amplitude = np.array([0.3, -0.2, 0.1])
+    frequency = 1.0
+
+    def __init__(self, origin):
+        self.origin = origin
+
+    def wrench(self, body, state, time):
+        return np.zeros(3), self.amplitude * math.cos(self.frequency * (time - self.origin))
+
+
+# Where in the step each method reads the wrench: (fraction of dt, weight) of its quadrature
+# of the torque (torque-free drifts, kicks around them): first_order at the start (left
+# sums), buss and buss_plain half kicks at both ends (trapezoid), rk4 its four stages
+# (Simpson).
+WRENCH_QUADRATURE = {
+    'first_order': ((0.0, 1.0),),
+    'buss': ((0.0, 0.5), (1.0, 0.5)),
+    'buss_plain': ((0.0, 0.5), (1.0, 0.5)),
+    'rk4': ((0.0, 1.0 / 6.0), (0.5, 4.0 / 6.0), (1.0, 1.0 / 6.0)),
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('name', SEED_METHODS)
+def test_time_dependent_wrench_near_a_million_seconds_sees_the_exact_times_for_1e5_steps(
+        name):
+    """
+    1e5 steps of 1 ms, one step() at a time as the node takes them, from t0 = 1e6 s.
+
+    The torque depends on the time alone, so world L after N steps is L0 plus the method's
+    quadrature of tau0 cos(w (t - t0)) at the exact times t0 + k dt (+ dt/2, + dt), summed
+    here with math.fsum from times counted from 0.  The run's only departures: the times the
+    wrench is given, each within 1.5 ulp(1e6 s) = 1.75e-10 s of the exact one (the
+    compensated clock within 1 ulp, rounding t + dt/2 within half an ulp), which change each
+    torque by at most |tau0| w 1.75e-10; and the rounding of L += (dt/2) tau, ~1 ulp of |L|
+    per kick.  Over N steps: N dt |tau0| w 1.75e-10 + 2 N eps |L| = 6.6e-9 N m s.  A clock
+    that drifted like a plain running sum (0.41 ulp per step, 4.8e-6 s after 1e5 steps)
+    would move L by 1.5e-6 N m s, one that handed the wrench the time a step late by 5e-5.
+    The state stays valid and the clock ends within an ulp of t0 + 100 s.
+    """
     body = RigidBody(1.0, (1.0, 2.0, 3.0))
     state = State.from_velocity(body, rotation=_initial_rotation(12),
                                 angular_velocity_body=(0.4, 1.0, 0.6))
-    start = 1e6
-
-    class Pulse:
-        """A torque pulse tau0 cos(2 pi (t - t0) / 2 s), world frame."""
-
-        def __init__(self, origin):
-            self.origin = origin
-
-        def wrench(self, body, state, time):
-            phase = math.pi * (time - self.origin)
-            return np.zeros(3), np.array([0.3, -0.2, 0.1]) * math.cos(phase)
-
-    late = Simulator(body, state, integrator=name, effects=[Pulse(start)])
-    late.reset(state, time=start)
-    early = Simulator(body, state, integrator=name, effects=[Pulse(0.0)])
-    dt = 1e-3
-    late.run(300 * dt, dt)
-    early.run(300 * dt, dt)
-    _assert_sane(late.state)
-    # The clock near 1e6 s resolves ~1.2e-10 s: the wrench phases differ by that much.
-    tolerance = 1e-9 * np.linalg.norm(state.angular_momentum)
-    np.testing.assert_allclose(late.state.angular_momentum, early.state.angular_momentum,
-                               rtol=0, atol=tolerance)
-    assert late.time == pytest.approx(start + 0.3, abs=np.spacing(start))
+    start, dt = 1e6, 1e-3
+    simulator = Simulator(body, state, integrator=name, effects=[_TorqueWave(start)])
+    simulator.reset(state, time=start)
+    for _ in range(LONG_RUN):
+        simulator.step(dt)
+    final = simulator.state
+    _assert_sane(final)
+    assert abs(simulator.time - (start + LONG_RUN * dt)) <= np.spacing(start)
+    times = np.arange(LONG_RUN) * dt
+    impulse = math.fsum(
+        weight * dt * value for fraction, weight in WRENCH_QUADRATURE[name]
+        for value in np.cos(_TorqueWave.frequency * (times + fraction * dt)))
+    expected = state.angular_momentum + _TorqueWave.amplitude * impulse
+    clock_error = 1.5 * np.spacing(start)
+    magnitude = max(np.linalg.norm(expected), np.linalg.norm(state.angular_momentum))
+    tolerance = (LONG_RUN * dt * np.linalg.norm(_TorqueWave.amplitude) * _TorqueWave.frequency
+                 * clock_error + 2.0 * LONG_RUN * EPS * magnitude)
+    assert np.linalg.norm(final.angular_momentum - expected) <= tolerance
+    np.testing.assert_array_equal(final.linear_momentum, state.linear_momentum)
