@@ -151,10 +151,6 @@ def _help_of_installed(install, executable):
         return None, out, err
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    'rigid_body_node has no --help handling: it ignores the argument, starts simulating '
-    'the default scene and runs until stopped (reported; this test does not change the node).  '
-    'strict: this turns into a failure once --help works, to drop the mark.'))
 def test_colcon_build_installs_the_node_and_its_help_exits_with_usage(colcon_install):
     """``ros2 run rigid_body_sim rigid_body_node --help`` prints usage and exits 0."""
     executable = colcon_install / PACKAGE_NAME / 'lib' / PACKAGE_NAME / 'rigid_body_node'
@@ -166,7 +162,7 @@ def test_colcon_build_installs_the_node_and_its_help_exits_with_usage(colcon_ins
     assert code is not None, \
         'still running after {0} s (stopped):\n{1}{2}'.format(HELP_TIMEOUT, out, err)
     assert code == 0, out + err
-    assert 'usage' in out.lower(), out + err
+    assert 'usage: rigid_body_node' in out, out + err
 
 
 def test_colcon_install_runs_the_installed_copy_not_the_source_tree(colcon_install):
