@@ -290,6 +290,9 @@ def find_scene(name_or_path):
         raise ValueError(f'scene: empty name; built-in scenes: {", ".join(scene_names())}')
     if '/' in text or text.endswith(('.yaml', '.yml')):
         path = Path(text).expanduser()
+        if path.is_dir():
+            raise ValueError(f'scene {text!r} is a directory; give the path of a .yaml file '
+                             'in it')
         if not path.is_file():
             raise ValueError(f'scene file {text!r} does not exist')
         return path

@@ -243,6 +243,8 @@ def test_files_that_are_not_scenes_are_errors_naming_the_file(tmp_path):
         load_scene(str(listing))
     with pytest.raises(ValueError, match='does not exist'):
         load_scene(str(tmp_path / 'missing.yaml'))
+    with pytest.raises(ValueError, match='is a directory; give the path of a .yaml file'):
+        load_scene(str(tmp_path) + '/')
     with pytest.raises(ValueError, match="unknown scene 'nope'; built-in scenes: bike_wheel"):
         load_scene('nope')
 
