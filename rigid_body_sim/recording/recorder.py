@@ -11,8 +11,12 @@ the node's topics are subscribed at once with the policies of
 :mod:`rigid_body_sim.ros.qos` (best effort for /clock, whose publishers are best effort),
 other topics when discovery shows their type and offers (reliable if every publisher is,
 transient local if every publisher is).  History is keep-last with a deep queue (`depth`,
-default 5000: five seconds at 1 kHz), so a recorder that is briefly starved of CPU (on a
-busy two-core machine it was, once, for over a second) loses nothing.
+default 5000: five seconds at 1 kHz), so a take loop that falls behind while the DDS threads
+keep receiving (a slow flush, the interpreter busy) loses nothing.  A stall of the whole
+process, DDS threads included, is another matter: Fast DDS's shared-memory port queue holds
+512 samples (85 ms of the node's six topics at 1 kHz), and the node's reliable publishers
+keep only their last 10 samples to resend, so a longer stall loses the rest (measured in
+``benchmarks/recording_benchmark.py --stalls``; the summary says so when it happens).
 
 No executor.  rclpy's executor costs tens of microseconds of Python per message, too much
 for five topics at 1 kHz on a small machine.  The recorder waits on its subscriptions with
@@ -123,6 +127,10 @@ class RecordingSummary:
             lost = self.lost.get(topic)
             seen = 'lost: n/a' if lost is None else f'lost (sequence gaps): {lost}'
             lines.append(f'  {topic}: {count} ({seen})')
+        if any(self.lost.values()):
+            lines.append('  messages lost: a stall of this process longer than ~85 ms at 1 kHz '
+                         "(Fast DDS's shared-memory queue holds 512 samples, the node's "
+                         'publishers resend only their last 10); see the README')
         if self.missing:
             lines.append(f'  no message received (not in the bag): {", ".join(self.missing)}')
         return '\n'.join(lines)
