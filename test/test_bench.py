@@ -1,29 +1,57 @@
 """
 The work-precision benchmark: `rigid-body-sim bench --quick` runs and its measures are right.
 
-- The quick benchmark writes the markdown table and the PNG plot, with a row for every
-  registered integrator and, when mujoco imports, for MuJoCo's integrators.
+- The quick benchmark writes the markdown table and the PNG plots, with a row for every
+  registered integrator and, when mujoco imports, for MuJoCo's integrators, and a goal
+  table at both horizons.
 - The orientation error measure returns the angle of a known rotation to round-off.
-- The ODE reference matches the closed-form motion of a free symmetric top.
+- The ODE reference and the extended-precision (decimal Taylor) reference match the
+  closed-form motion of a free symmetric top, the latter to 1e-28 rad; the committed
+  extended values cover every run of both sweeps and are reproduced by recomputing one;
+  an uncommitted problem is computed once and then read from the cache.
 - The MuJoCo peer converges to the reference at fourth order with its RK4 (so it models the
   same body with the same frame conventions: a wrong inertia, frame or quaternion order
   would leave an O(1) error that no step size removes).
-- The cost interpolation recovers the cost of a known power-law work-precision curve.
+- The cost read off a front: the interpolation recovers a known power law; saturated or
+  diverged steps are never interpolated across; a level no step reaches is bounded below
+  by the finest step's cost.
+- The goal verdicts: a level MuJoCo never reaches holds only with a 2x margin on that bound
+  (else 'not decided'); a level below the reference's resolution is 'unresolved'; every
+  (body, level) pair is counted, none dropped.
 """
 
+import decimal
+from decimal import Decimal
+import json
 import math
 
 import numpy as np
 import pytest
 from rigid_body_sim import cli
 from rigid_body_sim.benchmark.bodies import benchmark_cases
+from rigid_body_sim.benchmark.bodies import CASE_NAMES
+from rigid_body_sim.benchmark.extended_reference import exact_time
+from rigid_body_sim.benchmark.extended_reference import key_string
+from rigid_body_sim.benchmark.extended_reference import problem_fingerprint
+from rigid_body_sim.benchmark.extended_reference import quaternion_angle
+from rigid_body_sim.benchmark.extended_reference import reference_quaternions
+from rigid_body_sim.benchmark.extended_reference import taylor_flow
+from rigid_body_sim.benchmark.measure import FULL
+from rigid_body_sim.benchmark.measure import QUICK
+from rigid_body_sim.benchmark.measure import reference_keys
 from rigid_body_sim.benchmark.peer_mujoco import mjcf_model
 from rigid_body_sim.benchmark.peer_mujoco import mujoco_available
 from rigid_body_sim.benchmark.peer_mujoco import MUJOCO_INTEGRATORS
 from rigid_body_sim.benchmark.peer_mujoco import MujocoPeer
 from rigid_body_sim.benchmark.reference import ode_reference
 from rigid_body_sim.benchmark.reference import rotation_angle
+from rigid_body_sim.benchmark.reference_values import REFERENCE_VALUES
 from rigid_body_sim.benchmark.report import cost_to_reach
+from rigid_body_sim.benchmark.report import GOAL_LEVELS
+from rigid_body_sim.benchmark.report import goal_summary
+from rigid_body_sim.benchmark.report import goal_table
+from rigid_body_sim.benchmark.report import SATURATION
+from rigid_body_sim.benchmark.report import verdict
 from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import RigidBody
 from rigid_body_sim.physics import State
@@ -33,14 +61,23 @@ EPS = np.finfo(float).eps
 
 
 def test_bench_quick_writes_a_table_and_a_plot_with_every_integrator(tmp_path, capsys):
-    """`bench --quick` exits 0 and writes results.md (all methods) and a PNG plot."""
+    """`bench --quick` exits 0 and writes results.md (all methods) and PNG plots."""
     out = tmp_path / 'bench'
     assert cli.main(['bench', '--quick', '--out', str(out)]) == 0
     table = (out / 'results.md').read_text()
-    with open(out / 'work_precision.png', 'rb') as plot:
-        assert plot.read(8) == b'\x89PNG\r\n\x1a\n'
-    assert (out / 'results.json').stat().st_size > 0
+    short, long = QUICK.horizons
+    for name in ('work_precision.png', f'work_precision_{long:g}s.png'):
+        with open(out / name, 'rb') as plot:
+            assert plot.read(8) == b'\x89PNG\r\n\x1a\n'
     assert (out / 'results.csv').stat().st_size > 0
+    result = json.loads((out / 'results.json').read_text())
+    # Both horizons get a goal table with every (body, level) pair: none is dropped.
+    for key in ('goal', 'goal_long'):
+        assert len(result[key]) == len(QUICK.cases) * len(GOAL_LEVELS)
+    assert f'### At {short:g} s: the goal' in table
+    assert f'### At {long:g} s (information only' in table
+    # The quick sweep needs no reference computation: its values are committed.
+    assert {r['origin'] for r in result['references'].values()} == {'committed'}
     methods = list(INTEGRATORS)
     if mujoco_available():
         methods += list(MUJOCO_INTEGRATORS)
@@ -121,13 +158,221 @@ def test_mujoco_peer_converges_to_the_reference_at_fourth_order():
             assert 8.0 < errors[0] / errors[1] < 32.0, (case.name, errors)
 
 
+def test_extended_reference_matches_the_closed_form_free_symmetric_top_to_1e_28_rad():
+    """
+    The decimal Taylor solve of a symmetric top equals its closed form far below double eps.
+
+    q(t) = q_L(t) q0 q_3(t): a turn by t |L| / I1 about L (world) times a turn by
+    t c, c = (1/I3 - 1/I1) M3, about the body e3 (see the ODE test above), evaluated in
+    decimal.  Per step the Taylor truncation is ~e^(-2p) ~ 1e-35 and the rounding ~1e-34 at
+    34 digits; a few hundred steps stay far below 1e-28 rad.
+    """
+    body = RigidBody(1.0, (1.0, 1.0, 2.0))
+    state = State.from_velocity(body, rotation=rotation_matrix_from_rotation_vector(
+        [0.3, -0.8, 0.5]), angular_velocity_body=(0.7, -0.4, 3.0))
+    time = exact_time(1000, 0.01)
+    values, drift = taylor_flow(body.inertia, state.quaternion, state.angular_momentum,
+                                [time])
+    with decimal.localcontext() as context:
+        context.prec = 50
+        q0 = [Decimal(float(c)) for c in state.quaternion]
+        norm = sum(c * c for c in q0).sqrt()
+        q0 = [c / norm for c in q0]
+        momentum = [Decimal(float(c)) for c in state.angular_momentum]
+        size = sum(c * c for c in momentum).sqrt()
+        # M3 = (R0^T L)_3 = L . (R0 e3), the third column of R(q0).
+        x, y, z, w = q0
+        column3 = (2 * (x * z + y * w), 2 * (y * z - x * w), 1 - 2 * (x * x + y * y))
+        m3 = sum(a * b for a, b in zip(momentum, column3))
+        inertia_1, inertia_3 = Decimal(1), Decimal(2)
+        precession = time * size / inertia_1
+        spin = time * (1 / inertia_3 - 1 / inertia_1) * m3
+        half_sine, half_cosine = _sine(precession / 2), _cosine(precession / 2)
+        q_l = [half_sine * c / size for c in momentum] + [half_cosine]
+        q_3 = [Decimal(0), Decimal(0), _sine(spin / 2), _cosine(spin / 2)]
+        expected = _product(_product(q_l, q0), q_3)
+        assert quaternion_angle(values[time], expected) < 1e-28
+    assert drift < 1e-30
+
+
+def _sine(x):
+    """Return sin(x) for a Decimal x by its Taylor series (current context)."""
+    return _series(x, x, 1)
+
+
+def _cosine(x):
+    """Return cos(x) for a Decimal x by its Taylor series (current context)."""
+    return _series(x, Decimal(1), 0)
+
+
+def _series(x, term, k):
+    """Sum term - term x^2 / ((k+1)(k+2)) + ... until the terms drop below the precision."""
+    # |x| <= ~30 here: the largest term is ~1e12, so 50 digits leave ~38 after cancellation.
+    total = Decimal(0)
+    smallest = Decimal(10) ** -(decimal.getcontext().prec + 2)
+    while abs(term) >= smallest or k < 2:
+        total += term
+        term = -term * x * x / ((k + 1) * (k + 2))
+        k += 2
+    return total
+
+
+def _product(a, b):
+    """Hamilton product of quaternions stored (x, y, z, w)."""
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return [aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz]
+
+
+def test_committed_extended_reference_covers_every_run_and_is_reproduced():
+    """
+    Every (N, dt) of both sweeps has a committed value, and recomputing one gives it again.
+
+    Recomputed: van_zon at 2 s, which must agree within the solves' own agreement.
+    """
+    cases = {case.name: case for case in benchmark_cases(CASE_NAMES)}
+    for name, case in cases.items():
+        entry = REFERENCE_VALUES[problem_fingerprint(case.body, case.state)]
+        needed = set()
+        for config in (FULL, QUICK):
+            if name in config.cases:
+                needed |= {key_string(*key) for key in reference_keys(config)}
+        assert needed <= set(entry['values']), (name, needed - set(entry['values']))
+        assert max(value[4] for value in entry['values'].values()) < 1e-20
+    case = cases['van_zon']
+    time = exact_time(20, 0.1)
+    # One solve at 34 digits (the committed value is the 42-digit one of the pair).
+    values, _ = taylor_flow(case.body.inertia, case.state.quaternion,
+                            case.state.angular_momentum, [time])
+    committed = REFERENCE_VALUES[problem_fingerprint(case.body, case.state)]['values']
+    with decimal.localcontext() as context:
+        context.prec = 50
+        again = values[time]
+        stored = [Decimal(c) for c in committed[key_string(20, 0.1)][:4]]
+        # Not bit for bit: another precision, and the step sizes come from float powers,
+        # which may differ by an ulp between libms; the solves agree to ~1e-30 rad.
+        assert quaternion_angle(again, stored) < 1e-25
+
+
+def test_an_uncommitted_problem_is_computed_once_then_read_from_the_cache(tmp_path,
+                                                                          monkeypatch):
+    """A body not in the committed values is solved and cached; the second call reads it."""
+    monkeypatch.setenv('RIGID_BODY_SIM_CACHE', str(tmp_path))
+    body = RigidBody(1.0, (1.0, 1.5, 2.0))
+    state = State.from_velocity(body, angular_velocity_body=(0.2, 0.3, 0.5))
+    first, _, origin = reference_quaternions(body, state, [(2, 0.5)])
+    assert origin == 'computed now'
+    assert (tmp_path / 'benchmark_reference.json').exists()
+    second, _, origin = reference_quaternions(body, state, [(2, 0.5)])
+    assert origin == 'cached'
+    assert second == first
+    assert first[(2, 0.5)][1] < 1e-25
+
+
 def test_cost_to_reach_interpolates_a_power_law_curve():
     """On error = dt^2, cost = 1e-6 / dt, the cost to reach e is 1e-6 / sqrt(e)."""
     dts = [0.1, 0.03, 0.01, 0.003, 0.001]
-    points = [(1e-6 / dt, dt * dt) for dt in dts]
-    cost, at_coarsest = cost_to_reach(points, 1e-4)
-    assert cost == pytest.approx(1e-6 / 1e-2, rel=1e-12)
-    assert not at_coarsest
-    cost, at_coarsest = cost_to_reach(points, 0.1)
-    assert cost == pytest.approx(1e-5) and at_coarsest
-    assert cost_to_reach(points, 1e-7) == (math.inf, False)
+    points = [(dt, 1e-6 / dt, dt * dt) for dt in dts]
+    reach = cost_to_reach(points, 1e-4)
+    assert reach.cost == pytest.approx(1e-6 / 1e-2, rel=1e-12)
+    assert reach.kind == 'interpolated' and reach.lower == reach.cost
+    assert reach.dts == (0.03, 0.01)
+    reach = cost_to_reach(points, 0.1)
+    # The coarsest step already reaches 0.1: an upper bound, with no lower bound.
+    assert (reach.cost, reach.lower, reach.kind) == (pytest.approx(1e-5), 0.0, 'coarsest')
+
+
+@pytest.mark.parametrize('not_tracking', [SATURATION, 2.5, math.inf])
+def test_cost_to_reach_never_interpolates_across_a_saturated_or_diverged_step(not_tracking):
+    """
+    Error 2.5 rad at dt = 1 then 1e-3 at dt = 0.1: the 1e-2 level costs between the two.
+
+    A log-log line from the saturated point would cross 1e-2 at a made-up cost (here
+    ~84 % of the way to the second step); the reach is instead bracketed by the two steps.
+    """
+    points = [(1.0, 1e-6, not_tracking), (0.1, 1e-5, 1e-3), (0.01, 1e-4, 1e-5)]
+    reach = cost_to_reach(points, 1e-2)
+    assert (reach.cost, reach.lower, reach.kind) == (1e-5, 1e-6, 'after saturated')
+    assert reach.dts == (1.0, 0.1)
+    # Between the two tracking steps the interpolation is used as usual.
+    reach = cost_to_reach(points, 1e-4)
+    assert reach.kind == 'interpolated'
+    assert reach.cost == pytest.approx(10 ** -4.5, rel=1e-12)
+
+
+def test_a_level_no_step_reaches_is_bounded_below_by_the_finest_step():
+    """Not reached: cost inf, lower bound = the finest measured step's cost."""
+    points = [(1.0, 1e-6, 3.0), (0.1, 1e-5, 1e-3), (0.01, 1e-4, 1e-6)]
+    reach = cost_to_reach(points, 1e-9)
+    assert (reach.cost, reach.lower, reach.kind) == (math.inf, 1e-4, 'not reached')
+    assert reach.dts == (0.01,)
+
+
+@pytest.mark.parametrize('ours, peer, peer_lower, expected', [
+    (1e-5, 2e-5, 2e-5, 'holds'),             # both interpolated: ratio exactly 1/2
+    (1e-5, 1.9e-5, 1.9e-5, 'fails'),         # ratio 0.53
+    (1e-5, math.inf, 2e-5, 'holds'),          # MuJoCo never reaches; its finest costs 2x
+    (1e-5, math.inf, 1.5e-5, 'not decided'),  # ... only 1.5x: no 2x margin shown
+    (math.inf, math.inf, 1e-3, 'neither reaches'),
+    (1e-5, 1e-4, 0.0, 'holds*'),              # MuJoCo reaches at its coarsest step only
+    (1e-5, 3e-5, 1e-5, 'not decided'),        # MuJoCo between 1e-5 and 3e-5: ratio 1/3 .. 1
+])
+def test_goal_verdict_needs_a_2x_margin_on_the_bounds(ours, peer, peer_lower, expected):
+    """'holds' needs ours <= 1/2 MuJoCo's lower bound; never a verdict without a number."""
+    outcome, low, high = verdict(ours, ours, peer, peer_lower, 1e-6, 1e-15)
+    assert outcome == expected
+    if outcome == 'holds':
+        assert high <= 0.5 and math.isfinite(high)
+
+
+def test_goal_verdict_is_unresolved_below_the_reference_resolution():
+    """A level below the reference's resolution is 'unresolved' even when both reach it."""
+    assert verdict(1e-6, 1e-6, 1e-3, 1e-3, 1e-12, 2e-12)[0] == 'unresolved'
+    assert verdict(1e-6, 1e-6, 1e-3, 1e-3, 1e-11, 2e-12)[0] == 'holds'
+
+
+def _synthetic_result(uncertainty):
+    """One body, 'exact' (ours) and 'mujoco_rk4' at three steps; MuJoCo stops at 1e-8."""
+    records = []
+    fronts = {'exact': [(1.0, 1e-6, 1e-13), (0.1, 1e-5, 1e-13), (0.01, 1e-4, 1e-12)],
+              'mujoco_rk4': [(1.0, 1e-5, 2.0), (0.1, 1e-4, 1e-4), (0.01, 1e-3, 1e-8)]}
+    for method, front in fronts.items():
+        for dt, cost, error in front:
+            steps = round(10.0 / dt)
+            records.append({'case': 'body', 'method': method, 'dt': dt, 'steps_short': steps,
+                            'steps_long': 10 * steps, 'error_short': error,
+                            'error_long': error, 'cpu_per_sim_second': cost})
+    keys = {key_string(r[f'steps_{h}'], r['dt']): uncertainty for r in records
+            for h in ('short', 'long')}
+    return {'methods': list(fronts), 'records': records,
+            'references': {'body': {'uncertainty': keys}}}
+
+
+def test_goal_table_bounds_never_reached_levels_and_flags_unresolved_ones():
+    """
+    Goal rows of a synthetic front: bounds where MuJoCo never reaches, unresolved levels.
+
+    MuJoCo (finest step: 1e-3 CPU s/sim s) reaches 1e-8 at best; ours costs 1e-6 at every
+    level.  1e-2: MuJoCo's first tracking step follows a
+    saturated one, so its cost lies in (1e-5, 1e-4]: holds (ratio <= 0.1).  1e-9 .. 1e-11:
+    holds against the bound 1e-3 (ratio <= 1e-3).  With a reference good to 5e-12 only,
+    1e-12 is 'unresolved'.  Every pair is counted.
+    """
+    rows = goal_table(_synthetic_result(5e-12))
+    by_level = {row['level']: row for row in rows}
+    first = by_level[1e-2]
+    assert first['verdict'] == 'holds'
+    assert first['mujoco_reach']['kind'] == 'after saturated'
+    assert first['ratio_high'] == pytest.approx(1e-6 / 1e-5)
+    for level in (1e-9, 1e-10, 1e-11):
+        row = by_level[level]
+        assert row['mujoco_reach']['kind'] == 'not reached'
+        assert row['mujoco_lower'] == 1e-3
+        assert row['verdict'] == 'holds' and row['ratio_high'] == pytest.approx(1e-3)
+    assert by_level[1e-12]['verdict'] == 'unresolved'
+    counts = goal_summary(rows)
+    assert sum(counts.values()) == len(GOAL_LEVELS)
+    assert counts['unresolved'] == 1 and counts['holds'] == len(GOAL_LEVELS) - 1

@@ -1,7 +1,11 @@
 """
 Reference orientations of the torque-free benchmark bodies.
 
-Two independent references:
+The reference is the extended-precision Taylor solve of :mod:`.extended_reference` (decimal
+arithmetic, 34 and 42 digits, independent of every integrator it scores), taken at exactly
+N x dt s for each run of N steps of dt.  Its uncertainty is the gap between its two solves,
+and never below :data:`MEASUREMENT_FLOOR`, what an angle between two double rotation matrices
+resolves.  Two double-precision solutions are compared with it and reported:
 
 - :func:`ode_reference`: Euler's equations for the body angular momentum M = I_b Omega and
   the quaternion q (x, y, z, w), body to world, integrated by scipy's DOP853 at rtol 1e-13,
@@ -15,30 +19,31 @@ Two independent references:
 - :func:`exact_reference`: the project's exact torque-free flow, ``INTEGRATORS['exact']``,
   taken in one step from t = 0 to each requested time (it is exact for any step).
 
-:func:`reference_rotations` uses the exact flow when it is registered and cross-checks it
-against the ODE solve; otherwise the ODE solve alone.
+Both are cross-checks only: the exact flow scored against itself would hide its own errors,
+and DOP853 at rtol 1e-13 resolves only ~1e-12 rad on the fast bodies.
 """
 
 from dataclasses import dataclass
+import decimal
+from decimal import Decimal
 
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from .extended_reference import DIGITS
+from .extended_reference import reference_quaternions
+from .extended_reference import rotation_matrix_decimal
 from ..physics import INTEGRATORS
 from ..physics import matrix_from_quaternion
-from ..physics import State
 
-__all__ = ['Reference', 'ode_reference', 'exact_reference', 'exact_resolution',
-           'reference_rotations', 'rotation_angle']
+__all__ = ['Reference', 'ode_reference', 'exact_reference', 'reference_rotations',
+           'rotation_angle', 'MEASUREMENT_FLOOR']
 
 ODE_RTOL = 1e-13
 ODE_ATOL = 1e-16
-# The exact flow is trusted when it is this close (rad) to the ODE solve, or closer than 3x
-# the ODE's own estimated error; a larger gap is a defect in one of them and the case falls
-# back to the ODE reference (reported).
-CROSS_CHECK_FLOOR = 1e-11
-# The least error (rad) ever claimed resolvable: a few ulp of an angle.
-EXACT_FLOOR = 1e-15
+# The least error (rad) ever claimed resolvable: the angle between two double rotation
+# matrices, each entry rounded (<= 0.5 ulp) and multiplied in double, is good to a few eps.
+MEASUREMENT_FLOOR = 1e-15
 
 
 def rotation_angle(rotation_a, rotation_b):
@@ -114,106 +119,73 @@ def ode_reference(body, state, times, rtol=ODE_RTOL):
 
 
 def exact_reference(body, state, times):
-    """Return {time: R(time)} from ``INTEGRATORS['exact']`` in one step from t = 0."""
+    """Return {time: R(time)} from ``INTEGRATORS['exact']`` in one step from t = 0 (s)."""
     exact = INTEGRATORS['exact']
     return {float(t): np.array(exact(body, state, 0.0, float(t), None).rotation)
             for t in times}
 
 
-def exact_resolution(body, state, time):
-    """
-    Return how far (rad) the exact flow's R(time) can be trusted: its round-off level.
-
-    The largest of: the gap between one step to `time` and 2 or 10 equal steps (the flow's
-    group property, which an exact flow keeps up to round-off), and the change of R(time)
-    when L(0) is perturbed by one ulp of |L| in three fixed directions (the problem's own
-    conditioning: no double-precision method can resolve less).  Never below 1e-15 rad.
-    """
-    exact = INTEGRATORS['exact']
-    one_step = exact(body, state, 0.0, time, None).rotation
-    gaps = [EXACT_FLOOR]
-    for pieces in (2, 10):
-        piecewise = state
-        for k in range(pieces):
-            piecewise = exact(body, piecewise, k * time / pieces, time / pieces, None)
-        gaps.append(rotation_angle(one_step, piecewise.rotation))
-    magnitude = np.linalg.norm(state.angular_momentum)
-    ulp = np.spacing(magnitude)
-    for direction in np.eye(3):
-        perturbed = State._from_arrays(
-            np.array(state.quaternion), np.array(state.position),
-            np.array(state.linear_momentum), state.angular_momentum + ulp * direction)
-        gaps.append(rotation_angle(one_step, exact(body, perturbed, 0.0, time, None).rotation))
-    return max(gaps)
+def _double_rotation(quaternion):
+    """Return R (double, each entry correctly rounded) of a quaternion of decimal strings."""
+    with decimal.localcontext() as context:
+        context.prec = DIGITS + 8
+        rows = rotation_matrix_decimal([Decimal(c) for c in quaternion])
+        return np.array([[float(value) for value in row] for row in rows])
 
 
 @dataclass
 class Reference:
     """
-    Reference orientations of one case.
+    Reference orientations of one case, at N steps of dt (keys (N, dt)).
 
     Attributes
     ----------
     rotations : dict
-        time (s) -> R (3x3, body to world).
-    source : str
-        'exact' (the exact flow) or 'ode' (the DOP853 solve).
+        (N, dt) -> R (3x3, body to world) at exactly N x dt s.
     uncertainty : dict
-        time (s) -> estimated error of the reference (rad); errors below it are not
-        resolved.  For the ODE: the gap between the solves at rtol 1e-12 and 1e-13 (the
-        error of the looser one, an upper estimate of the tighter one's).  For the exact
-        flow, which agreed with the ODE within that: :func:`exact_resolution`.
-    cross_check : float or None
-        Max angle (rad) between the exact flow and the DOP853 solve over all the times,
-        when the exact flow is registered.
-    gaps : dict or None
-        time (s) -> angle (rad) between the exact flow and the DOP853 solve.
-    ode_uncertainty : float
-        Max over the times of the ODE's estimated error (rad).
-    note : str
-        Why the source was chosen, for the report.
+        (N, dt) -> estimated error (rad) of the reference: the gap between its two solves,
+        at least :data:`MEASUREMENT_FLOOR`.  Errors below it are not resolved.
+    drift : float
+        Largest relative drift of the conserved |M| and 2T in the extended solves.
+    origin : str
+        Where the values came from: 'committed', 'cached' and/or 'computed now'.
+    exact_gap : dict or None
+        (N, dt) -> angle (rad) between the exact flow (one step from 0) and the reference;
+        None when no exact flow is registered.
+    ode_gap : dict
+        (N, dt) -> angle (rad) between the DOP853 solve and the reference.
 
     """
 
     rotations: dict
-    source: str
     uncertainty: dict
-    cross_check: float = None
-    ode_uncertainty: float = None
-    note: str = ''
-    gaps: dict = None
+    drift: float
+    origin: str
+    exact_gap: dict
+    ode_gap: dict
 
-    def angle_error(self, time, rotation):
-        """Return the rotation angle (rad) between `rotation` and the reference at `time`."""
-        return rotation_angle(rotation, self.rotations[float(time)])
+    def angle_error(self, steps, dt, rotation):
+        """Return the angle (rad) between `rotation` and the reference after N steps of dt."""
+        return rotation_angle(rotation, self.rotations[(int(steps), float(dt))])
 
 
-def reference_rotations(body, state, times):
+def reference_rotations(body, state, keys, use_cache=True):
     """
-    Return the Reference of a torque-free case at `times` (see the module docstring).
+    Return the Reference of a torque-free case after N steps of dt, for each (N, dt) in keys.
 
-    With ``INTEGRATORS['exact']`` registered, the exact flow is the reference when it agrees
-    with the DOP853 solve at every time within max(3 x the ODE's estimated error, 1e-11 rad);
-    otherwise (or without an exact flow) the DOP853 solve is, and the note says why.
+    The extended-precision solve is the reference (module docstring); the exact flow (when
+    registered) and the DOP853 solve are compared with it at every key.
     """
-    times = sorted({float(t) for t in times})
-    ode = ode_reference(body, state, times)
-    looser = ode_reference(body, state, times, rtol=10.0 * ODE_RTOL)
-    ode_uncertainty = {t: max(rotation_angle(ode[t], looser[t]), EXACT_FLOOR)
-                       for t in times}
-    worst = max(ode_uncertainty.values())
-    if 'exact' not in INTEGRATORS:
-        return Reference(ode, 'ode', ode_uncertainty, None, worst,
-                         'DOP853 solve (no "exact" integrator registered yet)')
-    exact = exact_reference(body, state, times)
-    gaps = {t: rotation_angle(exact[t], ode[t]) for t in times}
-    gap = max(gaps.values())
-    agree = all(gaps[t] <= max(3.0 * ode_uncertainty[t], CROSS_CHECK_FLOOR) for t in times)
-    if not agree:
-        return Reference(ode, 'ode', ode_uncertainty, gap, worst,
-                         f'the exact flow DISAGREES with the DOP853 solve by up to {gap:.1e} '
-                         f'rad (its estimated error: {worst:.1e} rad): DOP853 used', gaps)
-    resolution = {t: exact_resolution(body, state, t) for t in times}
-    return Reference(exact, 'exact', resolution, gap, worst,
-                     f'exact flow; DOP853 agrees within {gap:.1e} rad (its estimated '
-                     f'error: {worst:.1e} rad)', gaps)
+    keys = sorted({(int(n), float(dt)) for n, dt in keys})
+    values, drift, origin = reference_quaternions(body, state, keys, use_cache=use_cache)
+    rotations = {key: _double_rotation(values[key][0]) for key in keys}
+    uncertainty = {key: max(values[key][1], MEASUREMENT_FLOOR) for key in keys}
+    # The double-precision solutions take the double nearest the exact time N x dt.
+    times = {key: float(key[0] * Decimal(key[1])) for key in keys}
+    ode = ode_reference(body, state, times.values())
+    ode_gap = {key: rotation_angle(ode[times[key]], rotations[key]) for key in keys}
+    exact_gap = None
+    if 'exact' in INTEGRATORS:
+        exact = exact_reference(body, state, times.values())
+        exact_gap = {key: rotation_angle(exact[times[key]], rotations[key]) for key in keys}
+    return Reference(rotations, uncertainty, drift, origin, exact_gap, ode_gap)
