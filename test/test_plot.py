@@ -106,7 +106,7 @@ def test_time_axis_is_simulated_time_from_the_start_or_wall_time_from_the_first_
 
 @pytest.fixture(scope='module')
 def heavy_top_bags(tmp_path_factory):
-    """The heavy top, 1 s at 1 kHz and at 2 kHz: (scene, {rate: BagMotion})."""
+    """Simulate the heavy top 1 s at 1 kHz and at 2 kHz; return (scene, {rate: BagMotion})."""
     directory = tmp_path_factory.mktemp('top')
     scene = load_scene('heavy_top')
     motions = {}

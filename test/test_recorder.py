@@ -137,8 +137,10 @@ def assert_logged_at_the_receive_time(messages):
         log = np.array([m.log_time for m in records], dtype=np.int64)
         delay = log - publish
         assert np.all(delay >= 0), (topic, delay.min())
-        assert np.median(delay) < 10_000_000, (topic, np.median(delay))
         assert np.all(delay < 500_000_000), (topic, delay.max())
+        if len(records) >= 100:
+            # A median over many (the 100 Hz topics; /diagnostics has a few, at 1 Hz).
+            assert np.median(delay) < 10_000_000, (topic, np.median(delay))
 
 
 @pytest.fixture
@@ -320,7 +322,7 @@ class TopicPublisher:
         self.node = rclpy.create_node('test_publisher', context=self.context)
         self.publishers = {topic: self.node.create_publisher(String, topic, profile)
                            for topic, profile in topics.items()}
-        self.published = {topic: 0 for topic in topics}
+        self.published = dict.fromkeys(topics, 0)
 
     def publish(self, topic):
         """Publish the next number on `topic`."""
@@ -336,10 +338,12 @@ class TopicPublisher:
 def test_topics_the_node_does_not_publish_are_found_by_discovery_with_their_qos(
         tmp_path, environment):
     """
-    Only foreign topics: the recorder starts with nothing to subscribe (no wait on an empty
-    wait set), finds them by discovery and matches their QoS: a best-effort one, and a
-    transient-local one whose message was published before the recorder started (only a
-    transient-local subscription receives it).
+    Record only foreign topics, found by discovery with the publishers' QoS.
+
+    The recorder starts with nothing to subscribe (no wait on an empty wait set), finds the
+    topics by discovery and matches their QoS: a best-effort one, and a transient-local one
+    whose message was published before the recorder started (only a transient-local
+    subscription receives it).
     """
     namespace = environment
     best_effort, latched = f'{namespace}/best_effort_count', f'{namespace}/latched_count'

@@ -320,7 +320,7 @@ def conserved_quantities(motion):
 
 
 def _pivot_quantities(motion, pivot, gravity):
-    """The conserved quantities of a body turning about a fixed point (see module docstring)."""
+    """Return the conserved quantities of a body turning about a fixed point (see above)."""
     acceleration = None if gravity is None else np.asarray(gravity['acceleration'], float)
     velocity = motion.velocity
     kinetic = motion.rotational_energy[0] + 0.5 * motion.mass * float(velocity[0] @ velocity[0])
@@ -655,7 +655,7 @@ def _polhode_panel(axes, motion):
 
 
 def _com_panel(figure, cell, motion, time_label):
-    """The COM's path in the plane it moves in (equal scales) and its height against time."""
+    """Draw the COM's path in the plane it moves in (equal scales) and its height z(t)."""
     position = motion.position
     time = motion.time
     cells = cell.subgridspec(1, 2, width_ratios=(1.0, 1.0))
