@@ -695,6 +695,7 @@ def _plot(result, path, horizon='short'):
     matplotlib.use('Agg')
     from matplotlib import pyplot
     from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
 
     cases = list(result['references'])
     columns = 3
@@ -750,6 +751,8 @@ def _plot(result, path, horizon='short'):
                               label=method))
     handles.append(Line2D([], [], color='0.3', marker='x', linestyle='none',
                           label=f'not tracking (>= {SATURATION:g} rad) or diverged'))
+    handles.append(Patch(color='mistyrose', label=f'error >= {SATURATION:g} rad'))
+    handles.append(Patch(color='0.85', label="below the reference's resolution"))
     spare[0].legend(handles=handles, loc='center', fontsize=10, ncol=2,
                     title='solid: this project; dashed, open: MuJoCo')
     figure.suptitle(f'Work-precision at {seconds:g} s: orientation error vs CPU per simulated '
