@@ -25,8 +25,8 @@ Usage: .venv/bin/python benchmarks/recording_benchmark.py [--seconds S] [--repea
    gap starts (ms after the stop).  Variants: Fast DDS shared memory with an 8 MiB segment
    (default 512 KiB) with and without a deeper port queue (8192 descriptors; default 512),
    given by an XML profile (FASTRTPS_DEFAULT_PROFILES_FILE); and the node's state
-   publishers at keep-last 1000 instead of 10 (rigid_body_sim.ros.qos.STATE_QOS patched
-   before the node is imported, in the node's process only).
+   publishers at keep-last 10, their depth before it became 1000 (rigid_body_sim.ros.qos
+   .STATE_QOS patched before the node is imported, in the node's process only).
 """
 
 import argparse
@@ -280,8 +280,8 @@ def stalls(directory, repeats, record_seconds=9.0):
          None),
         ('recorder 0.3 s, shm 8 MiB + port queue 8192', 'recorder', 0.3,
          {xml: str(profiles['queue'])}, None),
-        ('node 0.3 s, node state depth 1000', 'node', 0.3, {}, 1000),
-        ('recorder 0.6 s, node state depth 1000', 'recorder', 0.6, {}, 1000),
+        ('recorder 0.3 s, node state depth 10 (before)', 'recorder', 0.3, {}, 10),
+        ('recorder 0.6 s, node state depth 10 (before)', 'recorder', 0.6, {}, 10),
     ]
     print(f'Stalls: node at {RATE:g} Hz with /clock, rigid-body-sim record for '
           f'{record_seconds:g} s, one process stopped 2 s in; {repeats} runs per case.')

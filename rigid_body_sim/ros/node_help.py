@@ -26,7 +26,7 @@ pivot) and publish its state at `rate` Hz; push it through the torque and wrench
 topics when the scene has the effect external_wrench.  Ctrl-C or SIGTERM stop it
 (exit code 0); an invalid configuration is one error line and exit code 1.
 
-published (relative names; QoS reliable, keep-last 10, volatile):
+published (relative names; QoS reliable, keep-last 1000 (1 s at 1 kHz), volatile):
   pose              geometry_msgs/PoseStamped      COM position, orientation (body to world)
   twist             geometry_msgs/Twist            COM velocity, angular velocity (world)
   angular_momentum  geometry_msgs/Vector3Stamped   L about the COM (world)
