@@ -319,15 +319,15 @@ def test_van_zon_schofield_at_dt_0_1_over_10_s_is_within_1e_12_rad():
 
     I = (10, 20, 26), Omega0 = (1, 15, 1), R0 = E: 150 rad in 10 s next to the separatrix
     (k'^2 = 3.3e-3).  Measured: 1.9e-13 rad.  What any double-precision stepper can reach
-    here (benchmarks/exact_roundoff_floor.py: the exact flow in 32-digit decimals, the
+    here (benchmarks/exact_roundoff_floor.py: the exact flow in 30-digit decimals, the
     quaternion rounded to double after every step, from this start and seven starts 1 ulp
-    away): median 7.0e-13, largest 9.6e-13 rad at 10 s, and a 1-ulp change of q0 alone moves
-    R(10 s) by 1.9e-13 (median; up to 5.0e-13).  So 1e-12 holds with a factor ~5 here, but
-    it is near what the conditioning allows: another start's rounding sequence can give up
-    to ~1.9e-12 (measured over those eight starts: median 2.0e-13).  The readable step,
-    rebuilt as a State every step, gets 2.2e-12: State._from_arrays renormalises the already
-    rounded quaternion, a second rounding of up to ~1 ulp per step.  Before the round-off
-    work of this change (commit 908d2a6): 5.8e-12.
+    away): 6.4e-13 rad at 10 s from this start, median 3.0e-13 and largest 6.4e-13 over the
+    eight; a 1-ulp change of q0 alone moves R(10 s) by 2.2e-13 (median; largest 2.5e-13).
+    So 1e-12 holds here with a factor 5, but near what the conditioning allows: over the
+    eight starts exact measures median 2.0e-13, largest 1.9e-12.  The readable step, rebuilt
+    as a State every step, gets 2.2e-12: State._from_arrays renormalises the already rounded
+    quaternion, a second rounding of up to ~1 ulp per step.  Before the round-off work
+    (commit 908d2a6): 5.8e-12.
     """
     case = benchmark_cases(('van_zon',))[0]
     expected = reference_orientations(case.body, case.state, [decimal.Decimal(0.1) * 100])[0]

@@ -77,9 +77,12 @@ k^2, A, B, C) are rounded each step from the rounded state, the same way each st
 bias of ~0.04 ulp of L per step at dt = 0.01 s on van Zon & Schofield's body.
 
 Measured against an independent 30-digit Taylor integration (test/taylor_reference.py) at
-10 s, median over eight starts (benchmarks/exact_roundoff_floor.py gives the ideal stepper):
-van Zon & Schofield's body 2.0e-13 / 2.4e-12 / 9.1e-12 rad at dt = 0.1 / 0.01 / 0.001 s,
-the ideal stepper 7.0e-13 / 4.0e-13 / 7.0e-12.
+10 s, median over eight starts 1 ulp apart (benchmarks/exact_roundoff_floor.py, which also
+runs that ideal stepper, the floor): van Zon & Schofield's body 2.0e-13 / 2.4e-12 / 9.1e-12
+rad at dt = 0.1 / 0.01 / 0.001 s, floor 3.0e-13 / 2.3e-12 / 6.5e-12 (before this
+construction: 7.1e-12 / 4.3e-11 / 4.0e-10); the T-handle 1.5e-14 / 1.1e-14 / 2.2e-14, floor
+4e-16 / 2e-15 / 1.2e-14 (its start spins about a world axis, whose rounding turns it about L
+alone: a floor no computed step reaches).
 
 Everything is world frame except m (principal or circulation frame); SI units.
 """
