@@ -325,9 +325,9 @@ def test_van_zon_schofield_at_dt_0_1_over_10_s_is_within_1e_12_rad():
     eight; a 1-ulp change of q0 alone moves R(10 s) by 2.2e-13 (median; largest 2.5e-13).
     So 1e-12 holds here with a factor 5, but near what the conditioning allows: over the
     eight starts exact measures median 2.0e-13, largest 1.9e-12.  The readable step, rebuilt
-    as a State every step, gets 2.2e-12: State._from_arrays renormalises the already rounded
-    quaternion, a second rounding of up to ~1 ulp per step.  Before the round-off work
-    (commit 908d2a6): 5.8e-12.
+    as a State every step, gets 1.3e-12 (2.2e-12 while State._from_arrays still rescaled
+    every unit quaternion, a second rounding of up to ~1 ulp per step; it now keeps one that
+    is unit to round-off).  Before the round-off work (commit 908d2a6): 5.8e-12.
     """
     case = benchmark_cases(('van_zon',))[0]
     expected = reference_orientations(case.body, case.state, [decimal.Decimal(0.1) * 100])[0]

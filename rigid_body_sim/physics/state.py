@@ -21,6 +21,9 @@ from .rotations import quaternion_from_matrix
 
 __all__ = ['State']
 
+# |q|^2 of a unit quaternion, summed in floating point, is within a few ulps of 1.
+_UNIT_TOLERANCE = 4.0 * 2.0 ** -52
+
 
 def _vector(value, name, unit):
     array = np.array(value, dtype=float).reshape(-1) if value is not None else np.zeros(3)
@@ -101,7 +104,11 @@ class State:
         """
         state = object.__new__(cls)
         x, y, z, w = quaternion.tolist()
-        q = quaternion * (1.0 / math.sqrt(x * x + y * y + z * z + w * w))
+        norm_squared = x * x + y * y + z * z + w * w
+        # A quaternion already unit to round-off is kept: rescaling it by 1 +- 2^-52 would
+        # add an ulp of noise to every step of an integrator that normalises itself.
+        q = quaternion if abs(norm_squared - 1.0) <= _UNIT_TOLERANCE \
+            else quaternion * (1.0 / math.sqrt(norm_squared))
         state._set(_frozen(q), None, _frozen(position), _frozen(linear_momentum),
                    _frozen(angular_momentum))
         return state
