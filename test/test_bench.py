@@ -72,9 +72,14 @@ def test_bench_quick_writes_a_table_and_a_plot_with_every_integrator(tmp_path, c
     assert (out / 'results.csv').stat().st_size > 0
     result = json.loads((out / 'results.json').read_text())
     # Both horizons get a goal table with every (body, level) pair: none is dropped.
-    for key in ('goal', 'goal_long'):
+    for key in ('goal', 'goal_long', 'goal_issue_steps'):
         assert len(result[key]) == len(QUICK.cases) * len(GOAL_LEVELS)
-    assert f'### At {short:g} s: the goal' in table
+    # First on the issue's steps that the sweep measured (the quick one: 0.1 and 0.01 s),
+    # then on every measured step.
+    assert f'### At {short:g} s, dt = 0.1, 0.01 s: the goal' in table
+    assert f'### At {short:g} s, every measured dt: the goal' in table
+    assert {row['ours_reach']['dts'][-1] for row in result['goal_issue_steps']
+            if row['ours_reach']['dts']} <= {0.1, 0.01}
     assert f'### At {long:g} s (information only' in table
     # The quick sweep needs no reference computation: its values are committed.
     assert {r['origin'] for r in result['references'].values()} == {'committed'}
