@@ -323,9 +323,11 @@ def test_an_input_expires_after_the_input_timeout(sim, topic):
     assert changed, 'the torque never acted'
     # It acts from its arrival (after `sent`; generously, within SETTLE of it) ...
     assert sent <= min(changed) <= sent + SETTLE
-    # ... until input_timeout later by the node's clock (the stamps), to within a tick ...
+    # ... until input_timeout later by the node's clock (the stamps, each a tick's start),
+    # to within a tick, and one more where the scheduler delayed a tick at either end (a
+    # late tick, caught up at once, starts later than its place and is stamped so) ...
     span = max(changed) - min(changed)
-    assert INPUT_TIMEOUT - 2 * PERIOD <= span <= INPUT_TIMEOUT + 1e-6, span
+    assert INPUT_TIMEOUT - 3 * PERIOD <= span <= INPUT_TIMEOUT + 1e-6, span
     # ... with a torque of tau h at each tick it held ...
     total = _whole_kicks(momenta[-1][1] - L0, np.array([0.0, 0.0, 1.0]) * PERIOD)
     assert HELD_TICKS[0] <= total <= HELD_TICKS[1], (total, HELD_TICKS)
