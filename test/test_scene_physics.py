@@ -43,17 +43,37 @@ def _elliptic_period(scene):
                                     scene.state.angular_velocity_body(scene.body))
 
 
+def _flip_period(name, periods):
+    """
+    Return (measured, elliptic, flips): the period (s) of Omega2 over `periods` periods.
+
+    The measured period is twice the mean time between sign changes of Omega2 (nan with
+    fewer than two); `flips` are those times (s); `elliptic` is the closed form 4 K / rate.
+    """
+    scene = load_scene(name)
+    expected = _elliptic_period(scene)
+    flips = _flip_times(scene.simulator(), scene.body, periods * expected, scene.dt)
+    measured = 2.0 * float(np.mean(np.diff(flips))) if len(flips) >= 2 else math.nan
+    return measured, expected, flips
+
+
 @pytest.mark.parametrize('name, periods', [('t_handle', 3), ('default', 3),
                                            ('tennis_racket', 4), ('van_zon', 4)])
 def test_middle_axis_flip_period_matches_the_elliptic_closed_form(name, periods):
     # Landau-Lifshitz section 37: Omega2 ~ sn(tau | k^2) changes sign twice per period
     # T = 4 K(k^2) / rate; the issue asks for 0.5 % at the scene's default step.
-    scene = load_scene(name)
-    expected = _elliptic_period(scene)
-    flips = _flip_times(scene.simulator(), scene.body, periods * expected, scene.dt)
+    measured, expected, flips = _flip_period(name, periods)
     assert len(flips) >= 2 * periods - 1
-    measured = 2.0 * float(np.mean(np.diff(flips)))
     assert measured == pytest.approx(expected, rel=0.005)
+
+
+def _first_flip(scene, integrator):
+    """Return (first sign change of Omega2, T / 4) in s and the tolerance 2 (|Omega| dt)^2."""
+    expected = _elliptic_period(scene) / 4.0
+    omega = np.linalg.norm(scene.state.angular_velocity_body(scene.body))
+    simulator = scene.simulator(integrator=integrator)
+    flips = _flip_times(simulator, scene.body, 1.2 * expected, scene.dt)
+    return flips[0], expected, 2.0 * (omega * scene.dt) ** 2
 
 
 @pytest.mark.parametrize('name', ['t_handle', 'tennis_racket', 'thrown_box'])
@@ -63,13 +83,9 @@ def test_first_flip_comes_after_a_quarter_period_even_with_buss(name):
     # only in later flips (see t_handle.yaml).  The thrown box's flip is torque-free too:
     # gravity acts at the COM.  Both methods are second order: 2 (|Omega| dt)^2.
     scene = load_scene(name)
-    expected = _elliptic_period(scene) / 4.0
-    omega = np.linalg.norm(scene.state.angular_velocity_body(scene.body))
     for integrator in (scene.integrator, 'buss'):
-        simulator = scene.simulator(integrator=integrator)
-        flips = _flip_times(simulator, scene.body, 1.2 * expected, scene.dt)
-        assert flips[0] == pytest.approx(expected, rel=2.0 * (omega * scene.dt) ** 2), \
-            integrator
+        first, expected, tolerance = _first_flip(scene, integrator)
+        assert first == pytest.approx(expected, rel=tolerance), integrator
 
 
 def _widest_cone(scene, axis, duration):
@@ -98,13 +114,13 @@ def _linear_cone(moments, axis, omega_body):
     return math.sqrt(invariant / min(weight_b, weight_c))
 
 
-@pytest.mark.parametrize('name, omega_body, axis', [
-    ('stable_spin', None, 2),
-    ('stable_spin', (2.0, 0.002, 0.0), 0),
-    ('tennis_racket', (12.0, 0.05, 0.0), 0),
-    ('tennis_racket', (0.0, 0.05, 12.0), 2),
-])
-def test_spin_about_the_largest_and_smallest_axes_stays_in_its_cone(name, omega_body, axis):
+def _stable_cone(name, omega_body, axis):
+    """
+    Return (widest, bound, limit) in rad/s for a spin about the stable `axis` over 20 turns.
+
+    `widest` is the simulated max |Omega_perp|, `bound` linear theory's, and `limit` the
+    bound widened by (Omega_perp / n)^2 (linear theory) and (n dt)^2 (the method).
+    """
     scene = load_scene(name)
     if omega_body is not None:
         scene = scene.with_overrides(angular_velocity_body=omega_body)
@@ -113,31 +129,63 @@ def test_spin_about_the_largest_and_smallest_axes_stays_in_its_cone(name, omega_
     spin = abs(omega[axis])
     # Linear theory up to (Omega_perp / n)^2 ~ 1e-5 and the method's (n dt)^2.
     widest = _widest_cone(scene, axis, 20.0 * 2.0 * math.pi / spin)
-    assert widest <= bound * (1.0 + (spin * scene.dt) ** 2 + (bound / spin) ** 2)
+    return widest, bound, bound * (1.0 + (spin * scene.dt) ** 2 + (bound / spin) ** 2)
 
 
-@pytest.mark.parametrize('name', ['t_handle', 'tennis_racket'])
-def test_spin_about_the_middle_axis_flips_over(name):
+@pytest.mark.parametrize('name, omega_body, axis', [
+    ('stable_spin', None, 2),
+    ('stable_spin', (2.0, 0.002, 0.0), 0),
+    ('tennis_racket', (12.0, 0.05, 0.0), 0),
+    ('tennis_racket', (0.0, 0.05, 12.0), 2),
+])
+def test_spin_about_the_largest_and_smallest_axes_stays_in_its_cone(name, omega_body, axis):
+    widest, _, limit = _stable_cone(name, omega_body, axis)
+    assert widest <= limit
+
+
+def _middle_axis_flip(name):
+    """
+    Return (lowest, flipped, tolerance): min Omega2 (rad/s) over 0.6 period, -Omega2(0).
+
+    The relative tolerance is the method's (Omega2 dt)^2 plus 1e-4.
+    """
     scene = load_scene(name)
     omega = scene.state.angular_velocity_body(scene.body)
     simulator = scene.simulator()
     lowest = omega[1]
     for _ in range(int(round(0.6 * _elliptic_period(scene) / scene.dt))):
         lowest = min(lowest, simulator.step(scene.dt).angular_velocity_body(scene.body)[1])
+    return lowest, -omega[1], (abs(omega[1]) * scene.dt) ** 2 + 1e-4
+
+
+@pytest.mark.parametrize('name', ['t_handle', 'tennis_racket'])
+def test_spin_about_the_middle_axis_flips_over(name):
+    lowest, flipped, tolerance = _middle_axis_flip(name)
     # Half a period later the exact solution has Omega2 = -Omega2(0): a complete flip,
     # where the same nudge about the other axes stays ~1e-3 of the spin (above).
-    assert lowest == pytest.approx(-omega[1], rel=(abs(omega[1]) * scene.dt) ** 2 + 1e-4)
+    assert lowest == pytest.approx(flipped, rel=tolerance)
 
 
-def test_van_zon_body_keeps_its_angular_momentum_exactly_and_its_energy():
+def _van_zon_run():
+    """
+    Return the van Zon body's start and 20 s later, and the energy tolerance.
+
+    (L0, L, E0, E, rel): world angular momentum (kg m^2/s) and energy (J) at both ends,
+    and the relative energy tolerance (|omega| dt)^2 of a second-order method.
+    """
     scene = load_scene('van_zon')
     simulator = scene.simulator()
     energy = simulator.energy()
     final = simulator.run(20.0, scene.dt)
-    np.testing.assert_allclose(final.angular_momentum, scene.state.angular_momentum,
-                               rtol=1e-13)
     omega = np.linalg.norm(scene.state.angular_velocity(scene.body))
-    assert simulator.energy() == pytest.approx(energy, rel=(omega * scene.dt) ** 2)
+    return (scene.state.angular_momentum, final.angular_momentum, energy, simulator.energy(),
+            (omega * scene.dt) ** 2)
+
+
+def test_van_zon_body_keeps_its_angular_momentum_exactly_and_its_energy():
+    start_momentum, momentum, start_energy, energy, tolerance = _van_zon_run()
+    np.testing.assert_allclose(momentum, start_momentum, rtol=1e-13)
+    assert energy == pytest.approx(start_energy, rel=tolerance)
 
 
 # -- the heavy symmetric top and the bicycle wheel: pivot + gravity
@@ -202,6 +250,10 @@ class SymmetricTop:
         """Return eps = m g d I1' / (I3 omega3)^2, the fast-top expansion parameter."""
         return self.mass * G * self.distance * self.i1 / (self.i3 * self.omega3) ** 2
 
+    def exchanged_energy(self):
+        """Return m g d (u2 - u1) (J): the energy the nutation trades, potential for kinetic."""
+        return self.mass * G * self.distance * (self.roots[1] - self.roots[0])
+
 
 class TopRun:
     """A run of a pivot scene over whole nutation periods, sampled every step."""
@@ -237,14 +289,19 @@ class TopRun:
         self.phase_error = (self.theory.a * dt) ** 2
 
 
-@pytest.fixture(scope='module')
-def top_runs():
+def _top_runs():
+    """Return the pivot scenes' TopRuns at the default step (by name) and half of it."""
     runs = {}
     for name, periods in (('heavy_top', 6), ('bike_wheel', 4)):
         scene = load_scene(name)
         runs[name] = TopRun(scene, scene.dt, periods)
         runs[name, 'half step'] = TopRun(scene, 0.5 * scene.dt, periods)
     return runs
+
+
+@pytest.fixture(scope='module')
+def top_runs():
+    return _top_runs()
 
 
 @pytest.mark.parametrize('name', ['heavy_top', 'bike_wheel'])
@@ -291,8 +348,7 @@ def test_top_keeps_energy_vertical_momentum_and_spin(top_runs, name):
     # Energy and the spin component L . e3 are conserved by the motion, and by a
     # second-order method up to O(dt^2): the error shrinks >= 4x per halved step, and the
     # energy error is (a dt)^2 of the energy exchanged by the nutation, m g d (u2 - u1).
-    exchanged = theory.mass * G * theory.distance * (theory.roots[1] - theory.roots[0])
-    assert run.energy_error <= run.phase_error * exchanged
+    assert run.energy_error <= run.phase_error * theory.exchanged_energy()
     assert run.energy_error >= SECOND_ORDER * finer.energy_error
     assert run.spin_error >= SECOND_ORDER * finer.spin_error
     assert run.spin_error <= run.phase_error * abs(run.spin)
@@ -301,8 +357,13 @@ def test_top_keeps_energy_vertical_momentum_and_spin(top_runs, name):
 # -- thrown_box: the COM parabola is exact, the rotation torque-free
 
 
-def test_thrown_box_flies_the_exact_parabola_and_tumbles_torque_free():
-    scene = load_scene('thrown_box')
+def _thrown_box_flight(scene):
+    """
+    Yield, every 0.1 s for 1 s, the thrown box's state, its free twin's and the parabola.
+
+    (state, free_state, position, velocity): the scene's state, the same body and start
+    without gravity, and the exact COM position (m) and velocity (m/s), world frame.
+    """
     body, start = scene.body, scene.state
     thrown = scene.simulator()
     free = Simulator(body, start, integrator=scene.integrator)
@@ -311,18 +372,45 @@ def test_thrown_box_flies_the_exact_parabola_and_tumbles_torque_free():
         state = thrown.run(0.1, scene.dt)
         free.run(0.1, scene.dt)
         t = thrown.time
+        yield (state, free.state, start.position + start.velocity(body) * t + 0.5 * g * t * t,
+               start.velocity(body) + g * t)
+
+
+def test_thrown_box_flies_the_exact_parabola_and_tumbles_torque_free():
+    scene = load_scene('thrown_box')
+    body, start = scene.body, scene.state
+    for state, free_state, position, velocity in _thrown_box_flight(scene):
         # Kick-drift-kick is exact for a constant force: round-off only.
-        expected = start.position + start.velocity(body) * t + 0.5 * g * t * t
-        np.testing.assert_allclose(state.position, expected, rtol=0, atol=1e-14)
-        np.testing.assert_allclose(state.velocity(body), start.velocity(body) + g * t,
-                                   rtol=0, atol=1e-14)
+        np.testing.assert_allclose(state.position, position, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(state.velocity(body), velocity, rtol=0, atol=1e-14)
         # Gravity has no torque about the COM: world L is constant and the rotation is
         # bit for bit that of the same body without gravity.
         np.testing.assert_array_equal(state.angular_momentum, start.angular_momentum)
-        np.testing.assert_array_equal(state.quaternion, free.state.quaternion)
+        np.testing.assert_array_equal(state.quaternion, free_state.quaternion)
 
 
 # -- flat_spin: dissipation at constant L
+
+
+def _flat_spin_run(scene):
+    """
+    Run the flat_spin scene 80 s and the same body without dissipation beside it.
+
+    Return (energies, free_energies, momenta, state): the energies (J) of both every
+    0.5 s from t = 0, the world L (kg m^2/s) of the dissipating body every 0.5 s from
+    t = 0.5 s, and its final state.
+    """
+    body, start = scene.body, scene.state
+    simulator = scene.simulator()
+    free = Simulator(body, start, integrator=scene.integrator)
+    energies, free_energies, momenta = [simulator.energy()], [free.energy()], []
+    for _ in range(160):
+        state = simulator.run(0.5, scene.dt)
+        energies.append(simulator.energy())
+        momenta.append(state.angular_momentum)
+        free.run(0.5, scene.dt)
+        free_energies.append(free.energy())
+    return energies, free_energies, momenta, state
 
 
 def test_flat_spin_keeps_l_drains_energy_and_ends_about_the_largest_axis():
@@ -330,17 +418,11 @@ def test_flat_spin_keeps_l_drains_energy_and_ends_about_the_largest_axis():
     body, start = scene.body, scene.state
     momentum = start.angular_momentum
     flat_energy = (momentum @ momentum) / (2.0 * body.principal_moments[2])
-    simulator = scene.simulator()
-    free = Simulator(body, start, integrator=scene.integrator)
-    energies, free_energies = [simulator.energy()], [free.energy()]
-    for _ in range(160):
-        state = simulator.run(0.5, scene.dt)
-        energies.append(simulator.energy())
-        free.run(0.5, scene.dt)
-        free_energies.append(free.energy())
+    energies, free_energies, momenta, state = _flat_spin_run(scene)
+    for current in momenta:
         # Dissipation turns R only: world L is untouched, so |L| is constant (to 1e-9
         # asked; exactly here).
-        np.testing.assert_array_equal(state.angular_momentum, momentum)
+        np.testing.assert_array_equal(current, momentum)
     # Energy never rises, beyond the free integrator's own energy wobble.
     wobble = max(free_energies) - min(free_energies)
     assert np.all(np.diff(energies) <= wobble)
@@ -355,18 +437,30 @@ def test_flat_spin_keeps_l_drains_energy_and_ends_about_the_largest_axis():
 # -- driven and default: torque-free until pushed from outside
 
 
+def _held_push(scene, simulator):
+    """
+    Run the scene's simulator 1 s unpushed, then 2 s under a held world force and torque.
+
+    Return (unpushed, before, after, force, torque): the state after the unpushed second,
+    the states at the start and end of the push, and the force (N) and torque (N m): the
+    request (0, 0.4, 0) N and (0, 0, 0.3) N m as the scene's limits pass it.
+    """
+    simulator.run(1.0, scene.dt)
+    unpushed = simulator.state
+    force, torque = scene.external_wrench.limit([0.0, 0.4, 0.0], [0.0, 0.0, 0.3])
+    simulator.set_wrench(force=force, torque=torque)
+    before = simulator.state
+    after = simulator.run(2.0, scene.dt)
+    return unpushed, before, after, force, torque
+
+
 @pytest.mark.parametrize('name', ['driven', 'default'])
 def test_outside_push_changes_the_momenta_exactly_as_held(name):
     scene = load_scene(name)
     simulator = scene.simulator()
     assert scene.accepts_external_wrench and simulator.wrench_function() is None
-    simulator.run(1.0, scene.dt)
-    np.testing.assert_array_equal(simulator.state.angular_momentum,
-                                  scene.state.angular_momentum)
-    force, torque = scene.external_wrench.limit([0.0, 0.4, 0.0], [0.0, 0.0, 0.3])
-    simulator.set_wrench(force=force, torque=torque)
-    before = simulator.state
-    after = simulator.run(2.0, scene.dt)
+    unpushed, before, after, force, torque = _held_push(scene, simulator)
+    np.testing.assert_array_equal(unpushed.angular_momentum, scene.state.angular_momentum)
     # A held world torque: L(t) = L0 + tau t; a held force: the parabola.
     np.testing.assert_allclose(after.angular_momentum, before.angular_momentum + 2.0 * torque,
                                rtol=0, atol=1e-13)
@@ -380,11 +474,16 @@ def test_outside_push_changes_the_momenta_exactly_as_held(name):
 # -- translation is skipped when nothing pushes the COM; determinism
 
 
+def _one_second_later(scene):
+    """Return the scene's state after 1 s at its own integrator and step."""
+    return scene.simulator().run(1.0, scene.dt)
+
+
 @pytest.mark.parametrize('name', ['t_handle', 'stable_spin', 'tennis_racket', 'van_zon',
                                   'flat_spin', 'driven'])
 def test_unpushed_com_stays_exactly_where_it_was(name):
     scene = load_scene(name)
-    final = scene.simulator().run(1.0, scene.dt)
+    final = _one_second_later(scene)
     np.testing.assert_array_equal(final.position, scene.state.position)
     np.testing.assert_array_equal(final.linear_momentum, scene.state.linear_momentum)
 
