@@ -61,6 +61,7 @@ def summary(errors):
 
 
 def main():
+    """Print the floor and the errors of exact for each step."""
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--body', default='van_zon', help='benchmark body (default van_zon)')
     parser.add_argument('--dts', type=float, nargs='+', default=[0.1, 0.01, 0.001])
