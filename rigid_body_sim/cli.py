@@ -8,6 +8,8 @@ is one module and one line in :data:`TOOLS`.
 
 import argparse
 import importlib
+import os
+import signal
 import sys
 
 # Subcommand name -> module in rigid_body_sim.tools.
@@ -53,7 +55,8 @@ def main(argv=None):
     """
     Run the command line; return the exit code.
 
-    0 success, 1 failure (a path that cannot be written or read), 2 bad input, 130 Ctrl-C;
+    0 success, 1 failure (a path that cannot be written or read), 2 bad input, 130 Ctrl-C,
+    141 when the reader of the output went away (``| head``);
     a tool stopped by signal n cleanly (``simulate``) returns 128 + n.
     """
     parser = build_parser()
@@ -66,6 +69,11 @@ def main(argv=None):
     except ValueError as error:
         print(f'rigid-body-sim {args.command}: error: {error}', file=sys.stderr)
         return 2
+    except BrokenPipeError:
+        # The reader went away (`rigid-body-sim scenes | head`): end quietly, as a program
+        # killed by SIGPIPE would, without a second error on the closed stdout at exit.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 128 + signal.SIGPIPE
     except OSError as error:
         # A bag or PNG path that cannot be written (under a file, no permission, disk full).
         where = f'{error.filename}: ' if error.filename else ''

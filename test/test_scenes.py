@@ -6,7 +6,9 @@ The physics of each built-in scene is tested in test_scene_physics.py.
 
 import copy
 import math
+import os
 import re
+import signal
 import subprocess
 import sys
 
@@ -595,3 +597,17 @@ def test_a_new_effect_is_listed_loaded_and_documented_without_other_edits(anchor
     with pytest.raises(ValueError, match=r"unknown effect 'springs'; valid effects: "
                                          r'anchor_spring, dissipation'):
         load_scene(_write(tmp_path, MINE + 'effects: [springs]\n'))
+
+
+def test_output_into_a_closed_pipe_ends_quietly_with_the_sigpipe_status():
+    """`rigid-body-sim scenes | head -1`: no traceback, no error line, exit 128 + SIGPIPE."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)  # the reader is gone before anything is written
+    try:
+        result = subprocess.run([sys.executable, '-m', 'rigid_body_sim.cli', 'scenes'],
+                                stdout=write_end, stderr=subprocess.PIPE, text=True,
+                                timeout=60)
+    finally:
+        os.close(write_end)
+    assert result.returncode == 128 + signal.SIGPIPE, result.stderr
+    assert result.stderr == ''
