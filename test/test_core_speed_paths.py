@@ -40,7 +40,7 @@ COMPILED_NAMES = sorted(name for name, kernel in FAST_KERNELS.items()
                         if isinstance(kernel, CompiledIntegrator))
 # Stage evaluations per step (splitting4: Suzuki's five stages; rk4: four derivatives).
 STAGES = {'first_order': 1, 'buss': 1, 'buss_plain': 1, 'rk4': 4, 'splitting': 1,
-          'splitting4': 5}
+          'splitting4': 5, 'exact': 1}
 GRAVITY = np.array([0.0, 0.0, -9.81])
 # The held wrench of the pivot problems: every part, so each reaches the kernel.
 HELD = {'force_world': (0.1, 0.0, 0.0), 'torque_world': (0.0, 0.01, 0.0),
@@ -50,6 +50,20 @@ HELD = {'force_world': (0.1, 0.0, 0.0), 'torque_world': (0.0, 0.01, 0.0),
 def test_every_compiled_integrator_is_covered():
     # The tests below run every integrator with the packed form; a new one needs a stage count.
     assert set(COMPILED_NAMES) == set(STAGES)
+
+
+def test_every_fast_kernel_has_the_packed_form():
+    # A kernel without it (the registry's 13-argument form alone) cannot take a lever force
+    # (its moment turns with the body) nor fuse a flow: the scenes with a pivot under gravity
+    # or with dissipation would fall back to the readable steps.
+    assert set(COMPILED_NAMES) == set(FAST_KERNELS)
+
+
+@pytest.mark.parametrize('scene_name', ['heavy_top', 'bike_wheel', 'flat_spin'])
+@pytest.mark.parametrize('name', COMPILED_NAMES)
+def test_pivot_and_dissipation_scenes_run_compiled_with_every_integrator(scene_name, name):
+    simulator = load_scene(scene_name).simulator(integrator=name)
+    assert simulator._path == COMPILED
 
 
 def _round_off(name, steps):
@@ -99,24 +113,6 @@ def test_pivot_with_gravity_runs_compiled_and_equals_the_readable_path(name):
     assert compiled.time == readable.time
 
 
-def test_a_kernel_without_the_packed_form_never_drops_the_lever_torque():
-    # exact's registry kernel takes held world/body wrenches only: under a pivot a world
-    # force (gravity) must send the steps to the readable path, or its moment would be lost.
-    assert not isinstance(FAST_KERNELS['exact'], CompiledIntegrator)
-    assert _pivot_simulator('exact', True)._path == READABLE
-    body, state, pivot = _top()
-    simulator = Simulator(body, state, integrator='exact', effects=[pivot])
-    # A body-fixed force under a pivot is the body-fixed torque d x F_b: the kernel takes it.
-    readable = Simulator(body, state, integrator='exact', effects=[pivot], fast=False)
-    for run in (simulator, readable):
-        run.hold_wrench(torque_world=HELD['torque_world'], force_body=HELD['force_body'])
-        run.run(0.1, 1e-3)
-    assert simulator._path != READABLE
-    _assert_states_agree(simulator.state, readable.state, 10.0 * EPS * 100)
-    simulator.hold_wrench(force_world=HELD['force_world'])
-    assert simulator._path == READABLE
-
-
 def _pivot_reference(duration):
     """Return the physical state after `duration` s, from DOP853 on the pivot system."""
     body, state, pivot = _top()
@@ -140,7 +136,8 @@ def _pivot_reference(duration):
 # (order, coarse steps over 0.5 s): the coarse error well below 0.05, the fine one far above
 # the reference's ~1e-12 (both asserted).
 PIVOT_ORDERS = {'first_order': (1, 80000), 'buss': (2, 400), 'buss_plain': (2, 400),
-                'rk4': (4, 100), 'splitting': (2, 200), 'splitting4': (4, 50)}
+                'rk4': (4, 100), 'splitting': (2, 200), 'splitting4': (4, 50),
+                'exact': (2, 200)}
 
 
 def test_every_compiled_integrator_has_a_pivot_convergence_case():

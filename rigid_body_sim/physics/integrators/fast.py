@@ -22,8 +22,9 @@ wrench : (6, 3)  the held wrench, constant over the steps:
     LEVER_FORCE   a world-fixed force (N) acting at the body point LEVER_ARM (m, body frame,
     LEVER_ARM     from the origin); it enters by its moment (R r) x F about the origin only,
                   as under a pivot, whose reaction takes the force itself (gravity on a top)
-body : (17,)  I_b^{-1} row-major (9, kg^-1 m^-2) | m (kg) | principal moments (3, kg m^2)
-    | principal frame quaternion (4); see :func:`body_values`.
+body : (27,)  I_b^{-1} row-major (9, kg^-1 m^-2) | m (kg) | principal moments (3, kg m^2)
+    | principal frame quaternion (4) | principal axes as columns, row-major (9) | kind of
+    body (ASYMMETRIC ... OBLATE of principal.py, as a float); see :func:`body_values`.
 method : (n,)  the integrator's constants (Buss's augmentation; the splitting's axes and
     stage coefficients).
 damping : float  the dissipation flow fused into every step as flow(dt/2), step(dt),
@@ -50,28 +51,31 @@ from ..effects.dissipation import dissipated_quaternion
 
 __all__ = ['CompiledIntegrator', 'body_values', 'packed_wrench', 'FORCE_WORLD',
            'TORQUE_WORLD', 'FORCE_BODY', 'TORQUE_BODY', 'LEVER_FORCE', 'LEVER_ARM',
-           'STATE_SIZE', 'BODY_SIZE', 'BODY_MASS', 'BODY_MOMENTS', 'BODY_FRAME']
+           'STATE_SIZE', 'BODY_SIZE', 'BODY_MASS', 'BODY_MOMENTS', 'BODY_FRAME', 'BODY_AXES',
+           'BODY_KIND']
 
 _jit = functools.partial(numba.njit, cache=True, nogil=True)
 
 # Rows of the packed wrench.
 FORCE_WORLD, TORQUE_WORLD, FORCE_BODY, TORQUE_BODY, LEVER_FORCE, LEVER_ARM = range(6)
 STATE_SIZE = 13
-BODY_SIZE = 17
-# Offsets in the packed body: mass, principal moments, principal frame quaternion.
-BODY_MASS, BODY_MOMENTS, BODY_FRAME = 9, 10, 13
+BODY_SIZE = 27
+# Offsets in the packed body: mass, principal moments, principal frame quaternion, principal
+# axes (the exact integrator solves in the very matrix the readable step uses), kind.
+BODY_MASS, BODY_MOMENTS, BODY_FRAME, BODY_AXES, BODY_KIND = 9, 10, 13, 17, 26
 
 
 def body_values(inertia_body, inertia_body_inverse, mass):
     """
-    Return the packed body (17,) of a body's mass properties (body frame, SI).
+    Return the packed body (27,) of a body's mass properties (body frame, SI).
 
     The principal frame comes from :func:`.principal.principal_frame`, the same function the
     readable splitting and exact steps use, so both split in the very same frame.
     """
     frame = principal_frame(inertia_body)
     return np.concatenate([np.asarray(inertia_body_inverse, dtype=float).reshape(9),
-                           [float(mass)], frame.moments, frame.quaternion])
+                           [float(mass)], frame.moments, frame.quaternion,
+                           frame.axes.reshape(9), [float(frame.kind)]])
 
 
 def packed_wrench(force_world=None, torque_world=None, force_body=None, torque_body=None,

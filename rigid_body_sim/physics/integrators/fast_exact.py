@@ -1,13 +1,19 @@
 """
-Compiled fast path (numba) of the `exact` integrator.
+Compiled fast path (numba) of the `exact` integrator, on the packed arrays of :mod:`.fast`.
 
 The same construction as the readable :mod:`.exact` (see its docstring for the derivation),
 line for line, with scalars instead of small arrays and the compiled elliptic functions of
 :mod:`rigid_body_sim.physics.elliptic`.  The readable definition holds the unrounded end of a
-step in rationals; here it is held in double-double arithmetic (Dekker's exact products and
-Knuth's exact sums, relative error ~1e-32), which rounds to the same double but in the rarest
-ties.  The tests prove both equal to round-off.  Under a held wrench each step is
-kick(dt/2), exact free flow(dt), kick(dt/2), as in the readable step.
+step exactly (integers over a power of two); here it is held in double-double arithmetic
+(Dekker's exact products and Knuth's exact sums, relative error ~1e-32), which rounds to the
+same double but in the rarest ties.  The tests prove both equal to round-off, and the last
+rounding of the same increment equal to the bit.
+
+A step under a held wrench is kick(dt/2), exact free flow(dt), kick(dt/2) (Strang), as in
+the readable step, with the whole wrench, the lever force's moment (R r) x F included,
+taken at the kick points as the other compiled integrators do; a dissipation flow is fused
+around it as flow(dt/2), step(dt), flow(dt/2).  Packed arrays and the run signature: see
+:mod:`.fast`.
 """
 
 import functools
@@ -15,9 +21,17 @@ import math
 
 import numba
 
+from .fast import BODY_AXES
+from .fast import BODY_KIND
+from .fast import BODY_MASS
+from .fast import BODY_MOMENTS
+from .fast import CompiledIntegrator
+from .fast import dissipate
+from .fast import nonzero_momentum
+from .fast import pushes
+from .fast import wrench_at
 from .principal import ASYMMETRIC
 from .principal import OBLATE
-from .principal import principal_frame
 from .principal import PROLATE
 from .principal import SPHERICAL
 from ..elliptic import carlson_rf_compiled
@@ -150,12 +164,6 @@ def _momentum_body(q, lx, ly, lz):
             + 2.0 * (y * z + x * w) * lz,
             2.0 * (x * z + y * w) * lx + 2.0 * (y * z - x * w) * ly
             + (1.0 - 2.0 * (x * x + y * y)) * lz)
-
-
-@_jit
-def _rotate(q, vx, vy, vz):
-    """Return R(q) v."""
-    return _momentum_body((-q[0], -q[1], -q[2], q[3]), vx, vy, vz)
 
 
 @_jit
@@ -440,57 +448,49 @@ def _free_rotation(q, lx, ly, lz, moments, axes, kind, duration):
 
 
 @_jit
-def _exact_steps(quaternion, position, linear_momentum, angular_momentum, moments, axes,
-                 kind, mass, dt, steps, force_world, torque_world, force_body, torque_body):
-    pushed = False
+def _kick(q, linear_momentum, angular_momentum, wrench, duration):
+    """Kick the momenta in place: p += h F, L += h tau, the held wrench taken at q."""
+    force, torque = wrench_at(q, wrench)
     for i in range(3):
-        if (force_world[i] != 0.0 or torque_world[i] != 0.0 or force_body[i] != 0.0
-                or torque_body[i] != 0.0):
-            pushed = True
-    q = (quaternion[0], quaternion[1], quaternion[2], quaternion[3])
-    norm_squared = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]
-    if abs(norm_squared - 1.0) > 1e-12:
-        # The last rounding normalises to first order: start from a unit quaternion.
-        q = _normalised(q)
-    half = 0.5 * dt
-    for _ in range(steps):
-        if pushed:
-            _kick(q, linear_momentum, angular_momentum, half, force_world, torque_world,
-                  force_body, torque_body)
-        q = _free_rotation(q, angular_momentum[0], angular_momentum[1], angular_momentum[2],
-                           moments, axes, kind, dt)
-        for i in range(3):
-            position[i] += dt * linear_momentum[i] / mass
-        if pushed:
-            _kick(q, linear_momentum, angular_momentum, half, force_world, torque_world,
-                  force_body, torque_body)
-    quaternion[0], quaternion[1], quaternion[2], quaternion[3] = q
+        linear_momentum[i] += duration * force[i]
+        angular_momentum[i] += duration * torque[i]
 
 
 @_jit
-def _kick(q, linear_momentum, angular_momentum, half, force_world, torque_world, force_body,
-          torque_body):
-    """Kick the momenta in place: p += h F, L += h tau, F = F_w + R F_b, tau = tau_w + R tau_b."""
-    fx, fy, fz = _rotate(q, force_body[0], force_body[1], force_body[2])
-    tx, ty, tz = _rotate(q, torque_body[0], torque_body[1], torque_body[2])
-    linear_momentum[0] += half * (force_world[0] + fx)
-    linear_momentum[1] += half * (force_world[1] + fy)
-    linear_momentum[2] += half * (force_world[2] + fz)
-    angular_momentum[0] += half * (torque_world[0] + tx)
-    angular_momentum[1] += half * (torque_world[1] + ty)
-    angular_momentum[2] += half * (torque_world[2] + tz)
+def _exact_run(state, wrench, body, method, damping, dt, steps):
+    """Run the exact integrator (signature: fast.py; no method constants)."""
+    linear_momentum, angular_momentum = state[7:10], state[10:13]
+    mass = body[BODY_MASS]
+    moments = body[BODY_MOMENTS:BODY_MOMENTS + 3]
+    axes = body[BODY_AXES:BODY_AXES + 9].reshape((3, 3))
+    kind = int(body[BODY_KIND])
+    pushed, forced = pushes(wrench)
+    # Unforced, p is constant: a body at rest stays where it is without any arithmetic.
+    translates = forced or nonzero_momentum(state)
+    half = 0.5 * dt
+    moved = 0
+    for _ in range(steps):
+        if damping > 0.0:
+            dissipate(state, body, damping, half)
+        q = (state[0], state[1], state[2], state[3])
+        if abs(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3] - 1.0) > 1e-12:
+            # The last rounding normalises to first order: start from a unit quaternion.
+            q = _normalised(q)
+        if pushed:
+            _kick(q, linear_momentum, angular_momentum, wrench, half)
+        q = _free_rotation(q, angular_momentum[0], angular_momentum[1], angular_momentum[2],
+                           moments, axes, kind, dt)
+        if translates:
+            for i in range(3):
+                state[4 + i] += dt * linear_momentum[i] / mass
+            moved += 1
+        if pushed:
+            _kick(q, linear_momentum, angular_momentum, wrench, half)
+        state[0], state[1], state[2], state[3] = q
+        if damping > 0.0:
+            dissipate(state, body, damping, half)
+    return moved
 
 
-def exact_kernel(quaternion, position, linear_momentum, angular_momentum, inertia_body,
-                 inertia_body_inverse, mass, dt, steps, force_world, torque_world, force_body,
-                 torque_body):
-    """
-    Advance the arrays in place by `steps` exact steps under a held wrench.
-
-    The kernel signature of :mod:`.registry`; the principal frame of `inertia_body` is
-    looked up once per call (cached), then the compiled loop runs.
-    """
-    frame = principal_frame(inertia_body)
-    _exact_steps(quaternion, position, linear_momentum, angular_momentum, frame.moments,
-                 frame.axes, frame.kind, mass, dt, steps, force_world, torque_world,
-                 force_body, torque_body)
+exact_kernel = CompiledIntegrator(_exact_run)
+"""The compiled exact integrator (run signature and registry form: :mod:`.fast`)."""
