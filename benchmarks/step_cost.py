@@ -2,7 +2,7 @@
 """
 Print the CPU time per step of each integrator: in one Simulator.run and per step() call.
 
-Usage: .venv/bin/python benchmarks/step_cost.py [--steps N] [--repeats K]
+Usage: .venv/bin/python benchmarks/step_cost.py [--steps N] [--repeats K] [NAME ...]
 
 Each integrator runs the default T-handle body torque-free, and again under a held
 body-frame torque, after a warm-up run (so numba compilation is not counted).  Times are
@@ -12,6 +12,8 @@ the median over K repeats, in microseconds per step:
 - run: N steps in one Simulator.run call (the offline tools, the benchmark);
 - step(): one Simulator.step call per step, as the node ticks (N / 10 calls);
 - readable: Simulator.run with fast=False, the readable reference definitions (N / 100).
+
+NAME ... limits the table to those integrators (default: all).
 """
 
 import argparse
@@ -56,12 +58,18 @@ def main():
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--steps', type=int, default=200000)
     parser.add_argument('--repeats', type=int, default=5)
+    parser.add_argument('names', nargs='*', metavar='NAME',
+                        help='integrators to time (default: all)')
     args = parser.parse_args()
+    unknown = sorted(set(args.names) - set(INTEGRATORS))
+    if unknown:
+        parser.error(f'unknown integrator(s) {", ".join(unknown)}; valid: '
+                     f'{", ".join(sorted(INTEGRATORS))}')
     columns = (('run', True, False), ('step()', True, True), ('readable', False, False))
     header = ''.join(f'{f"{label}, {kind}":>17}' for label, _, _ in columns
                      for kind in ('free', 'torque'))
     print(f'{"integrator":<12}{header}   (CPU us/step, median of {args.repeats})')
-    for name in sorted(INTEGRATORS):
+    for name in args.names or sorted(INTEGRATORS):
         row = []
         for _, fast, per_call in columns:
             if not fast:

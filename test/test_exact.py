@@ -38,6 +38,9 @@ from rigid_body_sim.physics.elliptic import carlson_rj
 from rigid_body_sim.physics.elliptic import carlson_rj_compiled
 from rigid_body_sim.physics.elliptic import jacobi_elliptic
 from rigid_body_sim.physics.elliptic import jacobi_elliptic_compiled
+from rigid_body_sim.physics.integrators import exact as readable_exact
+from rigid_body_sim.physics.integrators import fast
+from rigid_body_sim.physics.integrators import fast_exact
 from rigid_body_sim.physics.integrators.exact import _circulation_frame
 from rigid_body_sim.physics.integrators.exact import exact_free_flow
 from rigid_body_sim.physics.integrators.principal import principal_frame
@@ -298,7 +301,8 @@ def _issue_bodies():
 @pytest.mark.parametrize('name', ['t_handle', 'fast_spin', 'near_symmetric', 'non_diagonal'])
 def test_exact_orientation_error_is_below_1e_12_rad_at_dt_0_1_over_10_s(name):
     # The issue's bound, at each of the 100 steps, for the readable step and the fast path.
-    # Measured worst: 4.9e-14, 3.7e-14, 5.5e-15, 3.6e-14 rad (readable), 1.4e-14, 1.2e-14,
+    # Measured worst: 1.7e-13, 5.1e-15, 8.1e-15, 2.5e-14 rad (readable; 6.7e-13, 1.2e-14,
+    # 8.9e-15, 2.6e-14 while it normalised by the norm of the rounded sum), 1.3e-14, 1.2e-14,
     # 5.7e-15, 2.9e-14 (fast).  (scipy's DOP853 at its tightest rtol, 2.5e-14, is itself 3.8e-12
     # off for the T-handle: no reference for this bound.)
     body, state = _issue_bodies()[name]
@@ -325,9 +329,10 @@ def test_van_zon_schofield_at_dt_0_1_over_10_s_is_within_1e_12_rad():
     eight; a 1-ulp change of q0 alone moves R(10 s) by 2.2e-13 (median; largest 2.5e-13).
     So 1e-12 holds here with a factor 5, but near what the conditioning allows: over the
     eight starts exact measures median 2.0e-13, largest 1.9e-12.  The readable step, rebuilt
-    as a State every step, gets 1.3e-12 (2.2e-12 while State._from_arrays still rescaled
-    every unit quaternion, a second rounding of up to ~1 ulp per step; it now keeps one that
-    is unit to round-off).  Before the round-off work (commit 908d2a6): 5.8e-12.
+    as a State every step, gets 3.9e-14; 1.3e-12 while it took the norm and energy of the
+    sum q + q (D - 1) already rounded to double (not of the exact sum, as the compiled path
+    does), 2.2e-12 while State._from_arrays still rescaled every unit quaternion.  Before
+    the round-off work (commit 908d2a6): 5.8e-12.
     """
     case = benchmark_cases(('van_zon',))[0]
     expected = reference_orientations(case.body, case.state, [decimal.Decimal(0.1) * 100])[0]
@@ -595,7 +600,10 @@ def test_fast_path_equals_the_readable_exact_step_under_a_held_wrench():
 def test_exact_with_a_torque_is_second_order_and_exact_without_it():
     # tau = k (R e3) x e_z (a restoring torque, like gravity on an offset COM) plus a force
     # along body x: the kicks are exact for a configuration-dependent wrench, so the error is
-    # the O(h^2) of the splitting alone; the observed order must be 2 +- 0.3.
+    # the O(h^2) of the splitting alone; the observed order must be 2 +- 0.3.  The compiled
+    # kernel takes the same wrench packed (the torque is the moment of the lever force 2 e_z
+    # at the body point e3, the force a body-fixed one) and must keep the order and equal the
+    # readable steps to round-off: 10 eps per step (test_core_speed_paths).
     rng = np.random.default_rng(36)
     axes = random_rotation(rng)
     body = RigidBody(2.0, axes @ np.diag([1.0, 2.0, 2.5]) @ axes.T)
@@ -606,9 +614,12 @@ def test_exact_with_a_torque_is_second_order_and_exact_without_it():
         rotation = state.rotation
         return 0.5 * rotation[:, 0], 2.0 * np.cross(rotation[:, 2], (0.0, 0.0, 1.0))
 
+    packed = fast.packed_wrench(force_body=(0.5, 0.0, 0.0), lever_force=(0.0, 0.0, 2.0),
+                                lever_arm=(0.0, 0.0, 1.0))
+    kernel = FAST_KERNELS['exact']
     duration = 1.0
     expected = reference_solution(body, state, duration, wrench)
-    errors = []
+    errors, compiled_errors = [], []
     for steps in (20, 40):
         final = state
         for k in range(steps):
@@ -616,6 +627,101 @@ def test_exact_with_a_torque_is_second_order_and_exact_without_it():
                                          wrench)
         errors.append(rotation_angle_between(final.rotation, expected.rotation)
                       + np.linalg.norm(final.angular_momentum - expected.angular_momentum))
-    assert 1e-9 < errors[1] < errors[0] < 0.05
-    assert abs(math.log2(errors[0] / errors[1]) - 2.0) < 0.3
+        values = np.concatenate(state._fields())
+        kernel.run(values, packed, fast.body_values(body.inertia, body.inertia_inverse,
+                                                    body.mass),
+                   kernel.method, 0.0, duration / steps, steps)
+        compiled = State._from_values(values)
+        compiled_errors.append(
+            rotation_angle_between(compiled.rotation, expected.rotation)
+            + np.linalg.norm(compiled.angular_momentum - expected.angular_momentum))
+        round_off = 10 * EPS * steps
+        assert rotation_angle_between(compiled.rotation, final.rotation) < round_off
+        for a, b in ((compiled.angular_momentum, final.angular_momentum),
+                     (compiled.linear_momentum, final.linear_momentum),
+                     (compiled.position, final.position)):
+            assert np.linalg.norm(a - b) < round_off * max(1.0, np.linalg.norm(b))
+    for pair in (errors, compiled_errors):
+        assert 1e-9 < pair[1] < pair[0] < 0.05
+        assert abs(math.log2(pair[0] / pair[1]) - 2.0) < 0.3
     assert INTEGRATORS['exact'].order == 2
+
+
+# -- the last rounding: exact in the readable step, the same bits compiled -----------------
+
+
+def _sandwich_twice_energy(body_frame, quaternion, angular_momentum):
+    """Return 2T = m . J m, m = q* L q / |q|^2, J = A diag(1/I) A^T, in Fractions."""
+    x, y, z, w = quaternion
+    lx, ly, lz = (Fraction(float(c)) for c in angular_momentum)
+    # t = L q (L a pure quaternion), then m = q* t (vector part), over |q|^2.
+    tx, ty, tz = lx * w + ly * z - lz * y, ly * w + lz * x - lx * z, lz * w + lx * y - ly * x
+    tw = -(lx * x + ly * y + lz * z)
+    m = (w * tx - x * tw - (y * tz - z * ty), w * ty - y * tw - (z * tx - x * tz),
+         w * tz - z * tw - (x * ty - y * tx))
+    norm_squared = x * x + y * y + z * z + w * w
+    axes = [[Fraction(float(c)) for c in row] for row in body_frame.axes]
+    moments = [Fraction(float(c)) for c in body_frame.moments]
+    principal = [sum(axes[j][k] * m[j] for j in range(3)) / norm_squared for k in range(3)]
+    return sum(principal[k] ** 2 / moments[k] for k in range(3))
+
+
+def test_the_readable_energy_is_exact_in_the_stored_floats():
+    # The readable step holds q' = q + q (D - 1) and its energy in integers over powers of
+    # two: they must equal the rational value of the same floats exactly, here against an
+    # independent formula (the quaternion sandwich q* L q instead of the matrix R_h).
+    rng = np.random.default_rng(37)
+    for kind in KINDS:
+        for _ in range(4):
+            body, state = _case(rng, kind)
+            frame = principal_frame(body.inertia)
+            # A quaternion that is the exact sum of two doubles per component, not unit.
+            values = tuple(state.quaternion) + tuple(rng.normal(size=4) * 1e-3)
+            parts, _ = readable_exact._dyadic(values)
+            integers = [parts[i] + parts[4 + i] for i in range(4)]
+            momentum = [float(c) for c in state.angular_momentum]
+            (l, momentum_shift) = readable_exact._dyadic(momentum)
+            (a, axes_shift), ratios = readable_exact._frame_integers(
+                tuple(frame.axes.ravel().tolist()), tuple(frame.moments.tolist()))
+            numerator, norm = readable_exact._twice_energy_exactly(integers, l, a, ratios)
+            common = (ratios[0][0] * ratios[1][0] * ratios[2][0]
+                      << 2 * (momentum_shift + axes_shift))
+            quaternion = [Fraction(values[i]) + Fraction(values[4 + i]) for i in range(4)]
+            assert Fraction(numerator, common * norm ** 2) == _sandwich_twice_energy(
+                frame, quaternion, state.angular_momentum)
+
+
+@pytest.mark.parametrize('kind', KINDS)
+def test_the_compiled_last_rounding_gives_the_readable_bits(kind):
+    # Given the same increment D - 1, the compiled rounding (double-double, ~1e-32) and the
+    # readable one (exact) round to the same double but in ties of probability ~1e-16: every
+    # case must give the same bits, with and without the energy turn.
+    rng = np.random.default_rng(400 + KINDS.index(kind))
+    turned = 0
+    for _ in range(40):
+        body, state = _case(rng, kind)
+        frame = principal_frame(body.inertia)
+        quaternion = tuple(float(c) for c in state.quaternion)
+        momentum = tuple(float(c) for c in state.angular_momentum)
+        momentum_body = readable_exact._momentum_body(quaternion, momentum)
+        norm = math.sqrt(sum(c * c for c in momentum))
+        duration = rng.uniform(-1.0, 1.0)
+        if frame.kind == readable_exact.ASYMMETRIC:
+            increment = readable_exact._asymmetric_top_increment(frame, momentum_body, norm,
+                                                                 duration)
+        else:
+            increment = readable_exact._symmetric_top_increment(frame, momentum_body, norm,
+                                                                duration)
+        readable = readable_exact._rounded_step(frame, quaternion, increment, momentum)
+        vector, scalar = increment
+        compiled = fast_exact._rounded_step(
+            quaternion, tuple(float(c) for c in (*vector, scalar)), *momentum, frame.moments,
+            frame.axes, frame.kind)
+        assert np.array_equal(readable, np.array(compiled)), (readable, compiled)
+        plain = fast_exact._rounded_step(
+            quaternion, tuple(float(c) for c in (*vector, scalar)), *momentum, frame.moments,
+            frame.axes, readable_exact.SPHERICAL)
+        turned += not np.array_equal(readable, np.array(plain))
+    # The energy turn changed the result in some cases (it is not vacuous here) unless
+    # the body's energy does not depend on its orientation.
+    assert turned > 0 or kind == 'spherical'

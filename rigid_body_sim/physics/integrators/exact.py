@@ -64,10 +64,13 @@ precession about L and a steady spin about the symmetry axis a.  Steady spins ab
 principal axis are rotations about L at the rate E2 / L.
 
 The last rounding.  The step returns q(t) = q(0) + q(0) (D - 1), the increment q(0) (D - 1)
-small for a short step.  Before the one rounding to double, that sum, held exactly (the
-readable definition here uses rationals; the compiled path double-double arithmetic), is
+small for a short step.  Before the one rounding to double, that sum, held exactly, is
 normalised to first order in |q|^2 - 1 and turned about the body axis m x omega by the
-angle that gives it the kinetic energy of q(0) exactly (the flow conserves it).  That turn
+angle that gives it the kinetic energy of q(0) exactly (the flow conserves it).  The
+readable definition here holds it in integers over a power of two (every double is such a
+dyadic rational: exact, and without the gcd of fractions.Fraction at every operation, which
+made the step cost ~1 ms); the compiled path in double-double arithmetic (~1e-32), which
+rounds to the same double but in the rarest ties (tested: the same bits).  That turn
 removes round-off, ~0.01-4 ulp; it is skipped above 16 ulp (not round-off: a long step's
 error, or an energy rounded into k'^2 next to the unstable axis, where m x omega -> 0).  So
 a short step rounds the state once, like an ideal stepper that evaluates the exact flow in
@@ -87,7 +90,7 @@ alone: a floor no computed step reaches).
 Everything is world frame except m (principal or circulation frame); SI units.
 """
 
-from fractions import Fraction
+import functools
 import math
 
 import numpy as np
@@ -135,29 +138,44 @@ _LARGEST_CORRECTION = 16.0 * np.finfo(float).eps
 
 
 def _momentum_body(quaternion, angular_momentum):
-    """Return m = R(q)^T L (body frame) for a unit quaternion q (x, y, z, w)."""
+    """Return m = R(q)^T L (body frame, a 3-tuple) for a unit quaternion q (x, y, z, w)."""
     x, y, z, w = (float(c) for c in quaternion)
     lx, ly, lz = (float(c) for c in angular_momentum)
-    return np.array([
-        (1.0 - 2.0 * (y * y + z * z)) * lx + 2.0 * (x * y + z * w) * ly
-        + 2.0 * (x * z - y * w) * lz,
-        2.0 * (x * y - z * w) * lx + (1.0 - 2.0 * (x * x + z * z)) * ly
-        + 2.0 * (y * z + x * w) * lz,
-        2.0 * (x * z + y * w) * lx + 2.0 * (y * z - x * w) * ly
-        + (1.0 - 2.0 * (x * x + y * y)) * lz])
+    return ((1.0 - 2.0 * (y * y + z * z)) * lx + 2.0 * (x * y + z * w) * ly
+            + 2.0 * (x * z - y * w) * lz,
+            2.0 * (x * y - z * w) * lx + (1.0 - 2.0 * (x * x + z * z)) * ly
+            + 2.0 * (y * z + x * w) * lz,
+            2.0 * (x * z + y * w) * lx + 2.0 * (y * z - x * w) * ly
+            + (1.0 - 2.0 * (x * x + y * y)) * lz)
+
+
+# 3-vectors in the step's hot path are tuples of Python floats: numpy's cost per call on
+# one 3-vector exceeds the arithmetic several times over.
+
+
+def _dot(a, b):
+    """Return a . b of two 3-vectors."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _cross(a, b):
+    """Return a x b of two 3-vectors, as a tuple."""
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
 def _half_turn_increment(axis, angle):
     """Return exp(angle/2 axis) - 1 as (vector, scalar): (sin(angle/2) axis, cos(angle/2) - 1)."""
-    quarter = math.sin(0.25 * angle)
-    return math.sin(0.5 * angle) * axis, -2.0 * quarter * quarter
+    quarter, sine = math.sin(0.25 * angle), math.sin(0.5 * angle)
+    return tuple(sine * c for c in axis), -2.0 * quarter * quarter
 
 
 def _compose_increments(first, second):
     """Return (1 + x)(1 + y) - 1 = x + y + x y for quaternion increments (vector, scalar)."""
     xv, xw = first
     yv, yw = second
-    return (xv + yv + xw * yv + yw * xv + cross(xv, yv), xw + yw + xw * yw - xv @ yv)
+    product = _cross(xv, yv)
+    return (tuple(xv[i] + yv[i] + xw * yv[i] + yw * xv[i] + product[i] for i in range(3)),
+            xw + yw + xw * yw - _dot(xv, yv))
 
 
 def _symmetric_top_increment(frame, momentum_body, momentum_norm, duration):
@@ -169,9 +187,9 @@ def _symmetric_top_increment(frame, momentum_body, momentum_norm, duration):
         axis, axial, transverse = axes[:, 0], moments[0], moments[1]
     else:
         axis, axial, transverse = axes[:, 2], moments[2], moments[2]
-    spin_rate = (axis @ momentum_body) * (1.0 / axial - 1.0 / transverse)
+    spin_rate = _dot(axis, momentum_body) * (1.0 / axial - 1.0 / transverse)
     # Precession about L, seen in the body at its start (R0^T L / L), then the spin.
-    precession = _half_turn_increment(momentum_body / momentum_norm,
+    precession = _half_turn_increment(tuple(c / momentum_norm for c in momentum_body),
                                       duration * momentum_norm / transverse)
     return _compose_increments(precession, _half_turn_increment(axis, duration * spin_rate))
 
@@ -303,8 +321,8 @@ def _spherical_excess(direction, direction_change):
     e_z . (n0 x n1) = e_z . (n0 x dn), so chi is formed from dn, O(dn) for a short step.
     """
     n0, dn = direction, direction_change
-    n1 = n0 + dn
-    return 2.0 * math.atan2(n0[0] * dn[1] - n0[1] * dn[0], 1.0 + n0[2] + n1[2] + n0 @ n1)
+    n1 = (n0[0] + dn[0], n0[1] + dn[1], n0[2] + dn[2])
+    return 2.0 * math.atan2(n0[0] * dn[1] - n0[1] * dn[0], 1.0 + n0[2] + n1[2] + _dot(n0, n1))
 
 
 def _turn_about_momentum_increment(direction, direction_change, angle):
@@ -320,12 +338,13 @@ def _turn_about_momentum_increment(direction, direction_change, angle):
     spinning about a principal axis) stay accurate relative to their size.
     """
     n0, dn = direction, direction_change
-    tilt = cross(dn, n0)
-    tilt_squared = tilt @ tilt
-    alignment = 1.0 + n0 @ n0 + n0 @ dn
+    tilt = _cross(dn, n0)
+    tilt_squared = _dot(tilt, tilt)
+    alignment = 1.0 + _dot(n0, n0) + _dot(n0, dn)
     norm = math.sqrt(tilt_squared + alignment * alignment)
     return _compose_increments(_half_turn_increment(n0, angle),
-                               (tilt / norm, -tilt_squared / (norm * (alignment + norm))))
+                               (tuple(c / norm for c in tilt),
+                                -tilt_squared / (norm * (alignment + norm))))
 
 
 def _pole_turn_increment(direction, direction_change, precession):
@@ -370,7 +389,7 @@ def _asymmetric_top_increment(frame, momentum_body, momentum_norm, duration):
     a = m1 * m1 + m2 * m2 * j1 * (j3 - j2) / (j2 * (j3 - j1))
     if a == 0.0 or (m1 == 0.0 and m3 == 0.0):
         # m along a principal axis: a steady spin, omega = (E2 / L^2) L.
-        return _half_turn_increment(momentum_body / momentum_norm,
+        return _half_turn_increment(tuple(c / momentum_norm for c in momentum_body),
                                     duration * twice_energy / momentum_norm)
     b_squared = m2 * m2 + m1 * m1 * j2 * (j3 - j1) / (j1 * (j3 - j2))
     c_squared = m3 * m3 + m2 * m2 * j3 * (j2 - j1) / (j2 * (j3 - j1))
@@ -410,75 +429,130 @@ def _asymmetric_top_increment(frame, momentum_body, momentum_norm, duration):
                   - amplitude_a * amplitude_b / momentum_norm * integral)
     # n(u0 + h) - n(u0); an odd number of half periods flips the signs of cn and sn.
     if turns % 2:
-        direction_change = np.array([-(2.0 * m1 + amplitude_a * d_cn),
-                                     -(2.0 * m2 + amplitude_b * d_sn), amplitude_c * d_dn])
+        direction_change = (-(2.0 * m1 + amplitude_a * d_cn), -(2.0 * m2 + amplitude_b * d_sn),
+                            amplitude_c * d_dn)
     else:
-        direction_change = np.array([amplitude_a * d_cn, amplitude_b * d_sn,
-                                     amplitude_c * d_dn])
-    direction = np.array([m1, m2, m3]) / momentum_norm
-    direction_change /= momentum_norm
-    to_body = frame.axes @ change
-    if direction @ (direction + direction_change) >= 0.0:
+        direction_change = (amplitude_a * d_cn, amplitude_b * d_sn, amplitude_c * d_dn)
+    direction = (m1 / momentum_norm, m2 / momentum_norm, m3 / momentum_norm)
+    direction_change = tuple(c / momentum_norm for c in direction_change)
+    to_body = (frame.axes @ change).tolist()
+    if _dot(direction, tuple(n + d for n, d in zip(direction, direction_change))) >= 0.0:
         return _turn_about_momentum_increment(
-            momentum_body / momentum_norm, to_body @ direction_change,
+            tuple(c / momentum_norm for c in momentum_body),
+            tuple(_dot(row, direction_change) for row in to_body),
             precession + _spherical_excess(direction, direction_change))
-    vector, scalar = _pole_turn_increment(direction, direction_change, precession)
-    return to_body @ vector, scalar
+    vector, scalar = _pole_turn_increment(np.array(direction), np.array(direction_change),
+                                          precession)
+    return tuple(_dot(row, vector) for row in to_body), scalar
 
 
-def _twice_energy_exactly(quaternion, angular_momentum, frame):
+def _dyadic(values):
     """
-    Return (2T, |q|^2) of the orientation q/|q| as exact rationals of the given floats.
+    Return (integers n_i, shift s) with values[i] = n_i / 2^s exactly, for doubles.
 
-    2T = sum_k (axes^T R^T L)_k^2 / I_k with R = R(q/|q|): written with the homogeneous
-    R_h(q) = |q|^2 R(q/|q|), 2T = 2T_h / |q|^4, so no square root is needed.
+    Every double is a dyadic rational n / 2^j (float.as_integer_ratio); over the common
+    power of two the arithmetic below is plain integer arithmetic: exact, and, unlike
+    fractions.Fraction, with no gcd to take after every operation.
     """
-    x, y, z, w = (Fraction(float(c)) for c in quaternion)
-    norm_squared = x * x + y * y + z * z + w * w
-    rotation = ((w * w + x * x - y * y - z * z, 2 * (x * y - z * w), 2 * (x * z + y * w)),
-                (2 * (x * y + z * w), w * w - x * x + y * y - z * z, 2 * (y * z - x * w)),
-                (2 * (x * z - y * w), 2 * (y * z + x * w), w * w - x * x - y * y + z * z))
-    momentum = [Fraction(float(c)) for c in angular_momentum]
-    body = [sum(rotation[i][j] * momentum[i] for i in range(3)) for j in range(3)]
-    axes = frame.axes
-    twice_energy = 0
-    for k in range(3):
-        principal = sum(Fraction(float(axes[j, k])) * body[j] for j in range(3))
-        twice_energy += principal * principal / Fraction(float(frame.moments[k]))
-    return twice_energy / (norm_squared * norm_squared), norm_squared
+    ratios = [value.as_integer_ratio() for value in values]
+    common = max([denominator for _, denominator in ratios])
+    return ([numerator * (common // denominator) for numerator, denominator in ratios],
+            common.bit_length() - 1)
+
+
+@functools.lru_cache(maxsize=256)
+def _frame_integers(axes, moments):
+    """Return ((integers, shift) of the flattened principal axes, the moments' (n, d))."""
+    return _dyadic(axes), [moment.as_integer_ratio() for moment in moments]
+
+
+def _twice_energy_exactly(quaternion, momentum, axes, moments):
+    """
+    Return (N, Q): 2T = N / (C Q^2) of the orientation q/|q| exactly, |q|^2 = Q / 4^s.
+
+    `quaternion` holds the integers of q over 2^s (:func:`_dyadic`), `momentum` those of
+    world L over 2^sl, `axes` those of the principal axes (columns, body frame) row by row
+    over 2^sa, `moments` the integer ratios (n_k, d_k) of I_k.  2T = sum_k (axes^T R^T L)_k^2
+    / I_k with R = R(q/|q|), written with the homogeneous R_h(q) = |q|^2 R(q/|q|), quadratic
+    in q, as 2T_h / |q|^4 (no square root); in integers, with p = a^T R_h(q)^T l,
+
+        2T = sum_k p_k^2 d_k prod_{j != k} n_j / (C Q^2),  C = n_1 n_2 n_3 4^(sl + sa),
+
+    the scale 2^s cancelling: C is the same for every q (not returned).
+    """
+    x, y, z, w = quaternion
+    l, a = momentum, axes
+    xx, yy, zz, ww = x * x, y * y, z * z, w * w
+    xy, xz, yz, xw, yw, zw = x * y, x * z, y * z, x * w, y * w, z * w
+    rotation = ((ww + xx - yy - zz, 2 * (xy - zw), 2 * (xz + yw)),
+                (2 * (xy + zw), ww - xx + yy - zz, 2 * (yz - xw)),
+                (2 * (xz - yw), 2 * (yz + xw), ww - xx - yy + zz))
+    body = [rotation[0][j] * l[0] + rotation[1][j] * l[1] + rotation[2][j] * l[2]
+            for j in range(3)]
+    p = [a[k] * body[0] + a[3 + k] * body[1] + a[6 + k] * body[2] for k in range(3)]
+    (n1, d1), (n2, d2), (n3, d3) = moments
+    return (p[0] * p[0] * d1 * n2 * n3 + p[1] * p[1] * d2 * n1 * n3
+            + p[2] * p[2] * d3 * n1 * n2), xx + yy + zz + ww
 
 
 def _rounded_step(frame, quaternion, increment, angular_momentum):
     """
     Return q + q (D - 1), normalised, its energy set to that of q, rounded once to double.
 
-    The sum is held exactly (rationals).  Normalised to first order in eta = |q'|^2 - 1
-    (~1e-16: the error is ~eta^2).  A body-frame turn theta = lambda (m x omega) changes 2T
-    by -2 lambda |m x omega|^2 (m -> m - theta x m), so lambda is set to remove the excess of
-    2T over that of q; computed in double, being ~1e-16 rad.
+    The sum is held exactly (integers over a power of two, :func:`_dyadic`).  Normalised to
+    first order in eta = |q'|^2 - 1 (~1e-16: the error is ~eta^2).  A body-frame turn
+    theta = lambda (m x omega) changes 2T by -2 lambda |m x omega|^2 (m -> m - theta x m), so
+    lambda is set to remove the excess of 2T over that of q (both exact, the difference
+    rounded once); the turn is computed in double, being ~1e-16 rad.  Python floats and
+    integers throughout: numpy's cost per call on 3-vectors exceeds the arithmetic.
     """
-    vector, scalar = increment
-    qv, qw = quaternion[:3], quaternion[3]
-    change = np.append(qw * vector + scalar * qv + cross(qv, vector), qw * scalar - qv @ vector)
-    exact = [Fraction(float(a)) + Fraction(float(b)) for a, b in zip(quaternion, change)]
-    target, _ = _twice_energy_exactly(quaternion, angular_momentum, frame)
-    reached, norm_squared = _twice_energy_exactly(exact, angular_momentum, frame)
-    approximate = np.array([float(c) for c in exact])
-    principal = frame.axes.T @ _momentum_body(approximate, angular_momentum)
-    axis = frame.axes @ cross(principal, principal / frame.moments)
-    axis_squared = axis @ axis
-    correction = np.zeros(4)
+    x, y, z, w = (float(c) for c in quaternion)
+    vector, s = increment
+    vx, vy, vz, s = (float(c) for c in (*vector, s))
+    # q (D - 1) = (w v + s q_v + q_v x v, w s - q_v . v)
+    change = (w * vx + s * x + (y * vz - z * vy), w * vy + s * y + (z * vx - x * vz),
+              w * vz + s * z + (x * vy - y * vx), w * s - (x * vx + y * vy + z * vz))
+    # q and q' = q + q (D - 1), exactly: integers over 2^shift.
+    parts, shift = _dyadic((x, y, z, w) + change)
+    start, end = parts[:4], [parts[i] + parts[4 + i] for i in range(4)]
+    # 2T of q and of q' exactly (:func:`_twice_energy_exactly`), L and the frame in integers.
+    momentum = [float(c) for c in angular_momentum]
+    axes, moments = tuple(frame.axes.ravel().tolist()), tuple(frame.moments.tolist())
+    (l, momentum_shift), ((a, axes_shift), ratios) = (_dyadic(momentum),
+                                                      _frame_integers(axes, moments))
+    target, start_norm = _twice_energy_exactly(start, l, a, ratios)
+    reached, norm_squared = _twice_energy_exactly(end, l, a, ratios)
+    # q' rounded to double: the base of the energy turn, computed in double.
+    hx, hy, hz, hw = (c / (1 << shift) for c in end)
+    correction = (0.0, 0.0, 0.0, 0.0)
     # A spherical top's energy does not depend on its orientation (and m x omega is round-off).
-    if axis_squared > 0.0 and frame.kind != SPHERICAL:
-        half_turn = float(reached - target) / (4.0 * axis_squared) * axis
-        if half_turn @ half_turn <= (0.5 * _LARGEST_CORRECTION) ** 2:
-            # q (x) (theta/2, 0)
-            correction = np.append(approximate[3] * half_turn
-                                   + cross(approximate[:3], half_turn),
-                                   -(approximate[:3] @ half_turn))
-    half_excess = (norm_squared - 1) / 2
-    return np.array([float(c - c * half_excess + Fraction(float(d)))
-                     for c, d in zip(exact, correction)])
+    if frame.kind != SPHERICAL:
+        # The turn axis m x omega, formed in the principal frame, returned to the body frame.
+        m = _momentum_body((hx, hy, hz, hw), momentum)
+        p = [axes[k] * m[0] + axes[3 + k] * m[1] + axes[6 + k] * m[2] for k in range(3)]
+        o = [p[k] / moments[k] for k in range(3)]
+        k1, k2, k3 = (p[1] * o[2] - p[2] * o[1], p[2] * o[0] - p[0] * o[2],
+                      p[0] * o[1] - p[1] * o[0])
+        kx, ky, kz = (axes[3 * i] * k1 + axes[3 * i + 1] * k2 + axes[3 * i + 2] * k3
+                      for i in range(3))
+        axis_squared = kx * kx + ky * ky + kz * kz
+        if axis_squared > 0.0:
+            # 2T(q') - 2T(q) = (N' Q^2 - N Q'^2) / (C Q^2 Q'^2), rounded once.
+            common = (ratios[0][0] * ratios[1][0] * ratios[2][0]
+                      << 2 * (momentum_shift + axes_shift))
+            excess = ((reached * start_norm ** 2 - target * norm_squared ** 2)
+                      / (common * start_norm ** 2 * norm_squared ** 2))
+            f = excess / (4.0 * axis_squared)
+            tx, ty, tz = f * kx, f * ky, f * kz
+            if tx * tx + ty * ty + tz * tz <= (0.5 * _LARGEST_CORRECTION) ** 2:
+                # q (x) (theta/2, 0)
+                correction = (hw * tx + (hy * tz - hz * ty), hw * ty + (hz * tx - hx * tz),
+                              hw * tz + (hx * ty - hy * tx), -(hx * tx + hy * ty + hz * tz))
+    # c (1 - eta/2) + correction, eta = Q / 4^s - 1: exactly, over 2^(3s + 1 + sc), rounded.
+    corrections, correction_shift = _dyadic(correction)
+    unit, scale = 1 << 2 * shift, 1 << 3 * shift + 1 + correction_shift
+    return np.array([((c * (3 * unit - norm_squared) << correction_shift)
+                      + (d << 3 * shift + 1)) / scale for c, d in zip(end, corrections)])
 
 
 def exact_free_rotation(body, quaternion, angular_momentum, duration):
@@ -505,17 +579,18 @@ def exact_free_rotation(body, quaternion, angular_momentum, duration):
         rounding.  See the module docstring for the construction.
 
     """
-    quaternion = np.asarray(quaternion, dtype=float)
-    angular_momentum = np.asarray(angular_momentum, dtype=float)
-    norm_squared = quaternion @ quaternion
+    quaternion = tuple(float(c) for c in quaternion)
+    angular_momentum = tuple(float(c) for c in angular_momentum)
+    norm_squared = sum(c * c for c in quaternion)
     if abs(norm_squared - 1.0) > 1e-12:
         # The last rounding normalises to first order: start from a unit quaternion.
-        quaternion = quaternion / math.sqrt(norm_squared)
-    if not np.any(angular_momentum) or duration == 0.0:
-        return quaternion
+        norm = math.sqrt(norm_squared)
+        quaternion = tuple(c / norm for c in quaternion)
+    if not any(angular_momentum) or duration == 0.0:
+        return np.array(quaternion)
     frame = principal_frame(body.inertia)
     momentum_body = _momentum_body(quaternion, angular_momentum)
-    momentum_norm = math.sqrt(angular_momentum @ angular_momentum)
+    momentum_norm = math.sqrt(_dot(angular_momentum, angular_momentum))
     if frame.kind == ASYMMETRIC:
         increment = _asymmetric_top_increment(frame, momentum_body, momentum_norm, duration)
     else:
