@@ -11,8 +11,8 @@ timing is CPU time of this process (time.process_time: the machine may be loaded
 median over K repeats of about S CPU seconds of work, after a warm-up run (so numba
 compilation is not counted), in microseconds per step.  The ratio of the two bulk columns
 is the price of the scene's effects.  'path' says what takes the steps: 'compiled' (one
-compiled run, a dissipation flow fused in), 'kernel' or 'kernel+flows' (a registry kernel,
-flows composed around it in Python) or 'readable' (the readable integrator).
+compiled run, a dissipation flow fused in), 'kernel+flows' (single compiled steps, other
+flows composed around them in Python) or 'readable' (the readable integrator).
 """
 
 import argparse

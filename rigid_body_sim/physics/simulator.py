@@ -14,14 +14,8 @@ from .effects.dissipation import Dissipation
 from .integrators import FAST_KERNELS
 from .integrators import get_integrator
 from .integrators.fast import body_values
-from .integrators.fast import CompiledIntegrator
-from .integrators.fast import FORCE_BODY
-from .integrators.fast import FORCE_WORLD
-from .integrators.fast import LEVER_FORCE
 from .integrators.fast import packed_wrench
 from .integrators.fast import STATE_SIZE
-from .integrators.fast import TORQUE_BODY
-from .integrators.fast import TORQUE_WORLD
 from .state import State
 
 __all__ = ['Simulator']
@@ -32,7 +26,6 @@ _PROGRESS_CHUNK = 20000
 
 # What takes the steps (Simulator._path), chosen once per configuration by _plan.
 COMPILED = 'compiled'  # one compiled run takes all the steps, a dissipation flow fused in
-KERNEL = 'kernel'  # a registry kernel without the packed form (exact) takes all the steps
 KERNEL_AND_FLOWS = 'kernel+flows'  # single kernel steps, flows composed around them here
 READABLE = 'readable'  # the readable step functions, effects evaluated every step
 
@@ -101,10 +94,8 @@ class Simulator:
         self._time_compensation = 0.0
         self._effects = tuple(effects)
         self._sort_effects()
-        # The integrated state, packed [q, x, p, L], and its four fields as views.
+        # The integrated state, packed [q, x, p, L].
         self._values = np.zeros(STATE_SIZE)
-        values = self._values
-        self._views = (values[0:4], values[4:7], values[7:10], values[10:13])
         self.state = state
         self._fast = bool(fast)
         self._held = tuple(np.zeros(3) for _ in range(4))
@@ -343,34 +334,28 @@ class Simulator:
         """
         Choose, once per configuration (integrator, held wrench), what takes the steps.
 
-        The compiled kernels take held wrenches only (fixed in the world or in the body);
-        an effect's wrench is evaluated by the readable step functions.  A kernel without
-        the packed form of integrators/fast.py (exact) cannot take a force under a pivot
-        (its moment turns with the body).  A dissipation flow is fused into the compiled
-        run; other flows are composed here around single kernel steps.
+        The compiled kernels take held wrenches only (fixed in the world or in the body,
+        and a world force at a body point under a pivot); an effect's wrench is evaluated
+        by the readable step functions.  A dissipation flow is fused into the compiled run;
+        other flows are composed here around single kernel steps.
         """
         kernel = self._kernel
         self._wrench = self._packed_wrench()
         self._run = None
-        compiled = isinstance(kernel, CompiledIntegrator)
-        if (kernel is None or self._pushing_effects
-                or (not compiled and np.any(self._wrench[LEVER_FORCE]))):
+        if kernel is None or self._pushing_effects:
             self._path = READABLE
             return
+        self._method = kernel.method
         flows = self._flows
-        if compiled:
-            self._method = kernel.method
-            if not flows:
-                self._damping = 0.0
-            elif len(flows) == 1 and type(flows[0]) is Dissipation:
-                self._damping = flows[0].damping
-            else:
-                self._path = KERNEL_AND_FLOWS
-                return
-            self._run = kernel.run
-            self._path = COMPILED
+        if not flows:
+            self._damping = 0.0
+        elif len(flows) == 1 and type(flows[0]) is Dissipation:
+            self._damping = flows[0].damping
         else:
-            self._path = KERNEL_AND_FLOWS if flows else KERNEL
+            self._path = KERNEL_AND_FLOWS
+            return
+        self._run = kernel.run
+        self._path = COMPILED
 
     def _packed_wrench(self):
         """
@@ -398,8 +383,6 @@ class Simulator:
             run(self._values, self._wrench, self._kernel_body, self._method, self._damping,
                 dt, steps)
             self._integrated = self._state = None
-        elif self._path == KERNEL:
-            self._kernel_steps(steps, dt)
         else:
             self._compose(steps, dt)
         self._add_time(steps * dt)
@@ -434,14 +417,8 @@ class Simulator:
         return self._integrated_state()
 
     def _kernel_steps(self, steps, dt):
-        kernel, wrench = self._kernel, self._wrench
-        if isinstance(kernel, CompiledIntegrator):
-            kernel.run(self._values, wrench, self._kernel_body, kernel.method, 0.0, dt, steps)
-        else:
-            body = self._integrated_body
-            kernel(*self._views, body.inertia, body.inertia_inverse, body.mass, dt, steps,
-                   wrench[FORCE_WORLD], wrench[TORQUE_WORLD], wrench[FORCE_BODY],
-                   wrench[TORQUE_BODY])
+        kernel = self._kernel
+        kernel.run(self._values, self._wrench, self._kernel_body, kernel.method, 0.0, dt, steps)
         self._integrated = self._state = None
 
     def _add_time(self, increment):

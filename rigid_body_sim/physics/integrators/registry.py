@@ -12,11 +12,11 @@ dt : step in s; wrench : None for torque-free motion, or a callable
 the momenta (drag) carries the attribute ``momentum_dependent = True`` so that methods can
 keep their order for it.
 
-Registering takes the method's order of accuracy and, optionally, a fast path: a compiled
-kernel ``kernel(quaternion, position, linear_momentum, angular_momentum, inertia_body,
-inertia_body_inverse, mass, dt, steps, force_world, torque_world, force_body, torque_body)``
-that advances the arrays in place over `steps` steps under a wrench held constant in the
-world and body frames.  The fast path must equal the readable step to round-off (tested).
+Registering takes the method's order of accuracy and, optionally, a fast path: a
+:class:`~rigid_body_sim.physics.integrators.fast.CompiledIntegrator`, whose ``run``
+advances a packed state in place over `steps` steps under a held wrench (fixed in the world
+or in the body, and a world force at a body point), with a dissipation flow fused in.  The
+fast path must equal the readable step to round-off (tested).
 """
 
 INTEGRATORS = {}
@@ -30,8 +30,14 @@ def register_integrator(name, order, fast_kernel=None):
     """
     Register the decorated step function under `name`, with its order of accuracy.
 
-    The function gains the attributes ``integrator_name`` and ``order``.
+    The function gains the attributes ``integrator_name`` and ``order``.  `fast_kernel`, if
+    given, must be a CompiledIntegrator (TypeError otherwise).
     """
+    from .fast import CompiledIntegrator
+    if fast_kernel is not None and not isinstance(fast_kernel, CompiledIntegrator):
+        raise TypeError(f'the fast path of integrator {name!r} must be a CompiledIntegrator '
+                        f'(integrators/fast.py); got {type(fast_kernel).__name__}')
+
     def decorate(step):
         if name in INTEGRATORS:
             raise ValueError(f'integrator {name!r} is registered twice')
