@@ -17,7 +17,11 @@ body, in a ROS domain of its own on the loopback, while this script subscribes t
   a torque, waits for its effect, then removes it (input_timeout 0 holds inputs until
   replaced) and waits until L is steady again.
 
-Usage: ``.venv/bin/python benchmarks/node_benchmark.py [--rates 100 1000] [--duration 10]``
+With ``--unsubscribed`` it also runs the node alone (no subscriber: nothing is serialised
+or published) and reports its CPU: the node's own cost, without DDS delivery.
+
+Usage: ``.venv/bin/python benchmarks/node_benchmark.py [--rates 100 1000] [--duration 10]
+[--unsubscribed]``
 """
 
 import argparse
@@ -209,6 +213,27 @@ def run_rate(rate, duration, warmup, trials, log_dir):
     }
 
 
+def unsubscribed_cpu(rate, duration, warmup, log_dir):
+    """Return the node's CPU (% of one core) at `rate` Hz with no subscriber at all."""
+    log_path = log_dir / f'node_{int(rate)}hz_unsubscribed.log'
+    with open(log_path, 'w') as log:
+        node = subprocess.Popen(
+            [sys.executable, '-m', 'rigid_body_sim.ros.entry_point', '--ros-args',
+             '-r', f'__ns:=/bench_{os.getpid()}_alone', '-p', f'rate:={float(rate)}',
+             '-p', 'integrator:=buss'], stdout=log, stderr=subprocess.STDOUT, cwd=ROOT)
+    try:
+        # Start-up (imports, kernels) takes a few seconds of CPU: wait for the first tick.
+        if not wait_for(lambda: 'simulating scene' in log_path.read_text(), 60.0):
+            raise RuntimeError(f'the node did not start; see {log_path}')
+        time.sleep(warmup)
+        start, cpu_start = time.monotonic(), process_cpu_seconds(node.pid)
+        time.sleep(duration)
+        return 100.0 * (process_cpu_seconds(node.pid) - cpu_start) / (time.monotonic() - start)
+    finally:
+        node.send_signal(2)
+        node.wait(15.0)
+
+
 def main(argv=None):
     """Measure each rate and print a table; return 0."""
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
@@ -219,6 +244,9 @@ def main(argv=None):
     parser.add_argument('--trials', type=int, default=20, help='latency trials per rate')
     parser.add_argument('--log-dir', type=Path, default=Path('/tmp'),
                         help='where the node logs go (default /tmp)')
+    parser.add_argument('--unsubscribed', action='store_true',
+                        help="also measure the node's CPU with no subscriber (nothing is "
+                             'published: its own cost, without DDS delivery)')
     args = parser.parse_args(argv)
     # The probe's executor thread takes every angular_momentum message (1000/s at 1 kHz);
     # without a short GIL switch interval (default 5 ms) the main thread would wait that
@@ -242,6 +270,11 @@ def main(argv=None):
               f'{r["tick_p50"]:9.3f} {r["tick_p99"]:9.3f} {stamp:>25} {arrival:>19}',
               flush=True)
     print('one tick is 1/rate: 10 ms at 100 Hz, 1 ms at 1 kHz')
+    if args.unsubscribed:
+        for rate in args.rates:
+            cpu = unsubscribed_cpu(rate, args.duration, args.warmup, args.log_dir)
+            print(f'{rate:7g} Hz with no subscriber (nothing published): CPU {cpu:.1f}%',
+                  flush=True)
     return 0
 
 
