@@ -406,20 +406,12 @@ class Simulator:
                 state = effect.flow(body, state, half)
         self._store(state)
 
-    def _runs_fast(self):
-        """Return True when a compiled kernel takes the steps (see :meth:`_plan`)."""
-        return self._path != READABLE
-
     def _kernel_step(self, body, state, time, dt, wrench):
         # The step-function form of one kernel step; the held wrench is the kernel's own.
         self._store(state)
-        self._kernel_steps(1, dt)
+        self._kernel.run(self._values, self._wrench, self._kernel_body, self._method, 0.0, dt, 1)
+        self._integrated = None
         return self._integrated_state()
-
-    def _kernel_steps(self, steps, dt):
-        kernel = self._kernel
-        kernel.run(self._values, self._wrench, self._kernel_body, kernel.method, 0.0, dt, steps)
-        self._integrated = self._state = None
 
     def _add_time(self, increment):
         # Kahan summation: keeps the clock exact to round-off over millions of ticks, where a
