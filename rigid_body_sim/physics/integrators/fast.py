@@ -230,8 +230,12 @@ def wrench_at(q, wrench):
 
 
 @_jit
-def _kick(q, linear_momentum, angular_momentum, wrench, duration):
-    """Kick the momenta in place: p += h F, L += h tau, the held wrench taken at q."""
+def kick(q, linear_momentum, angular_momentum, wrench, duration):
+    """
+    Kick the momenta in place: p += h F, L += h tau, the held wrench taken at q.
+
+    q is the unit quaternion as an array or a 4-tuple (fast_exact.py keeps it in a tuple).
+    """
     force, torque = wrench_at(q, wrench)
     for i in range(3):
         linear_momentum[i] += duration * force[i]
@@ -310,7 +314,7 @@ def _buss_run(state, wrench, body, method, damping, dt, steps):
         if damping > 0.0:
             dissipate(state, body, damping, half)
         if pushed:
-            _kick(quaternion, linear_momentum, angular_momentum, wrench, half)
+            kick(quaternion, linear_momentum, angular_momentum, wrench, half)
         m = _matrix(quaternion)
         momentum_body = _mul_transposed(m, angular_momentum)
         omega_body = _mul(inertia_body_inverse, momentum_body)
@@ -321,7 +325,7 @@ def _buss_run(state, wrench, body, method, damping, dt, steps):
             position += dt * linear_momentum / mass
             moved += 1
         if pushed:
-            _kick(quaternion, linear_momentum, angular_momentum, wrench, half)
+            kick(quaternion, linear_momentum, angular_momentum, wrench, half)
         if damping > 0.0:
             dissipate(state, body, damping, half)
     return moved

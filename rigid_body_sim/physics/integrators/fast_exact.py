@@ -27,9 +27,9 @@ from .fast import BODY_MASS
 from .fast import BODY_MOMENTS
 from .fast import CompiledIntegrator
 from .fast import dissipate
+from .fast import kick
 from .fast import nonzero_momentum
 from .fast import pushes
-from .fast import wrench_at
 from .principal import ASYMMETRIC
 from .principal import OBLATE
 from .principal import PROLATE
@@ -448,15 +448,6 @@ def _free_rotation(q, lx, ly, lz, moments, axes, kind, duration):
 
 
 @_jit
-def _kick(q, linear_momentum, angular_momentum, wrench, duration):
-    """Kick the momenta in place: p += h F, L += h tau, the held wrench taken at q."""
-    force, torque = wrench_at(q, wrench)
-    for i in range(3):
-        linear_momentum[i] += duration * force[i]
-        angular_momentum[i] += duration * torque[i]
-
-
-@_jit
 def _exact_run(state, wrench, body, method, damping, dt, steps):
     """Run the exact integrator (signature: fast.py; no method constants)."""
     linear_momentum, angular_momentum = state[7:10], state[10:13]
@@ -477,7 +468,7 @@ def _exact_run(state, wrench, body, method, damping, dt, steps):
             # The last rounding normalises to first order: start from a unit quaternion.
             q = _normalised(q)
         if pushed:
-            _kick(q, linear_momentum, angular_momentum, wrench, half)
+            kick(q, linear_momentum, angular_momentum, wrench, half)
         q = _free_rotation(q, angular_momentum[0], angular_momentum[1], angular_momentum[2],
                            moments, axes, kind, dt)
         if translates:
@@ -485,7 +476,7 @@ def _exact_run(state, wrench, body, method, damping, dt, steps):
                 state[4 + i] += dt * linear_momentum[i] / mass
             moved += 1
         if pushed:
-            _kick(q, linear_momentum, angular_momentum, wrench, half)
+            kick(q, linear_momentum, angular_momentum, wrench, half)
         state[0], state[1], state[2], state[3] = q
         if damping > 0.0:
             dissipate(state, body, damping, half)
