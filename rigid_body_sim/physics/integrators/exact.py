@@ -219,7 +219,7 @@ def _circulation_frame(frame, momentum_principal):
     return change, moments, momentum, separatrix
 
 
-def _third_kind_part(sn, cn, dn, parameter, b_over_a):
+def _third_kind_part(sn, cn, dn, b_over_a):
     """Return P(u) = sn^3 R_J(cn^2, dn^2, 1, 1 + (b/a) sn^2) for |u| <= K (cn >= 0)."""
     return sn ** 3 * carlson_rj(cn * cn, dn * dn, 1.0, 1.0 + b_over_a * sn * sn)
 
@@ -277,7 +277,7 @@ def _increments_by_addition(start, step_functions, parameter, b_over_a):
         quotient = 1.0 + b_over_a * (1.0 - c0 * ch * c1)
         x = rho * product / quotient
         ratio = math.atan(x) / x if x != 0.0 else 1.0
-        third = (_third_kind_part(sh, ch, dh, parameter, b_over_a)
+        third = (_third_kind_part(sh, ch, dh, b_over_a)
                  + 3.0 * ratio * product / quotient)
     return d_sn, d_cn, d_dn, theta, third
 
@@ -304,8 +304,8 @@ def _increments_from_the_ends(start, reduced, parameter, complement, b_over_a):
              - math.atan2(math.sqrt(1.0 + b_over_a) * s0, c0))
     third = 0.0
     if b_over_a != 0.0:
-        third = (_third_kind_part(s1, c1, d1, parameter, b_over_a)
-                 - _third_kind_part(s0, c0, d0, parameter, b_over_a))
+        third = (_third_kind_part(s1, c1, d1, b_over_a)
+                 - _third_kind_part(s0, c0, d0, b_over_a))
         if turns:
             third += 2.0 * turns * carlson_rj(0.0, complement, 1.0, 1.0 + b_over_a)
     if turns % 2:
