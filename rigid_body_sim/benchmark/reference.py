@@ -31,6 +31,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from .extended_reference import DIGITS
+from .extended_reference import exact_time
 from .extended_reference import reference_quaternions
 from .extended_reference import rotation_matrix_decimal
 from ..physics import INTEGRATORS
@@ -181,7 +182,7 @@ def reference_rotations(body, state, keys, use_cache=True):
     rotations = {key: _double_rotation(values[key][0]) for key in keys}
     uncertainty = {key: max(values[key][1], MEASUREMENT_FLOOR) for key in keys}
     # The double-precision solutions take the double nearest the exact time N x dt.
-    times = {key: float(key[0] * Decimal(key[1])) for key in keys}
+    times = {key: float(exact_time(*key)) for key in keys}
     ode = ode_reference(body, state, times.values())
     ode_gap = {key: rotation_angle(ode[times[key]], rotations[key]) for key in keys}
     exact_gap = None
