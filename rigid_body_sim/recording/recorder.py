@@ -14,8 +14,10 @@ transient local if every publisher is).  History is keep-last with a deep queue 
 default 5000: five seconds at 1 kHz), so a take loop that falls behind while the DDS threads
 keep receiving (a slow flush, the interpreter busy) loses nothing.  A stall of the whole
 process, DDS threads included, is another matter: Fast DDS's shared-memory port queue holds
-512 samples (85 ms of the node's six topics at 1 kHz), and the node's reliable publishers
-keep only their last 10 samples to resend, so a longer stall loses the rest (measured in
+512 samples (85 ms of the node's six topics at 1 kHz), and a reliable publisher resends
+only what its history still holds: the node's state publishers their last 1000 samples
+(1 s at 1 kHz, :mod:`rigid_body_sim.ros.qos`), /diagnostics and other publishers often 10,
+best-effort /clock nothing.  A longer stall loses the rest (measured in
 ``benchmarks/recording_benchmark.py --stalls``; the summary says so when it happens).
 
 No executor.  rclpy's executor costs tens of microseconds of Python per message, too much
@@ -128,9 +130,10 @@ class RecordingSummary:
             seen = 'lost: n/a' if lost is None else f'lost (sequence gaps): {lost}'
             lines.append(f'  {topic}: {count} ({seen})')
         if any(self.lost.values()):
-            lines.append('  messages lost: a stall of this process longer than ~85 ms at 1 kHz '
-                         "(Fast DDS's shared-memory queue holds 512 samples, the node's "
-                         'publishers resend only their last 10); see the README')
+            lines.append('  messages lost: a stall of this process longer than the '
+                         "publishers' history covers (Fast DDS's shared-memory queue holds 512 "
+                         "samples, ~85 ms at 1 kHz; the node's state publishers resend their "
+                         'last 1000, 1 s at 1 kHz); see the README')
         if self.missing:
             lines.append(f'  no message received (not in the bag): {", ".join(self.missing)}')
         return '\n'.join(lines)
