@@ -20,6 +20,7 @@ TOOLS = {
     'simulate': 'simulate',
     'record': 'record',
     'plot': 'plot',
+    'compile': 'compile',
 }
 
 _EPILOG = """\

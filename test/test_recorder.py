@@ -143,6 +143,21 @@ def assert_logged_at_the_receive_time(messages):
             assert np.median(delay) < 10_000_000, (topic, np.median(delay))
 
 
+def wait_until_ticking(node, timeout=120.0):
+    """
+    Wait until the node logged its start, then half a second more for its first ticks.
+
+    On a fresh clone the first node compiles the numba kernels, which on a busy machine
+    takes longer than a short recording: a fixed sleep is not enough.
+    """
+    deadline = time.monotonic() + timeout
+    while 'simulating scene' not in node.output():
+        assert node.alive(), node.output()
+        assert time.monotonic() < deadline, f'the node did not start:\n{node.output()}'
+        time.sleep(0.1)
+    time.sleep(0.5)
+
+
 @pytest.fixture
 def environment():
     """Isolate ROS discovery for this test process; return a fresh namespace."""
@@ -176,7 +191,7 @@ def test_recorder_loses_no_message_at_1_khz_over_30_s(tmp_path, environment):
                        parameters={'rate': 1000.0, 'publish_clock': 'true'})
     bag = tmp_path / 'live'
     try:
-        time.sleep(1.0)
+        wait_until_ticking(node)
         recorder = RecorderProcess(tmp_path / 'recorder.log', bag, '--namespace', namespace,
                                    '--duration', '32')
         assert recorder.finish(timeout=120.0) == 0, recorder.output()
@@ -218,7 +233,7 @@ def node_100_hz(tmp_path_factory):
     namespace = unique_namespace()
     node = NodeProcess(tmp_path_factory.mktemp('node') / 'node.log', namespace=namespace,
                        parameters={'rate': 100.0, 'publish_clock': 'true'})
-    time.sleep(1.0)
+    wait_until_ticking(node)
     yield namespace
     node.stop()
 
