@@ -31,7 +31,7 @@ import numpy as np
 
 from ..physics import RigidBody
 from ..physics import State
-from ..physics.rotations import rotation_matrix_from_rotation_vector
+from ..physics.rotations import matrix_from_quaternion
 
 __all__ = ['BenchmarkCase', 'benchmark_cases', 'CASE_NAMES', 'QUICK_CASE_NAMES']
 
@@ -43,7 +43,16 @@ QUICK_CASE_NAMES = ('van_zon', 'non_diagonal')
 _NON_DIAGONAL_INERTIA = ((2.0, -0.3, 0.2),
                          (-0.3, 3.0, 0.4),
                          (0.2, 0.4, 4.0))
-_NON_DIAGONAL_ROTATION_VECTOR = (0.4, -0.7, 1.1)
+# The oblique start R0 = exp([(0.4, -0.7, 1.1)]x) and its L0 = R0 I Omega0, given as the exact
+# doubles they rounded to on the machine that computed the committed references: computed
+# anew, sin/cos and OpenBLAS's CPU-selected kernels differ in the last bit across machines,
+# and a problem 1 ulp away has no committed reference (reference_values.py is keyed by the
+# exact doubles).  Near the separatrix that ulp matters at the reference's resolution.
+_NON_DIAGONAL_QUATERNION = tuple(float.fromhex(value) for value in (
+    '0x1.7a95ff7680917p-3', '-0x1.4b433f87b07f2p-2', '0x1.04471fa17863fp-1',
+    '0x1.8d807c0271556p-1'))
+_NON_DIAGONAL_ANGULAR_MOMENTUM = tuple(float.fromhex(value) for value in (
+    '0x1.e07e04a5ad610p-1', '-0x1.be5975f9d10dbp+1', '0x1.0be34465f212fp+3'))
 
 
 @dataclass(frozen=True)
@@ -63,6 +72,10 @@ class BenchmarkCase:
         Initial body angular velocity Omega0 (rad/s).
     rotation : numpy.ndarray, shape (3, 3)
         Initial orientation R0, body to world.
+    quaternion, angular_momentum : tuple of floats or None
+        The initial quaternion (x, y, z, w) and world angular momentum (kg m^2/s) as exact
+        doubles, for a start whose computation is not bit-reproducible across machines;
+        None: the identity and I Omega0.
 
     """
 
@@ -71,18 +84,27 @@ class BenchmarkCase:
     body: RigidBody
     angular_velocity_body: np.ndarray
     rotation: np.ndarray
+    quaternion: tuple = None
+    angular_momentum: tuple = None
 
     @property
     def state(self):
         """Get the initial State (world frame): at rest at the origin, rotating."""
+        if self.quaternion is not None:
+            # The committed doubles as they are (unit to round-off, so kept unscaled).
+            return State._from_arrays(np.array(self.quaternion), np.zeros(3), np.zeros(3),
+                                      np.array(self.angular_momentum))
         return State.from_velocity(self.body, rotation=self.rotation,
                                    angular_velocity_body=self.angular_velocity_body)
 
 
-def _case(name, description, inertia, angular_velocity_body, rotation=None):
-    rotation = np.eye(3) if rotation is None else np.asarray(rotation, dtype=float)
+def _case(name, description, inertia, angular_velocity_body, quaternion=None,
+          angular_momentum=None):
+    rotation = np.eye(3) if quaternion is None else matrix_from_quaternion(
+        np.array(quaternion))
     return BenchmarkCase(name, description, RigidBody(1.0, inertia),
-                         np.array(angular_velocity_body, dtype=float), rotation)
+                         np.array(angular_velocity_body, dtype=float), rotation, quaternion,
+                         angular_momentum)
 
 
 def benchmark_cases(names=CASE_NAMES):
@@ -109,8 +131,8 @@ def benchmark_cases(names=CASE_NAMES):
         'non_diagonal': lambda: _case(
             'non_diagonal', 'non-diagonal I = ((2, -0.3, 0.2), (-0.3, 3, 0.4), (0.2, 0.4, 4)), '
             'R0 = exp([(0.4, -0.7, 1.1)]x), Omega0 = (1.5, -1, 2)',
-            _NON_DIAGONAL_INERTIA, (1.5, -1.0, 2.0),
-            rotation_matrix_from_rotation_vector(_NON_DIAGONAL_ROTATION_VECTOR)),
+            _NON_DIAGONAL_INERTIA, (1.5, -1.0, 2.0), _NON_DIAGONAL_QUATERNION,
+            _NON_DIAGONAL_ANGULAR_MOMENTUM),
     }
     unknown = [name for name in names if name not in builders]
     if unknown:
