@@ -26,6 +26,7 @@ __all__ = [
     'rotation_angle_between',
     'reference_solution',
     'state_error',
+    'torque_free_momentum_drift',
     'torque_free_omega_period',
 ]
 
@@ -209,3 +210,27 @@ def first_order_energy_gain_rate(body, state, dt):
     gyroscopic = np.cross(omega, state.angular_momentum)
     inverse_world = rotation @ body.inertia_inverse @ rotation.T
     return 0.5 * dt * float(gyroscopic @ inverse_world @ gyroscopic)
+
+
+# rk4 integrates the body momentum m = R^T L (integrators/rk4.py): its world L = R m carries
+# the method's global error, K (|Omega| dt)^4 |Omega| t relative, and the rounding of each
+# step's increment, <= 1 ulp of |L| (an increment below half an ulp leaves L bit-identical).
+# Measured over the torque-free runs of test_hard_cases and test_conservation: K at most
+# 3.5e-5; with test_core_speed_paths' dissipation, which sweeps the body across its polhodes,
+# 3.8e-4.  Allowed 2e-3.
+RK4_MOMENTUM_K = 2e-3
+
+
+def torque_free_momentum_drift(name, body, state, dt, steps):
+    """
+    Return how far (kg m^2/s) torque-free world L may move in `steps` steps of dt s.
+
+    0 for the methods that never write L without a wrench (it stays bit-identical); for rk4
+    its order bound plus round-off (see RK4_MOMENTUM_K).
+    """
+    if name != 'rk4':
+        return 0.0
+    omega = np.linalg.norm(state.angular_velocity_body(body))
+    magnitude = np.linalg.norm(state.angular_momentum)
+    return magnitude * (RK4_MOMENTUM_K * (omega * dt) ** 4 * omega * steps * dt
+                        + steps * np.finfo(float).eps)

@@ -18,6 +18,7 @@ from reference import random_rotation
 from reference import reference_solution
 from reference import rotation_angle_between
 from reference import state_error
+from reference import torque_free_momentum_drift
 from rigid_body_sim.physics import FAST_KERNELS
 from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import RigidBody
@@ -202,8 +203,9 @@ def test_dissipation_is_fused_into_the_compiled_run_and_equals_the_composition(n
     # The spin left the middle axis: the flow did act.
     assert abs(fused.state.angular_velocity_body(body)[1]) < 2.5
     _assert_states_agree(fused.state, composed.state, _round_off(name, steps))
-    # Neither the flow nor a torque-free step touches world L.
-    np.testing.assert_array_equal(fused.state.angular_momentum, state.angular_momentum)
+    # Neither the flow nor a torque-free step touches world L (rk4 moves it by its error).
+    drift = torque_free_momentum_drift(name, body, state, 0.01, steps)
+    assert np.linalg.norm(fused.state.angular_momentum - state.angular_momentum) <= drift
 
 
 def test_a_flow_the_kernels_do_not_know_is_composed_around_kernel_steps():

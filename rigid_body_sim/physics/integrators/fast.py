@@ -343,25 +343,71 @@ first_order_kernel = CompiledIntegrator(_first_order_run)
 
 
 @_jit
-def _rk4_derivative(q, linear_momentum, angular_momentum, inertia_body_inverse, mass, wrench,
-                    pushed):
-    norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    unit = q / norm
-    m = _matrix(unit)
-    omega = _mul(m, _mul(inertia_body_inverse, _mul_transposed(m, angular_momentum)))
-    # dq/dt = 1/2 (omega, 0) * q, omega in the world frame (left product).
-    dq = np.empty(4)
-    dq[0] = 0.5 * (omega[0] * q[3] + omega[1] * q[2] - omega[2] * q[1])
-    dq[1] = 0.5 * (-omega[0] * q[2] + omega[1] * q[3] + omega[2] * q[0])
-    dq[2] = 0.5 * (omega[0] * q[1] - omega[1] * q[0] + omega[2] * q[3])
-    dq[3] = 0.5 * (-omega[0] * q[0] - omega[1] * q[1] - omega[2] * q[2])
-    force, torque = np.zeros(3), np.zeros(3)
+def _rk4_derivative(q, momentum_body, linear_momentum, inertia_body_inverse, wrench, pushed):
+    """
+    Return (dq, dm, F) of rk4.py's stage at the (unnormalised) stage quaternion q (4-tuple).
+
+    dq = 1/2 q * (Omega, 0), dm = m x Omega + R^T tau (body frame), F (world), with
+    Omega = I_b^{-1} m and the held wrench taken at the normalised q, as rk4.py samples it.
+    Scalars and tuples only: a stage allocates nothing.
+    """
+    x, y, z, w = q
+    m0, m1, m2 = momentum_body
+    a = inertia_body_inverse
+    o0 = a[0, 0] * m0 + a[0, 1] * m1 + a[0, 2] * m2
+    o1 = a[1, 0] * m0 + a[1, 1] * m1 + a[1, 2] * m2
+    o2 = a[2, 0] * m0 + a[2, 1] * m1 + a[2, 2] * m2
+    dq = (0.5 * (w * o0 + y * o2 - z * o1), 0.5 * (w * o1 + z * o0 - x * o2),
+          0.5 * (w * o2 + x * o1 - y * o0), -0.5 * (x * o0 + y * o1 + z * o2))
+    d0, d1, d2 = m1 * o2 - m2 * o1, m2 * o0 - m0 * o2, m0 * o1 - m1 * o0
+    force = (0.0, 0.0, 0.0)
     if pushed:
-        # The wrench at each stage's (normalised) orientation, as rk4.py samples it.
-        stage_force, stage_torque = wrench_at(unit, wrench)
-        for i in range(3):
-            force[i], torque[i] = stage_force[i], stage_torque[i]
-    return dq, linear_momentum / mass, force, torque
+        norm = math.sqrt(x * x + y * y + z * z + w * w)
+        unit = (x / norm, y / norm, z / norm, w / norm)
+        force, torque = wrench_at(unit, wrench)
+        # R^T tau: the torque in the body frame at this stage's orientation.
+        t0, t1, t2 = _rotated_back(unit, torque)
+        d0, d1, d2 = d0 + t0, d1 + t1, d2 + t2
+    return dq, (d0, d1, d2), force
+
+
+@_jit
+def _rotated_back(q, v):
+    """Return R^T v as a 3-tuple, R the rotation matrix of the unit quaternion q (a tuple)."""
+    x, y, z, w = q
+    return ((1.0 - 2.0 * (y * y + z * z)) * v[0] + 2.0 * (x * y + z * w) * v[1]
+            + 2.0 * (x * z - y * w) * v[2],
+            2.0 * (x * y - z * w) * v[0] + (1.0 - 2.0 * (x * x + z * z)) * v[1]
+            + 2.0 * (y * z + x * w) * v[2],
+            2.0 * (x * z + y * w) * v[0] + 2.0 * (y * z - x * w) * v[1]
+            + (1.0 - 2.0 * (x * x + y * y)) * v[2])
+
+
+@_jit
+def _stage4(y, k, h):
+    """Return the 4-tuple y + h k."""
+    return (y[0] + h * k[0], y[1] + h * k[1], y[2] + h * k[2], y[3] + h * k[3])
+
+
+@_jit
+def _stage3(y, k, h):
+    """Return the 3-tuple y + h k."""
+    return (y[0] + h * k[0], y[1] + h * k[1], y[2] + h * k[2])
+
+
+@_jit
+def _world_momentum_change(q, dq, m, dm):
+    """Return R(d) m1 - m0 of rk4.world_momentum_change (tuples; see there)."""
+    x, y, z, w = q
+    a, b, c, e = dq
+    vx, vy, vz = w * a - x * e - y * c + z * b, w * b - y * e - z * a + x * c, \
+        w * c - z * e - x * b + y * a
+    scalar = 1.0 + (w * e + x * a + y * b + z * c)
+    tx, ty, tz = vy * m[2] - vz * m[1], vz * m[0] - vx * m[2], vx * m[1] - vy * m[0]
+    ux, uy, uz = vy * tz - vz * ty, vz * tx - vx * tz, vx * ty - vy * tx
+    scale = 2.0 / (vx * vx + vy * vy + vz * vz + scalar * scalar)
+    return (dm[0] + scale * (scalar * tx + ux), dm[1] + scale * (scalar * ty + uy),
+            dm[2] + scale * (scalar * tz + uz))
 
 
 @_jit
@@ -372,32 +418,52 @@ def _rk4_run(state, wrench, body, method, damping, dt, steps):
     mass = body[BODY_MASS]
     pushed, forced = pushes(wrench)
     translates = forced or nonzero_momentum(state)
+    half, sixth = 0.5 * dt, dt / 6.0
     moved = 0
     for _ in range(steps):
         if damping > 0.0:
-            dissipate(state, body, damping, 0.5 * dt)
-        q0, x0, p0, l0 = quaternion.copy(), position.copy(), linear_momentum.copy(), \
-            angular_momentum.copy()
-        dq1, dx1, dp1, dl1 = _rk4_derivative(q0, p0, l0, inertia_body_inverse, mass, wrench,
-                                             pushed)
-        h = 0.5 * dt
-        dq2, dx2, dp2, dl2 = _rk4_derivative(q0 + h * dq1, p0 + h * dp1, l0 + h * dl1,
-                                             inertia_body_inverse, mass, wrench, pushed)
-        dq3, dx3, dp3, dl3 = _rk4_derivative(q0 + h * dq2, p0 + h * dp2, l0 + h * dl2,
-                                             inertia_body_inverse, mass, wrench, pushed)
-        dq4, dx4, dp4, dl4 = _rk4_derivative(q0 + dt * dq3, p0 + dt * dp3, l0 + dt * dl3,
-                                             inertia_body_inverse, mass, wrench, pushed)
-        s = dt / 6.0
-        q = q0 + s * (dq1 + 2.0 * dq2 + 2.0 * dq3 + dq4)
-        quaternion[:] = q / math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+            dissipate(state, body, damping, half)
+        q0 = (quaternion[0], quaternion[1], quaternion[2], quaternion[3])
+        m0 = _rotated_back(q0, angular_momentum)
+        p0 = (linear_momentum[0], linear_momentum[1], linear_momentum[2])
+        dq1, dm1, f1 = _rk4_derivative(q0, m0, p0, inertia_body_inverse, wrench, pushed)
+        p1 = _stage3(p0, f1, half)
+        dq2, dm2, f2 = _rk4_derivative(_stage4(q0, dq1, half), _stage3(m0, dm1, half), p1,
+                                       inertia_body_inverse, wrench, pushed)
+        p2 = _stage3(p0, f2, half)
+        dq3, dm3, f3 = _rk4_derivative(_stage4(q0, dq2, half), _stage3(m0, dm2, half), p2,
+                                       inertia_body_inverse, wrench, pushed)
+        p3 = _stage3(p0, f3, dt)
+        dq4, dm4, f4 = _rk4_derivative(_stage4(q0, dq3, dt), _stage3(m0, dm3, dt), p3,
+                                       inertia_body_inverse, wrench, pushed)
+        dq = (sixth * (dq1[0] + 2.0 * dq2[0] + 2.0 * dq3[0] + dq4[0]),
+              sixth * (dq1[1] + 2.0 * dq2[1] + 2.0 * dq3[1] + dq4[1]),
+              sixth * (dq1[2] + 2.0 * dq2[2] + 2.0 * dq3[2] + dq4[2]),
+              sixth * (dq1[3] + 2.0 * dq2[3] + 2.0 * dq3[3] + dq4[3]))
+        dm = (sixth * (dm1[0] + 2.0 * dm2[0] + 2.0 * dm3[0] + dm4[0]),
+              sixth * (dm1[1] + 2.0 * dm2[1] + 2.0 * dm3[1] + dm4[1]),
+              sixth * (dm1[2] + 2.0 * dm2[2] + 2.0 * dm3[2] + dm4[2]))
+        q = _stage4(q0, dq, 1.0)
+        norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+        quaternion[0], quaternion[1] = q[0] / norm, q[1] / norm
+        quaternion[2], quaternion[3] = q[2] / norm, q[3] / norm
+        # L1 = L0 + R0 (dm + (R(d) - 1) m1) from increments (rk4.world_momentum_change).
+        change = _world_momentum_change(q0, dq, _stage3(m0, dm, 1.0), dm)
+        lx, ly, lz = _rotated(q0, change)
+        angular_momentum[0] += lx
+        angular_momentum[1] += ly
+        angular_momentum[2] += lz
         if translates:
-            position[:] = x0 + s * (dx1 + 2.0 * dx2 + 2.0 * dx3 + dx4)
+            # dx/dt = p / m at the stages' momenta p0, p1, p2, p3.
+            for i in range(3):
+                position[i] += sixth * (p0[i] / mass + 2.0 * (p1[i] / mass)
+                                        + 2.0 * (p2[i] / mass) + p3[i] / mass)
             moved += 1
         if pushed:
-            linear_momentum[:] = p0 + s * (dp1 + 2.0 * dp2 + 2.0 * dp3 + dp4)
-            angular_momentum[:] = l0 + s * (dl1 + 2.0 * dl2 + 2.0 * dl3 + dl4)
+            for i in range(3):
+                linear_momentum[i] = p0[i] + sixth * (f1[i] + 2.0 * f2[i] + 2.0 * f3[i] + f4[i])
         if damping > 0.0:
-            dissipate(state, body, damping, 0.5 * dt)
+            dissipate(state, body, damping, half)
     return moved
 
 
