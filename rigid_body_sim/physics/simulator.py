@@ -10,12 +10,16 @@ import math
 
 import numpy as np
 
+from . import error_control
 from .effects.dissipation import Dissipation
 from .integrators import FAST_KERNELS
 from .integrators import get_integrator
 from .integrators.fast import body_values
+from .integrators.fast import LEVER_FORCE
 from .integrators.fast import packed_wrench
 from .integrators.fast import STATE_SIZE
+from .integrators.fast import TORQUE_BODY
+from .integrators.fast import TORQUE_WORLD
 from .state import State
 
 __all__ = ['Simulator']
@@ -74,6 +78,15 @@ class Simulator:
         Use the integrator's compiled kernel when the wrench is a held one (default True):
         held and constant forces and torques, under a pivot too, and a dissipation flow
         fused into the compiled loop.  The kernel equals the readable step to round-off.
+    tolerance : float, optional
+        Error control (rad per simulated second): every outer step (``step(dt)``, and each
+        ``dt`` of ``run(duration, dt)``) is split into as many equal substeps as keep the
+        orientation error the integrator adds per simulated second at or below it, by a
+        step-doubling estimate with the integrator's order (:mod:`.error_control`).  None
+        or 0: off, each outer step is `substeps` fixed steps.  Settable.
+    substeps : int
+        Steps per outer step without a tolerance (default 1: a step of dt is one
+        integrator step); with one, the least number of substeps.  Settable.
 
     With a constraint (a pivot), :attr:`state` is always the physical state (COM position,
     linear momentum, angular momentum about the COM), and a state that is set is projected
@@ -82,11 +95,13 @@ class Simulator:
     The integrated state lives in one packed array (integrators/fast.py), advanced in place
     by the compiled kernels between calls; the immutable :class:`State` is built from it
     when :attr:`state` is read (step() and run() return it), so a step costs one kernel
-    call and one State, not a round trip through State objects.
+    call and one State, not a round trip through State objects.  Under error control one
+    compiled call takes all the outer steps of a run(), the controller included.
 
     """
 
-    def __init__(self, body, state, integrator='buss', effects=(), fast=True):
+    def __init__(self, body, state, integrator='buss', effects=(), fast=True, tolerance=None,
+                 substeps=1):
         if not isinstance(state, State):
             raise ValueError(f'state must be a State; got {type(state).__name__}')
         self._body = body
@@ -94,6 +109,11 @@ class Simulator:
         self._time_compensation = 0.0
         self._effects = tuple(effects)
         self._sort_effects()
+        # The error controller's state (error_control.new_control) and the clock it hands
+        # the readable steps.
+        self._control = error_control.new_control(2)
+        self._clock = np.zeros(1)
+        self._tolerance = None
         # The integrated state, packed [q, x, p, L].
         self._values = np.zeros(STATE_SIZE)
         self.state = state
@@ -101,6 +121,8 @@ class Simulator:
         self._held = tuple(np.zeros(3) for _ in range(4))
         self._held_active = False
         self.integrator = integrator
+        self.substeps = substeps
+        self.tolerance = tolerance
 
     def _sort_effects(self):
         """Sort the effects by what they do, once, so that a step runs only what is there."""
@@ -150,7 +172,76 @@ class Simulator:
         self._step = get_integrator(name)
         self._integrator_name = name
         self._kernel = FAST_KERNELS.get(name) if self._fast else None
+        # A step function without a registered order (a test's spy) is taken as first order,
+        # the most cautious estimate.
+        error_control.set_order(self._control, getattr(self._step, 'order', 1))
         self._plan()
+
+    @property
+    def tolerance(self):
+        """
+        Error control: rad per simulated second, or None (off: fixed `substeps`).
+
+        Settable at any time (0 or None turns it off); the state stays as it is, and the
+        next outer step is estimated at once.  ValueError unless finite and >= 0.
+        """
+        return self._tolerance
+
+    @tolerance.setter
+    def tolerance(self, tolerance):
+        if tolerance is not None:
+            try:
+                tolerance = float(tolerance)
+            except (TypeError, ValueError):
+                raise ValueError(f'tolerance must be a number of rad/s; got {tolerance!r}') \
+                    from None
+            if not math.isfinite(tolerance) or tolerance < 0.0:
+                raise ValueError(f'tolerance must be finite and >= 0 rad/s (0: off); got '
+                                 f'{tolerance!r}')
+            if tolerance == 0.0:
+                tolerance = None
+        self._tolerance = tolerance
+        if tolerance is not None:
+            error_control.set_tolerance(self._control, tolerance)
+
+    @property
+    def substeps(self):
+        """
+        Steps per outer step without a tolerance; the least number with one (int >= 1).
+
+        Settable at any time; ValueError for anything but a whole number >= 1.
+        """
+        return self._substeps
+
+    @substeps.setter
+    def substeps(self, substeps):
+        if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) \
+                or substeps < 1:
+            raise ValueError(f'substeps must be a whole number >= 1; got {substeps!r}')
+        self._substeps = int(substeps)
+        error_control.set_bounds(self._control, self._substeps)
+
+    def substep_statistics(self, reset=False):
+        """
+        Return the substeps and the error estimates since the last reset, as a dict.
+
+        Keys: tolerance (rad/s, None when off); substeps (of the last outer step),
+        substeps_min, substeps_max; error_rate (the last estimate, rad/s; nan when off or
+        before the first) and error_rate_max (the largest in the period); steps (integrator
+        steps taken, the estimates' extra steps included), ticks (outer steps), estimates,
+        rejected (outer steps taken again with more substeps).  Without a tolerance only
+        tolerance and the substeps are meaningful (the fixed count).  reset=True starts a
+        new period after reading.
+        """
+        figures = error_control.statistics(self._control)
+        if self._tolerance is None:
+            figures.update(substeps=self._substeps, substeps_min=self._substeps,
+                           substeps_max=self._substeps, error_rate=math.nan,
+                           error_rate_max=math.nan)
+        figures['tolerance'] = self._tolerance
+        if reset:
+            error_control.reset_statistics(self._control)
+        return figures
 
     def set_wrench(self, force=None, torque=None, frame='world'):
         """
@@ -217,6 +308,8 @@ class Simulator:
             integrated = self._constraint.reduce(state)
         self._store(integrated)
         self._state = state
+        # A new state: estimate at the next outer step, from scratch.
+        error_control.changed(self._control, forget=True)
 
     def _store(self, integrated):
         """Make `integrated` (a State of the integrated system) the current one."""
@@ -291,19 +384,31 @@ class Simulator:
     # -- time stepping
 
     def step(self, dt):
-        """Advance one step of dt s; return the new State."""
+        """
+        Advance one outer step of dt s; return the new State.
+
+        One integrator step, or `substeps` equal ones; with a tolerance, as many as the
+        error control chooses (at least `substeps`).
+        """
         # A finite positive float needs no conversion (the node passes one every tick).
         if dt.__class__ is not float or not 0.0 < dt < math.inf:
             dt = _checked_positive(dt, 'dt')
-        self._advance(1, dt)
+        if self._tolerance is not None:
+            self._controlled(dt, 1)
+        elif self._substeps == 1:
+            self._advance(1, dt)
+        else:
+            self._advance(self._substeps, dt / self._substeps, dt)
         return self.state
 
     def run(self, duration, dt, progress=None):
         """
-        Advance by `duration` s in steps of dt s; return the final State.
+        Advance by `duration` s in outer steps of dt s; return the final State.
 
-        If dt does not divide the duration, a last shorter step ends exactly at it.
-        `progress`, if given, is called with the fraction done (0..1) during long runs.
+        Each outer step is as :meth:`step` takes it (one step, `substeps` steps, or under
+        error control as many as needed).  If dt does not divide the duration, a last
+        shorter outer step ends exactly at it.  `progress`, if given, is called with the
+        fraction done (0..1) during long runs.
         """
         dt = _checked_positive(dt, 'dt')
         try:
@@ -317,15 +422,23 @@ class Simulator:
             steps = int(math.floor(duration / dt))
         remainder = duration - steps * dt
         done = 0
-        chunk = steps if progress is None else _PROGRESS_CHUNK
+        controlled = self._tolerance is not None
+        per_step = 1 if controlled else self._substeps
+        chunk = steps if progress is None else max(1, _PROGRESS_CHUNK // per_step)
         while done < steps:
             count = min(chunk, steps - done)
-            self._advance(count, dt)
+            if controlled:
+                self._controlled(dt, count)
+            else:
+                self._advance(count * per_step, dt / per_step, count * dt)
             done += count
             if progress is not None:
                 progress(done / steps)
         if remainder > 1e-9 * dt:
-            self._advance(1, remainder)
+            if controlled:
+                self._controlled(remainder, 1)
+            else:
+                self._advance(per_step, remainder / per_step, remainder)
         if progress is not None:
             progress(1.0)
         return self.state
@@ -342,6 +455,13 @@ class Simulator:
         kernel = self._kernel
         self._wrench = self._packed_wrench()
         self._run = None
+        # Something changed: the next outer step is estimated.  Torque-free (forces through
+        # the COM allowed) the controller also looks at the rest of the polhode.
+        wrench = self._wrench
+        error_control.set_torque_free(self._control, not (
+            self._pushing_effects or self._flows or np.any(wrench[TORQUE_WORLD])
+            or np.any(wrench[TORQUE_BODY]) or np.any(wrench[LEVER_FORCE])))
+        error_control.changed(self._control)
         if kernel is None or self._pushing_effects:
             self._path = READABLE
             return
@@ -377,18 +497,57 @@ class Simulator:
                              torque_body=torque_body + np.cross(arm, force_body),
                              lever_force=force_world, lever_arm=arm)
 
-    def _advance(self, steps, dt):
+    def _advance(self, steps, dt, duration=None):
+        """Take `steps` steps of dt s; the clock moves by `duration` (default steps x dt)."""
         run = self._run
         if run is not None:
             run(self._values, self._wrench, self._kernel_body, self._method, self._damping,
                 dt, steps)
-            self._integrated = self._state = None
         else:
-            self._compose(steps, dt)
-        self._add_time(steps * dt)
+            self._compose_on(self._values, steps, dt, self._time)
+        self._integrated = self._state = None
+        self._add_time(steps * dt if duration is None else duration)
 
-    def _compose(self, steps, dt):
-        """Take the steps with flow(dt/2), step(dt), flow(dt/2), the flows run here."""
+    def _controlled(self, tick, ticks):
+        """
+        Take `ticks` outer steps of `tick` s under error control (error_control.py).
+
+        Compiled: one call of the integrator's controlled kernel takes them all.  Otherwise
+        the same controller, as Python, drives :meth:`_compose_on` one outer step at a time
+        (the readable steps need the time of each step).
+        """
+        kernel = self._kernel
+        if self._path == COMPILED and kernel.controlled is not None:
+            kernel.controlled(self._values, self._wrench, self._kernel_body, self._method,
+                              self._damping, tick, ticks, self._control, self._clock)
+            self._integrated = self._state = None
+            self._add_time(ticks * tick)
+            return
+        controlled = error_control.controlled_ticks.py_func
+        for _ in range(ticks):
+            start = self._time
+
+            def run(values, wrench, body, method, damping, dt, steps):
+                # The controller's clock: the time of this call's first step in the tick.
+                self._compose_on(values, steps, dt, start + self._clock[0])
+                return steps
+            controlled(run, self._values, self._wrench, self._kernel_body, None, None, tick, 1,
+                       self._control, self._clock)
+            self._integrated = self._state = None
+            self._add_time(tick)
+
+    def _compose_on(self, values, steps, dt, time):
+        """
+        Take the steps on the packed array `values` (in place) from `time` (s).
+
+        Each step is flow(dt/2), step(dt), flow(dt/2) with the flows run here; the step is
+        the readable one (effects evaluated every step) or, for flows the kernels do not
+        fuse, a single kernel step.
+        """
+        if self._path == COMPILED:
+            self._run(values, self._wrench, self._kernel_body, self._method, self._damping,
+                      dt, steps)
+            return
         constraint, flows = self._constraint, self._flows
         if self._path == READABLE:
             step, wrench = self._step, self.wrench_function()
@@ -396,22 +555,21 @@ class Simulator:
                 wrench = constraint.wrench(wrench)
         else:
             step, wrench = self._kernel_step, None
-        state = self._integrated_state()
-        body, time, half = self._integrated_body, self._time, 0.5 * dt
+        state = State._from_values(values)
+        body, half = self._integrated_body, 0.5 * dt
         for k in range(steps):
             for effect in flows:
                 state = effect.flow(body, state, half)
             state = step(body, state, time + k * dt, dt, wrench)
             for effect in reversed(flows):
                 state = effect.flow(body, state, half)
-        self._store(state)
+        np.concatenate(state._fields(), out=values)
 
     def _kernel_step(self, body, state, time, dt, wrench):
         # The step-function form of one kernel step; the held wrench is the kernel's own.
-        self._store(state)
-        self._kernel.run(self._values, self._wrench, self._kernel_body, self._method, 0.0, dt, 1)
-        self._integrated = None
-        return self._integrated_state()
+        values = np.concatenate(state._fields())
+        self._kernel.run(values, self._wrench, self._kernel_body, self._method, 0.0, dt, 1)
+        return State._from_values(values)
 
     def _add_time(self, increment):
         # Kahan summation: keeps the clock exact to round-off over millions of ticks, where a

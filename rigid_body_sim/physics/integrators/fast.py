@@ -48,6 +48,7 @@ import numpy as np
 
 from .principal import principal_frame
 from ..effects.dissipation import dissipated_quaternion
+from ..error_control import controlled_ticks
 
 __all__ = ['CompiledIntegrator', 'body_values', 'packed_wrench', 'FORCE_WORLD',
            'TORQUE_WORLD', 'FORCE_BODY', 'TORQUE_BODY', 'LEVER_FORCE', 'LEVER_ARM',
@@ -98,11 +99,20 @@ class CompiledIntegrator:
     angular_momentum, inertia_body, inertia_body_inverse, mass, dt, steps, force_world,
     torque_world, force_body, torque_body) packs the arrays, runs, and writes them back: the
     form the tests and benchmarks call directly.  The Simulator calls ``run``.
+
+    ``controlled``, if given, is ``run`` under error control: the compiled
+    :func:`~rigid_body_sim.physics.error_control.controlled_ticks` with this run built in,
+
+        controlled(state, wrench, body, method, damping, tick, ticks, control, clock)
+
+    (a module-level wrapper beside the run: numba caches those, not closures).  Without it
+    the Simulator runs the same controller in Python around ``run``.
     """
 
-    def __init__(self, run, method=()):
+    def __init__(self, run, method=(), controlled=None):
         self.run = run
         self.method = np.array(method, dtype=float)
+        self.controlled = controlled
 
     def __call__(self, quaternion, position, linear_momentum, angular_momentum, inertia_body,
                  inertia_body_inverse, mass, dt, steps, force_world, torque_world, force_body,
@@ -331,12 +341,24 @@ def _buss_run(state, wrench, body, method, damping, dt, steps):
     return moved
 
 
+@_jit
+def _buss_controlled(state, wrench, body, method, damping, tick, ticks, control, clock):
+    return controlled_ticks(_buss_run, state, wrench, body, method, damping, tick, ticks,
+                            control, clock)
+
+
+@_jit
+def _first_order_controlled(state, wrench, body, method, damping, tick, ticks, control, clock):
+    return controlled_ticks(_first_order_run, state, wrench, body, method, damping, tick,
+                            ticks, control, clock)
+
+
 def buss_kernel(augmented):
     """Return the compiled Buss integrator, with (True) or without (False) the h^2/12 term."""
-    return CompiledIntegrator(_buss_run, (1.0 if augmented else 0.0,))
+    return CompiledIntegrator(_buss_run, (1.0 if augmented else 0.0,), _buss_controlled)
 
 
-first_order_kernel = CompiledIntegrator(_first_order_run)
+first_order_kernel = CompiledIntegrator(_first_order_run, controlled=_first_order_controlled)
 
 
 # -- classical RK4 (readable definition: rk4.py)
@@ -467,4 +489,10 @@ def _rk4_run(state, wrench, body, method, damping, dt, steps):
     return moved
 
 
-rk4_kernel = CompiledIntegrator(_rk4_run)
+@_jit
+def _rk4_controlled(state, wrench, body, method, damping, tick, ticks, control, clock):
+    return controlled_ticks(_rk4_run, state, wrench, body, method, damping, tick, ticks,
+                            control, clock)
+
+
+rk4_kernel = CompiledIntegrator(_rk4_run, controlled=_rk4_controlled)

@@ -37,6 +37,7 @@ from .principal import SPHERICAL
 from ..elliptic import carlson_rf_compiled
 from ..elliptic import carlson_rj_compiled
 from ..elliptic import jacobi_elliptic_compiled
+from ..error_control import controlled_ticks
 
 __all__ = ['exact_kernel']
 
@@ -483,5 +484,11 @@ def _exact_run(state, wrench, body, method, damping, dt, steps):
     return moved
 
 
-exact_kernel = CompiledIntegrator(_exact_run)
+@_jit
+def _exact_controlled(state, wrench, body, method, damping, tick, ticks, control, clock):
+    return controlled_ticks(_exact_run, state, wrench, body, method, damping, tick, ticks,
+                            control, clock)
+
+
+exact_kernel = CompiledIntegrator(_exact_run, controlled=_exact_controlled)
 """The compiled exact integrator (run signature and registry form: :mod:`.fast`)."""

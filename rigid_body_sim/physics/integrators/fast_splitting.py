@@ -25,6 +25,7 @@ from .fast import nonzero_momentum
 from .fast import pushes
 from .fast import TORQUE_BODY
 from .fast import TORQUE_WORLD
+from ..error_control import controlled_ticks
 
 __all__ = ['splitting_kernel_for']
 
@@ -159,6 +160,12 @@ def _splitting_run(state, wrench, body, method, damping, dt, steps):
     return moved
 
 
+@_jit
+def _splitting_controlled(state, wrench, body, method, damping, tick, ticks, control, clock):
+    return controlled_ticks(_splitting_run, state, wrench, body, method, damping, tick, ticks,
+                            control, clock)
+
+
 def splitting_kernel_for(axes, coefficients):
     """
     Return the compiled integrator of a composition of Strang splitting steps.
@@ -167,4 +174,5 @@ def splitting_kernel_for(axes, coefficients):
     flows; coefficients: the stage lengths as fractions of dt ((1.0,) for Strang itself).
     Callable with the registry's kernel signature, see :class:`.fast.CompiledIntegrator`.
     """
-    return CompiledIntegrator(_splitting_run, tuple(axes) + tuple(coefficients))
+    return CompiledIntegrator(_splitting_run, tuple(axes) + tuple(coefficients),
+                              _splitting_controlled)

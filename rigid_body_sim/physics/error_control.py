@@ -1,0 +1,459 @@
+"""
+Error control: each outer step (a node's tick) split into as many equal substeps as needed.
+
+The accuracy target is a tolerance on the orientation error added per simulated second
+(rad/s).  Each tick of T s is taken as n equal substeps of h = T / n by the integrator's
+compiled run (one call), and n is chosen from an estimate of the error rate; the lower bound
+n_min is the node's ``substeps``.  Nothing else changes: the state, the integrator, the
+effects and the kicks are exactly those of a fixed-step run at h.
+
+The estimate: step doubling (Richardson).  A method of order q makes a local error
+e(h) = C h^(q+1) + O(h^(q+2)) per step, C a vector fixed by the state.  From one state,
+
+    two steps of h:    2 C h^(q+1)           one step of 2 h:    C (2 h)^(q+1) = 2^(q+1) C h^(q+1)
+
+so the two results differ by (2^(q+1) - 2) C h^(q+1), and the error of one step of h is
+
+    e(h) ~ |difference| / (2^(q+1) - 2)        (buss, q = 2: / 6; rk4, q = 4: / 30).
+
+The tick's last two substeps are that pair (they are taken anyway), and one extra step of 2 h
+from the state before them is the companion: the estimate costs one step.  A tick of one
+substep is compared instead with two half steps from its start: its own error is
+e(h) = |difference| / (1 - 2^-q), at the price of two extra (half) steps.  The error rate is
+r = e(h) / h (rad/s), the orientation error the substeps add per simulated second, and
+behaves as r(h) = C' h^q.
+
+|difference| (rad): the rotation angle between the two orientations, plus h |I_b^-1 R^T dL|
+(dL the difference of the two angular momenta): the orientation error the momentum
+discrepancy makes within one step.  Torque-free, Buss, the splittings and the exact flow
+leave L untouched and the term is zero; under a torque a momentum error turns into an
+orientation error later, and this counts its first step of that.
+
+Where the count is set.  Error per step is what the estimate measures, but not what a long
+run's error follows: measured on the built-in scenes, a count that followed the local error
+along the orbit (n ~ sqrt(r), the textbook controller) was 2-8x dearer than a fixed step at
+the same error after 60 s, for two reasons.  Near the separatrix (the T-handle, the tennis
+racket, van Zon's body) an error made next to the unstable axis, where Buss's local error
+all but vanishes, is amplified most: it shifts every later flip.  And a geometric
+integrator's errors stay small over long runs at a constant step, while a varying one
+lets them drift (the heavy top, whose local error varies 5x over each nutation: 2.5x the
+error of a fixed step at the same mean count).  So the count is held at what the worst
+point of the motion needs, and changed seldom:
+
+- torque-free (no torque, no dissipation: :func:`set_torque_free`), the error constant
+  C = r / h^q is also estimated at the turning points of the body's polhode
+  (:func:`turning_points`, virtual states stepped like the real one, every ORBIT_EVERY
+  estimates), so that from the first tick the count covers the whole orbit, the flips
+  included, not just where the body is.  Under a torque or a flow the polhode is not the
+  body's future, and only the body's own estimates count (measured on flat_spin: its
+  polhode widens as it dissipates, and the turning points asked 2x the substeps that
+  bought nothing, the error being made before the separatrix crossing);
+- the decision uses the largest C seen, decaying with the time constant HOLD (simulated s):
+  C_held = max(C, C_held exp(-dt / HOLD)), and the count n* = T (C_held / (SAFETY tol))^(1/q)
+  that makes r = SAFETY x tolerance at it.
+
+The decision (:func:`next_substeps`):
+
+- r > tolerance (at the body or a turning point): n jumps at once to max(n + 1, ceil(n*))
+  and the tick is taken again from its start (rejected);
+- ceil(n*) <= DECREASE_FRACTION x n: n goes down to ceil(n*);
+- otherwise n stays.  After any change r <= SAFETY x tolerance, a factor 2 below the
+  threshold of the next increase: n cannot alternate tick to tick on a smooth trajectory.
+
+Amortised: an estimate is made every few ticks, so that its extra steps cost at most
+OVERHEAD of the substeps taken (one in 16 ticks at n = 1, every tick from n = 16), at least
+once per MAX_TURN rad the body turns, and at once after anything changes (the wrench, the
+state, the integrator, the tolerance or the lower bound: :func:`changed`).
+
+The state of the controller lives in one float array (see :func:`new_control`), which the
+compiled kernels update in place; :func:`controlled_ticks` is compiled into a wrapper per
+integrator (each fast module wraps its run function) and runs as plain Python
+(``.py_func``) with the readable steps.
+"""
+
+import functools
+import math
+
+import numba
+import numpy as np
+
+__all__ = ['new_control', 'controlled_ticks', 'next_substeps', 'step_difference',
+           'set_tolerance', 'set_order', 'set_bounds', 'set_torque_free', 'changed', 'statistics',
+           'reset_statistics', 'turning_points',
+           'SAFETY', 'HOLD', 'DECREASE_FRACTION', 'OVERHEAD', 'MAX_TURN', 'MAX_SUBSTEPS',
+           'ORBIT_EVERY']
+
+_jit = functools.partial(numba.njit, cache=True, nogil=True)
+
+# Slots of the control array.
+(TOLERANCE, ORDER, MIN_SUBSTEPS, CAP, SUBSTEPS, COUNTDOWN, HELD, SINCE, RATE,
+ LAST, LOWEST, HIGHEST, STEPS, TICKS, ESTIMATES, REJECTED, HIGHEST_RATE, ORBIT_CONSTANT,
+ ORBIT_COUNTDOWN, TORQUE_FREE, CONTROL_SIZE) = range(21)
+# Offsets in fast.py's packed body (fast.BODY_MOMENTS, BODY_AXES, BODY_KIND; tested equal):
+# importing fast here would be circular (its kernels wrap controlled_ticks).
+_BODY_MOMENTS, _BODY_AXES, _BODY_KIND = 10, 17, 26
+
+SAFETY = 0.5
+"""The fraction of the tolerance a new substep count aims at (the dead band's width)."""
+HOLD = 10.0
+"""Time constant (simulated s) of the decay of the largest error constant seen."""
+DECREASE_FRACTION = 0.75
+"""n goes down only to at most this fraction of itself: few, large changes."""
+OVERHEAD = 1.0 / 16.0
+"""Most of the substeps' cost spent on estimates (one extra step per estimate, two at n=1)."""
+MAX_TURN = 1.0
+"""Longest turn of the body (rad) between two estimates: the error rate follows the state."""
+MAX_SUBSTEPS = 100_000
+"""Most substeps per tick: below the round-off floor a tolerance cannot be met."""
+ORBIT_EVERY = 8
+"""Estimates between two estimates on the polhode's turning points (and after any change)."""
+# Retakes of one tick after a rejection (the second has the count the first one measured).
+_RETAKES = 2
+
+
+def new_control(order, substeps=1, tolerance=0.0):
+    """
+    Return a new control array for a method of order `order` (see the module docstring).
+
+    tolerance in rad/s (0: no control, fixed `substeps`); substeps: the lower bound n_min.
+    """
+    control = np.zeros(CONTROL_SIZE)
+    control[TOLERANCE] = tolerance
+    control[ORDER] = order
+    control[MIN_SUBSTEPS] = control[SUBSTEPS] = substeps
+    control[CAP] = max(MAX_SUBSTEPS, substeps)
+    control[RATE] = np.nan
+    reset_statistics(control)
+    return control
+
+
+def changed(control, forget=False):
+    """
+    Say that something changed: estimate at the next tick, the turning points too.
+
+    forget=True also drops the held error constant: after a new state (a reset) or
+    integrator the motion's history says nothing; a new wrench keeps it.
+    """
+    control[COUNTDOWN] = control[ORBIT_COUNTDOWN] = 0.0
+    if forget:
+        control[HELD] = 0.0
+
+
+def set_torque_free(control, torque_free):
+    """Say whether the motion is torque-free (the turning points are then estimated too)."""
+    control[TORQUE_FREE] = 1.0 if torque_free else 0.0
+    control[ORBIT_CONSTANT] = 0.0
+    control[ORBIT_COUNTDOWN] = 0.0
+
+
+def set_tolerance(control, tolerance):
+    """Set the tolerance (rad/s, > 0) and estimate at the next tick."""
+    control[TOLERANCE] = tolerance
+    changed(control)
+
+
+def set_order(control, order):
+    """Set the order of the method now in use and estimate at the next tick."""
+    control[ORDER] = order
+    changed(control, forget=True)
+
+
+def set_bounds(control, substeps):
+    """Set the lower bound n_min (int >= 1); n is raised to it at once."""
+    control[MIN_SUBSTEPS] = substeps
+    control[CAP] = max(MAX_SUBSTEPS, substeps)
+    control[SUBSTEPS] = max(control[SUBSTEPS], substeps)
+    changed(control)
+
+
+def reset_statistics(control):
+    """Start a new statistics period (substeps min/max, steps, ticks, estimates)."""
+    control[LOWEST] = np.inf
+    control[HIGHEST] = 0.0
+    control[STEPS] = control[TICKS] = control[ESTIMATES] = control[REJECTED] = 0.0
+    control[HIGHEST_RATE] = np.nan
+
+
+def statistics(control):
+    """
+    Return the controller's figures as a dict.
+
+    substeps: n of the last tick; substeps_min / substeps_max: over the period (since
+    reset_statistics); error_rate: the last estimate (rad/s, nan before the first);
+    error_rate_max: the largest accepted estimate of the period; steps: integrator steps
+    taken in the period, estimates and retaken ticks included; ticks, estimates, rejected.
+    """
+    ticks = int(control[TICKS])
+    return {
+        'substeps': int(control[LAST]) if ticks else int(control[SUBSTEPS]),
+        'substeps_min': int(control[LOWEST]) if ticks else int(control[SUBSTEPS]),
+        'substeps_max': int(control[HIGHEST]) if ticks else int(control[SUBSTEPS]),
+        'error_rate': float(control[RATE]),
+        'error_rate_max': float(control[HIGHEST_RATE]),
+        'steps': int(control[STEPS]),
+        'ticks': ticks,
+        'estimates': int(control[ESTIMATES]),
+        'rejected': int(control[REJECTED]),
+    }
+
+
+@_jit
+def step_difference(a, b, body, h):
+    """
+    Return the difference (rad) of two packed states after the same span, h s a step.
+
+    The rotation angle between their orientations, 2 atan2(|vec(a^* b)|, |a^* b|_w), exact
+    for tiny angles (the vector part is formed from products, not from a difference of
+    near-equal angles), plus h |I_b^-1 R_a^T (L_a - L_b)|: the turn a momentum discrepancy
+    makes within one step (body: the packed body of fast.py, I_b^-1 first).
+    """
+    ax, ay, az, aw = a[0], a[1], a[2], a[3]
+    bx, by, bz, bw = b[0], b[1], b[2], b[3]
+    # a^* b, Hamilton product of the conjugate of a with b, (x, y, z, w).
+    vx = aw * bx - bw * ax - (ay * bz - az * by)
+    vy = aw * by - bw * ay - (az * bx - ax * bz)
+    vz = aw * bz - bw * az - (ax * by - ay * bx)
+    w = aw * bw + ax * bx + ay * by + az * bz
+    angle = 2.0 * math.atan2(math.sqrt(vx * vx + vy * vy + vz * vz), abs(w))
+    dx, dy, dz = a[10] - b[10], a[11] - b[11], a[12] - b[12]
+    if dx == 0.0 and dy == 0.0 and dz == 0.0:
+        return angle
+    # R_a^T dL, then I_b^-1 of it (row-major in body[0:9]).
+    mx = ((1.0 - 2.0 * (ay * ay + az * az)) * dx + 2.0 * (ax * ay + az * aw) * dy
+          + 2.0 * (ax * az - ay * aw) * dz)
+    my = (2.0 * (ax * ay - az * aw) * dx + (1.0 - 2.0 * (ax * ax + az * az)) * dy
+          + 2.0 * (ay * az + ax * aw) * dz)
+    mz = (2.0 * (ax * az + ay * aw) * dx + 2.0 * (ay * az - ax * aw) * dy
+          + (1.0 - 2.0 * (ax * ax + ay * ay)) * dz)
+    ox = body[0] * mx + body[1] * my + body[2] * mz
+    oy = body[3] * mx + body[4] * my + body[5] * mz
+    oz = body[6] * mx + body[7] * my + body[8] * mz
+    return angle + h * math.sqrt(ox * ox + oy * oy + oz * oz)
+
+
+@_jit
+def next_substeps(control, substeps, rate, constant, tick):
+    """
+    Return the substep count after an estimate at `substeps` substeps of a `tick` s tick.
+
+    rate: the largest error rate estimated (rad/s, at the body or a turning point);
+    constant: its error constant r / h^q.  Updates the held constant (HOLD) in `control`
+    and applies the decision of the module docstring.  A rate that is not a number (a
+    diverged state) keeps the count.
+    """
+    if not rate >= 0.0:
+        return substeps
+    tolerance, order = control[TOLERANCE], control[ORDER]
+    lowest, cap = control[MIN_SUBSTEPS], control[CAP]
+    held = max(constant, control[HELD] * math.exp(-control[SINCE] / HOLD))
+    control[HELD] = held
+    control[SINCE] = 0.0
+    # r = C h^q: the count that brings r to SAFETY x tolerance (capped before ceil: it may
+    # be huge).
+    ideal = min(tick * (held / (SAFETY * tolerance)) ** (1.0 / order), cap)
+    best = int(max(lowest, math.ceil(ideal)))
+    if rate > tolerance:
+        return int(min(cap, max(best, substeps + 1)))
+    if best <= DECREASE_FRACTION * substeps:
+        return best
+    return substeps
+
+
+@_jit
+def turning_points(state, body):
+    """
+    Return the body momenta (kg m^2/s, body frame) at the turning points of the polhode.
+
+    Torque-free, m = R^T L keeps |m| = |L| and m . I_b^-1 m = 2T; in principal coordinates
+    its curve (the polhode) crosses the principal plane m_k = 0 where, with i, j the other
+    two axes, m_i^2 + m_j^2 = L^2 and m_i^2 / I_i + m_j^2 / I_j = 2T:
+
+        m_i^2 = (2T - L^2 / I_j) / (1 / I_i - 1 / I_j),   m_j^2 = L^2 - m_i^2,
+
+    a turning point where both are >= 0 (an orbit about an extreme axis crosses two of the
+    three planes: on the T-handle's, next to the unstable axis and half-way through a
+    flip).  Returns (points (3, 3), count); none for a body at rest or with two equal
+    moments (its polhode is a circle, every point alike).
+    """
+    points = np.zeros((3, 3))
+    if state[10] == 0.0 and state[11] == 0.0 and state[12] == 0.0:
+        return points, 0
+    if body[_BODY_KIND] != 0.0:
+        return points, 0
+    x, y, z, w = state[0], state[1], state[2], state[3]
+    lx, ly, lz = state[10], state[11], state[12]
+    momentum = np.empty(3)
+    momentum[0] = ((1.0 - 2.0 * (y * y + z * z)) * lx + 2.0 * (x * y + z * w) * ly
+                   + 2.0 * (x * z - y * w) * lz)
+    momentum[1] = (2.0 * (x * y - z * w) * lx + (1.0 - 2.0 * (x * x + z * z)) * ly
+                   + 2.0 * (y * z + x * w) * lz)
+    momentum[2] = (2.0 * (x * z + y * w) * lx + 2.0 * (y * z - x * w) * ly
+                   + (1.0 - 2.0 * (x * x + y * y)) * lz)
+    moments = body[_BODY_MOMENTS:_BODY_MOMENTS + 3]
+    axes = body[_BODY_AXES:_BODY_AXES + 9].reshape((3, 3))
+    principal = np.empty(3)
+    for k in range(3):
+        principal[k] = axes[0, k] * momentum[0] + axes[1, k] * momentum[1] \
+            + axes[2, k] * momentum[2]
+    square = principal[0] ** 2 + principal[1] ** 2 + principal[2] ** 2
+    twice_energy = (principal[0] ** 2 / moments[0] + principal[1] ** 2 / moments[1]
+                    + principal[2] ** 2 / moments[2])
+    count = 0
+    for k in range(3):
+        i, j = (k + 1) % 3, (k + 2) % 3
+        first = (twice_energy - square / moments[j]) / (1.0 / moments[i] - 1.0 / moments[j])
+        second = square - first
+        if first < 0.0 or second < 0.0:
+            continue
+        point = np.zeros(3)
+        point[i], point[j] = math.sqrt(first), math.sqrt(second)
+        for r in range(3):
+            points[count, r] = axes[r, 0] * point[0] + axes[r, 1] * point[1] \
+                + axes[r, 2] * point[2]
+        count += 1
+    return points, count
+
+
+@_jit
+def _turn_rate(state, body):
+    """Return |Omega| (rad/s) of a packed state: |I_b^-1 R^T L|."""
+    x, y, z, w = state[0], state[1], state[2], state[3]
+    lx, ly, lz = state[10], state[11], state[12]
+    mx = ((1.0 - 2.0 * (y * y + z * z)) * lx + 2.0 * (x * y + z * w) * ly
+          + 2.0 * (x * z - y * w) * lz)
+    my = (2.0 * (x * y - z * w) * lx + (1.0 - 2.0 * (x * x + z * z)) * ly
+          + 2.0 * (y * z + x * w) * lz)
+    mz = (2.0 * (x * z + y * w) * lx + 2.0 * (y * z - x * w) * ly
+          + (1.0 - 2.0 * (x * x + y * y)) * lz)
+    ox = body[0] * mx + body[1] * my + body[2] * mz
+    oy = body[3] * mx + body[4] * my + body[5] * mz
+    oz = body[6] * mx + body[7] * my + body[8] * mz
+    return math.sqrt(ox * ox + oy * oy + oz * oz)
+
+
+@_jit
+def _ticks_between_estimates(substeps, tick, turn_rate):
+    """Return the ticks to take without an estimate after one (see OVERHEAD, MAX_TURN)."""
+    extra = 1.0 if substeps >= 2 else 2.0
+    by_cost = math.ceil(extra / (OVERHEAD * substeps)) - 1.0
+    turn = tick * turn_rate
+    by_turn = math.floor(MAX_TURN / turn) - 1.0 if turn > 0.0 else by_cost
+    return max(0.0, min(by_cost, by_turn))
+
+
+@_jit
+def _record(control, substeps, steps):
+    """Note a tick of `substeps` substeps that took `steps` integrator steps."""
+    control[LAST] = substeps
+    control[LOWEST] = min(control[LOWEST], substeps)
+    control[HIGHEST] = max(control[HIGHEST], substeps)
+    control[STEPS] += steps
+    control[TICKS] += 1.0
+
+
+@numba.njit(inline='always', nogil=True)
+def _orbit_constant(run, state, body, method, h, order, virtual, companion, wrench):
+    """
+    Return (C, steps): the largest error constant r / h^q at the polhode's turning points.
+
+    Each turning point (turning_points) is a virtual torque-free state, identity orientation
+    and L = m there, stepped as a pair of h and a companion of 2 h like the real state.
+    """
+    points, count = turning_points(state, body)
+    largest = 0.0
+    for index in range(count):
+        virtual[:] = 0.0
+        virtual[3] = 1.0
+        virtual[10:13] = points[index]
+        companion[:] = virtual
+        run(virtual, wrench, body, method, 0.0, h, 2)
+        run(companion, wrench, body, method, 0.0, 2.0 * h, 1)
+        error = step_difference(virtual, companion, body, h) / (2.0 ** (order + 1) - 2.0)
+        largest = max(largest, error / h)
+    return largest / h ** order, 3 * count
+
+
+# Inlined into each integrator's wrapper (numba IR inlining): a call with `run` as an argument
+# would pass the dispatcher object at run time, a pointer numba's cache refuses ("dynamic
+# globals"), so the wrappers would compile anew in every process.
+@numba.njit(inline='always', nogil=True)
+def controlled_ticks(run, state, wrench, body, method, damping, tick, ticks, control, clock):
+    """
+    Advance a packed state in place by `ticks` ticks of `tick` s under error control.
+
+    run: an integrator's run function (fast.py's signature); the other arguments up to
+    damping are passed on to it.  control: the control array (updated: n, the countdown,
+    the votes, the statistics).  clock: a (1,) array set before each call of `run` to the
+    time (s, from the tick's start) of that call's first step; the compiled runs ignore it,
+    the Simulator's readable run reads it.  Returns the integrator steps taken.
+
+    Compiled into a wrapper per integrator in its fast module (numba caches a function by
+    its own file: after editing this one, delete the integrators' cached kernels, as for
+    effects.dissipation; the tests compare compiled and readable control).
+    """
+    order = control[ORDER]
+    taken = 0
+    start = state.copy()
+    companion = state.copy()
+    virtual = state.copy()
+    free = np.zeros((6, 3))
+    for _ in range(ticks):
+        n = int(max(control[SUBSTEPS], control[MIN_SUBSTEPS]))
+        if control[COUNTDOWN] > 0.0:
+            control[COUNTDOWN] -= 1.0
+            clock[0] = 0.0
+            run(state, wrench, body, method, damping, tick / n, n)
+            taken += n
+            control[SINCE] += tick
+            _record(control, n, n)
+            continue
+        start[:] = state
+        steps = 0
+        if control[TORQUE_FREE] != 0.0 and control[ORBIT_COUNTDOWN] <= 0.0:
+            control[ORBIT_CONSTANT], extra = _orbit_constant(
+                run, state, body, method, tick / n, order, virtual, companion, free)
+            steps += extra
+            control[ORBIT_COUNTDOWN] = ORBIT_EVERY
+        control[ORBIT_COUNTDOWN] -= 1.0
+        for attempt in range(_RETAKES + 1):
+            h = tick / n
+            if n >= 2:
+                # The last two substeps are the pair, one step of 2h from before them the
+                # companion: e(h) = |difference| / (2^(q+1) - 2).
+                clock[0] = 0.0
+                run(state, wrench, body, method, damping, h, n - 2)
+                companion[:] = state
+                clock[0] = (n - 2) * h
+                run(state, wrench, body, method, damping, h, 2)
+                run(companion, wrench, body, method, damping, 2.0 * h, 1)
+                error = step_difference(state, companion, body, h) / (2.0 ** (order + 1) - 2.0)
+                steps += n + 1
+            else:
+                # One substep: the companion is two half steps, e(h) = |diff| / (1 - 2^-q).
+                companion[:] = state
+                clock[0] = 0.0
+                run(state, wrench, body, method, damping, h, 1)
+                run(companion, wrench, body, method, damping, 0.5 * h, 2)
+                error = step_difference(state, companion, body, h) / (1.0 - 2.0 ** -order)
+                steps += 3
+            rate = error / h
+            # The count must also hold the polhode's worst point (see the module docstring).
+            constant = max(rate / h ** order, control[ORBIT_CONSTANT])
+            following = next_substeps(control, n, constant * h ** order, constant, tick)
+            if following > n and attempt < _RETAKES:
+                # Above the tolerance: take the tick again from its start.
+                control[REJECTED] += 1.0
+                state[:] = start
+                n = following
+                continue
+            break
+        control[ESTIMATES] += 1.0
+        control[SINCE] = tick
+        control[RATE] = rate
+        if not control[HIGHEST_RATE] >= rate:
+            control[HIGHEST_RATE] = rate
+        _record(control, n, steps)
+        taken += steps
+        control[SUBSTEPS] = following
+        control[COUNTDOWN] = _ticks_between_estimates(following, tick, _turn_rate(state, body))
+    return taken
