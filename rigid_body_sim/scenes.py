@@ -47,6 +47,7 @@ from .physics.rotations import quaternion_from_matrix
 
 __all__ = [
     'DEFAULT_SCENE',
+    'DEFAULT_TOLERANCE',
     'Drawing',
     'Scene',
     'find_scene',
@@ -61,11 +62,16 @@ DEFAULT_SCENE = 'default'
 
 DEFAULT_INTEGRATOR = 'buss'
 DEFAULT_RATE = 100.0
+DEFAULT_TOLERANCE = 1e-7
+"""Error control (rad per simulated s) of a scene file without ``tolerance:``: the largest
+that keeps every built-in scene within 1e-3 rad over 60 s (the T-handle and the tennis racket
+need it); the built-in scenes set their own, the largest each allows (docs/scenes.md)."""
 DEFAULT_COLOR = (0.8, 0.5, 0.2, 1.0)
 SHAPES = ('box', 'cylinder', 'sphere', 'ellipsoid')
 
 # The keys each part of a scene may have; anything else is an error.
-_TOP_KEYS = ('name', 'description', 'body', 'initial', 'effects', 'integrator', 'rate', 'draw')
+_TOP_KEYS = ('name', 'description', 'body', 'initial', 'effects', 'integrator', 'rate',
+             'tolerance', 'draw')
 _SHAPE_KEYS = {
     'box': ('size',),
     'cylinder': ('radius', 'height'),
@@ -143,6 +149,10 @@ class Scene:
         Name of the default integrator (a key of INTEGRATORS).
     rate : float
         Default step rate in Hz: the node's tick and the step dt = 1 / rate.
+    tolerance : float or None
+        Error control in rad per simulated s (Simulator's tolerance): each tick is split
+        into as many substeps as keep the orientation error added per second below it;
+        None: off (``tolerance: 0``), one step per tick.
     drawing : Drawing
         How to draw the body.
     source : str
@@ -160,6 +170,7 @@ class Scene:
     integrator: str
     rate: float
     drawing: Drawing
+    tolerance: float = DEFAULT_TOLERANCE
     source: str = '<scene>'
     data: dict = field(default_factory=dict, repr=False, compare=False)
 
@@ -187,7 +198,7 @@ class Scene:
         """Return the names of the scene's effects, in order."""
         return [getattr(effect, 'effect_name', type(effect).__name__) for effect in self.effects]
 
-    def simulator(self, body=None, state=None, integrator=None, fast=True):
+    def simulator(self, body=None, state=None, integrator=None, fast=True, tolerance=None):
         """
         Return a Simulator of this scene, with its effects.
 
@@ -202,16 +213,20 @@ class Scene:
             Replaces the scene's integrator.
         fast : bool
             Passed to Simulator: use the compiled kernels where they apply.
+        tolerance : float, optional
+            Replaces the scene's tolerance (rad/s; 0: off).
 
         """
         return Simulator(self.body if body is None else body,
                          self.state if state is None else state,
                          integrator=self.integrator if integrator is None else integrator,
-                         effects=self.effects, fast=fast)
+                         effects=self.effects, fast=fast,
+                         tolerance=self.tolerance if tolerance is None else tolerance)
 
     def with_overrides(self, mass=None, inertia=None, orientation=None,
                        angular_velocity_body=None, angular_velocity_world=None,
-                       position=None, velocity=None, integrator=None, rate=None, body=None):
+                       position=None, velocity=None, integrator=None, rate=None, body=None,
+                       tolerance=None):
         """
         Return the scene with some body, initial-state or run values replaced.
 
@@ -231,7 +246,7 @@ class Scene:
           (m/s): the initial state is rebuilt from these velocities, so a new body keeps the
           scene's angular velocity, not its angular momentum.  In a pivot scene position and
           velocity follow from the pivot and may not be given.
-        - integrator (name), rate (Hz).
+        - integrator (name), rate (Hz), tolerance (rad/s, 0: off).
 
         """
         data = copy.deepcopy(self.data)
@@ -264,6 +279,8 @@ class Scene:
             data['integrator'] = integrator
         if rate is not None:
             data['rate'] = _plain(rate)
+        if tolerance is not None:
+            data['tolerance'] = _plain(tolerance)
         return parse_scene(data, f'{self.source} (overrides)')
 
     def _effect(self, name):
@@ -477,10 +494,15 @@ class _SceneReader:
             valid = ', '.join(sorted(INTEGRATORS))
             raise self.error('integrator', f'unknown integrator {integrator!r}; valid: {valid}')
         rate = self.number(mapping.get('rate', DEFAULT_RATE), 'rate', 'Hz', positive=True)
+        tolerance = self.number(mapping.get('tolerance', DEFAULT_TOLERANCE), 'tolerance',
+                                'rad/s')
+        if tolerance < 0.0:
+            raise self.error('tolerance', f'must be >= 0 rad/s (0: off), got {tolerance:g}')
         drawing = self.drawing(mapping.get('draw', {}), body, body_shape, mapping['body'])
         return Scene(name=name, description=description, body=body, state=state,
                      effects=tuple(effects), integrator=integrator, rate=rate,
-                     drawing=drawing, source=self.source, data=copy.deepcopy(mapping))
+                     drawing=drawing, source=self.source, data=copy.deepcopy(mapping),
+                     tolerance=tolerance or None)
 
     def reject_empty_sections(self, mapping):
         """

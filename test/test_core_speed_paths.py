@@ -308,10 +308,11 @@ class SpyIntegrator(CompiledIntegrator):
 
 
 def _spied_scene(monkeypatch, name):
+    # At a fixed step (tolerance 0): what the kernel is given, one run per call.
     scene = load_scene(name)
     spy = SpyIntegrator(FAST_KERNELS[scene.integrator])
     monkeypatch.setitem(FAST_KERNELS, scene.integrator, spy)
-    return scene, scene.simulator(), spy
+    return scene, scene.simulator(tolerance=0.0), spy
 
 
 def _torque_free_scenes():

@@ -88,7 +88,7 @@ _jit = functools.partial(numba.njit, cache=True, nogil=True)
 # Slots of the control array.
 (TOLERANCE, ORDER, MIN_SUBSTEPS, CAP, SUBSTEPS, COUNTDOWN, HELD, SINCE, RATE,
  LAST, LOWEST, HIGHEST, STEPS, TICKS, ESTIMATES, REJECTED, HIGHEST_RATE, ORBIT_CONSTANT,
- ORBIT_COUNTDOWN, TORQUE_FREE, CONTROL_SIZE) = range(21)
+ ORBIT_COUNTDOWN, TORQUE_FREE, TAKEN, CONTROL_SIZE) = range(22)
 # Offsets in fast.py's packed body (fast.BODY_MOMENTS, BODY_AXES, BODY_KIND; tested equal):
 # importing fast here would be circular (its kernels wrap controlled_ticks).
 _BODY_MOMENTS, _BODY_AXES, _BODY_KIND = 10, 17, 26
@@ -171,6 +171,7 @@ def reset_statistics(control):
     control[LOWEST] = np.inf
     control[HIGHEST] = 0.0
     control[STEPS] = control[TICKS] = control[ESTIMATES] = control[REJECTED] = 0.0
+    control[TAKEN] = 0.0
     control[HIGHEST_RATE] = np.nan
 
 
@@ -178,8 +179,8 @@ def statistics(control):
     """
     Return the controller's figures as a dict.
 
-    substeps: n of the last tick; substeps_min / substeps_max: over the period (since
-    reset_statistics); error_rate: the last estimate (rad/s, nan before the first);
+    substeps: n of the last tick; substeps_min / substeps_max / substeps_mean: over the
+    period (since reset_statistics); error_rate: the last estimate (rad/s, nan before the first);
     error_rate_max: the largest accepted estimate of the period; steps: integrator steps
     taken in the period, estimates and retaken ticks included; ticks, estimates, rejected.
     """
@@ -188,6 +189,7 @@ def statistics(control):
         'substeps': int(control[LAST]) if ticks else int(control[SUBSTEPS]),
         'substeps_min': int(control[LOWEST]) if ticks else int(control[SUBSTEPS]),
         'substeps_max': int(control[HIGHEST]) if ticks else int(control[SUBSTEPS]),
+        'substeps_mean': control[TAKEN] / ticks if ticks else float(control[SUBSTEPS]),
         'error_rate': float(control[RATE]),
         'error_rate_max': float(control[HIGHEST_RATE]),
         'steps': int(control[STEPS]),
@@ -348,29 +350,8 @@ def _record(control, substeps, steps):
     control[LOWEST] = min(control[LOWEST], substeps)
     control[HIGHEST] = max(control[HIGHEST], substeps)
     control[STEPS] += steps
+    control[TAKEN] += substeps
     control[TICKS] += 1.0
-
-
-@numba.njit(inline='always', nogil=True)
-def _orbit_constant(run, state, body, method, h, order, virtual, companion, wrench):
-    """
-    Return (C, steps): the largest error constant r / h^q at the polhode's turning points.
-
-    Each turning point (turning_points) is a virtual torque-free state, identity orientation
-    and L = m there, stepped as a pair of h and a companion of 2 h like the real state.
-    """
-    points, count = turning_points(state, body)
-    largest = 0.0
-    for index in range(count):
-        virtual[:] = 0.0
-        virtual[3] = 1.0
-        virtual[10:13] = points[index]
-        companion[:] = virtual
-        run(virtual, wrench, body, method, 0.0, h, 2)
-        run(companion, wrench, body, method, 0.0, 2.0 * h, 1)
-        error = step_difference(virtual, companion, body, h) / (2.0 ** (order + 1) - 2.0)
-        largest = max(largest, error / h)
-    return largest / h ** order, 3 * count
 
 
 # Inlined into each integrator's wrapper (numba IR inlining): a call with `run` as an argument
@@ -410,9 +391,23 @@ def controlled_ticks(run, state, wrench, body, method, damping, tick, ticks, con
         start[:] = state
         steps = 0
         if control[TORQUE_FREE] != 0.0 and control[ORBIT_COUNTDOWN] <= 0.0:
-            control[ORBIT_CONSTANT], extra = _orbit_constant(
-                run, state, body, method, tick / n, order, virtual, companion, free)
-            steps += extra
+            # The largest error constant r / h^q at the polhode's turning points, each a
+            # virtual torque-free state (identity orientation, L = m there) stepped as a
+            # pair of h and a companion of 2 h like the real state.
+            points, count = turning_points(state, body)
+            h = tick / n
+            largest = 0.0
+            for index in range(count):
+                virtual[:] = 0.0
+                virtual[3] = 1.0
+                virtual[10:13] = points[index]
+                companion[:] = virtual
+                run(virtual, free, body, method, 0.0, h, 2)
+                run(companion, free, body, method, 0.0, 2.0 * h, 1)
+                error = step_difference(virtual, companion, body, h) / (2.0 ** (order + 1) - 2.0)
+                largest = max(largest, error / h)
+            control[ORBIT_CONSTANT] = largest / h ** order
+            steps += 3 * count
             control[ORBIT_COUNTDOWN] = ORBIT_EVERY
         control[ORBIT_COUNTDOWN] -= 1.0
         for attempt in range(_RETAKES + 1):

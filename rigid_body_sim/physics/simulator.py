@@ -226,7 +226,7 @@ class Simulator:
         Return the substeps and the error estimates since the last reset, as a dict.
 
         Keys: tolerance (rad/s, None when off); substeps (of the last outer step),
-        substeps_min, substeps_max; error_rate (the last estimate, rad/s; nan when off or
+        substeps_min, substeps_max, substeps_mean; error_rate (the last estimate, rad/s; nan when off or
         before the first) and error_rate_max (the largest in the period); steps (integrator
         steps taken, the estimates' extra steps included), ticks (outer steps), estimates,
         rejected (outer steps taken again with more substeps).  Without a tolerance only
@@ -236,8 +236,8 @@ class Simulator:
         figures = error_control.statistics(self._control)
         if self._tolerance is None:
             figures.update(substeps=self._substeps, substeps_min=self._substeps,
-                           substeps_max=self._substeps, error_rate=math.nan,
-                           error_rate_max=math.nan)
+                           substeps_max=self._substeps, substeps_mean=float(self._substeps),
+                           error_rate=math.nan, error_rate_max=math.nan)
         figures['tolerance'] = self._tolerance
         if reset:
             error_control.reset_statistics(self._control)

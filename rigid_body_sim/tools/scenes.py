@@ -69,7 +69,10 @@ def _print_scene(scene):
           'm/s')
     effects = ', '.join(repr(effect) for effect in scene.effects) or 'none (torque-free)'
     print(f'  effects:     {effects}')
-    print(f'  integrator:  {scene.integrator} at {scene.rate:g} Hz (dt {scene.dt:g} s)')
+    control = ('off' if scene.tolerance is None
+               else f'{scene.tolerance:g} rad/s (substeps per tick chosen by error control)')
+    print(f'  integrator:  {scene.integrator} at {scene.rate:g} Hz (dt {scene.dt:g} s), '
+          f'tolerance {control}')
     drawing = scene.drawing
     print(f'  drawing:     {drawing.shape} {vector(drawing.size)} m, color '
           f'{vector(drawing.color)}')

@@ -1,0 +1,325 @@
+"""
+What error control buys on the built-in scenes: tolerance -> error -> substeps -> CPU.
+
+A :class:`SweepCase` is a scene (body, initial state, effects, rate), a span of simulated
+time, and optionally a forcing (a wrench held by the simulator, changed between ticks).
+For each case :func:`tolerance_sweep` runs
+
+- ``buss`` under error control at each tolerance (rad per simulated s), and
+- fixed-step runs of ``buss``, ``splitting`` and ``rk4`` at 1, 2, 3, 4, 6, 8, ... substeps
+  per tick (the scene's tick, 1 / rate),
+
+and measures for each run: the orientation error (rad, rotation angle to the reference)
+at its largest over samples every :data:`SAMPLE_INTERVAL` s of the span; the integrator
+steps per tick (the estimates' extra steps included); the substeps' range; and the CPU time
+per simulated second (``time.process_time`` around one call that takes the whole span:
+``Simulator.run``, so the compiled kernel takes every tick; a forced case steps tick by
+tick, as the node does).
+
+References (:func:`case_reference`):
+
+- torque-free rotation (no effect that turns the body: gravity acts at the COM, and an
+  external_wrench without input does nothing; no forcing): the extended-precision Taylor
+  solve of :mod:`.extended_reference`, independent of every integrator, taken at exactly
+  N ticks; its values for the built-in scenes are committed in
+  :mod:`.scene_reference_values` (``python -m rigid_body_sim.benchmark.tolerance_sweep``
+  recomputes them, minutes), other problems are computed and cached;
+- otherwise a converged fine-step run: the classical ``rk4`` at REFERENCE_SUBSTEPS substeps
+  per tick, its uncertainty the largest difference to the run at twice as many.
+
+Errors below the reference's uncertainty are not resolved (the report marks them).
+"""
+
+from dataclasses import dataclass
+import math
+import os
+import statistics
+import sys
+import time
+
+import numpy as np
+
+from .extended_reference import exact_time
+from .extended_reference import extended_reference
+from .extended_reference import format_values_module
+from .extended_reference import key_string
+from .extended_reference import problem_fingerprint
+from .extended_reference import reference_quaternions
+from .reference import MEASUREMENT_FLOOR
+from .reference import rotation_angle
+from ..physics import matrix_from_quaternion
+from ..scenes import load_scene
+from ..scenes import scene_names
+
+__all__ = ['SweepCase', 'scene_cases', 'case_reference', 'measure_case_run',
+           'tolerance_sweep', 'is_torque_free', 'SAMPLE_INTERVAL', 'TOLERANCES',
+           'FIXED_SUBSTEPS', 'FIXED_METHODS', 'NATURAL_SPANS', 'SWEEP_SPAN']
+
+SAMPLE_INTERVAL = 0.5
+"""Simulated time (s) between the samples at which the error is measured."""
+SWEEP_SPAN = 60.0
+"""The span (s) of the benchmark's sweep: errors 'over 60 s'."""
+TOLERANCES = tuple(float(f'{m}e{e}') for e in range(-2, -11, -1) for m in (3, 1))
+"""The tolerances (rad per simulated s) swept, 3e-2 down to 1e-10."""
+FIXED_SUBSTEPS = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768,
+                  1024, 1536, 2048, 3072, 4096)
+"""Substeps per tick of the fixed-step runs (a dense grid: costs are interpolated on it)."""
+FIXED_METHODS = ('buss', 'splitting', 'rk4')
+REFERENCE_SUBSTEPS = 64
+# A fixed-step sweep stops once its error is below this (rad): far under every level the
+# report compares, and the reference's resolution is near.
+_FINEST_ERROR = 1e-10
+# Nor does it go on past this many integrator steps per simulated second of the span.
+_MOST_STEPS_PER_SECOND = 2.0e6
+
+NATURAL_SPANS = {
+    'default': 60.0,        # 4 flips (every 14.4 s)
+    't_handle': 60.0,
+    'tennis_racket': 12.0,  # 4 periods of 2.77 s, 8 flips
+    'van_zon': 10.0,        # 4 periods of 2.35 s
+    'stable_spin': 20.0,    # 6 nutation periods of 3.14 s
+    'thrown_box': 6.0,      # 3 periods of 1.99 s (the flight itself ends at 0.82 s)
+    'heavy_top': 6.0,       # 3 precession periods (~1.9 s), ~9 nutations
+    'bike_wheel': 12.0,     # 2 precession periods (~5.7 s)
+    'flat_spin': 40.0,      # the whole migration to the flat spin
+    'driven': 10.0,         # 10 different pushes, one per second
+}
+"""Each built-in scene's natural span (s): several flips or precession periods."""
+
+
+@dataclass(frozen=True)
+class SweepCase:
+    """
+    A scene to sweep: its simulator, span and forcing.
+
+    Attributes
+    ----------
+    name : str
+    scene : Scene
+        Body, initial state, effects, rate (the tick is 1 / rate).
+    span : float
+        Simulated time (s), a multiple of SAMPLE_INTERVAL.
+    forcing : callable or None
+        forcing(simulator, time) before each tick (time: its start, s): holds the wrench of
+        that tick (Simulator.hold_wrench), e.g. a torque that changes every second; the same
+        for the runs and the reference.
+
+    """
+
+    name: str
+    scene: object
+    span: float
+    forcing: object = None
+
+    @property
+    def tick(self):
+        """Get the tick (s)."""
+        return self.scene.dt
+
+    @property
+    def ticks(self):
+        """Get the number of ticks in the span."""
+        return int(round(self.span / self.tick))
+
+    def simulator(self, integrator, tolerance=None, substeps=1):
+        """Return a fresh Simulator of the case (tolerance None: fixed `substeps`)."""
+        simulator = self.scene.simulator(integrator=integrator, tolerance=tolerance or 0.0)
+        simulator.substeps = substeps
+        return simulator
+
+
+def _driven_forcing(simulator, time):
+    """Hold a new torque every second (world and body parts, ~2 mN m), swelling each tick."""
+    rng = np.random.default_rng(int(time))
+    world = rng.uniform(-2e-3, 2e-3, 3) * (1.0 + 0.5 * math.sin(3.0 * time))
+    simulator.hold_wrench(torque_world=world, torque_body=rng.uniform(-1e-3, 1e-3, 3))
+
+
+def scene_cases(names=None, span=None):
+    """
+    Return a SweepCase per built-in scene (all by default), over `span` s or its natural span.
+
+    The scene `driven` (a body at rest, pushed only from outside) is driven by a torque that
+    changes every second (world and body parts, ~2 mN m) and swells with a 2 s period in
+    between: a wrench that changes between ticks.
+    """
+    cases = []
+    for name in names or scene_names():
+        scene = load_scene(name)
+        forcing = _driven_forcing if name == 'driven' else None
+        cases.append(SweepCase(name, scene, span or NATURAL_SPANS.get(name, SWEEP_SPAN),
+                               forcing))
+    return cases
+
+
+def is_torque_free(case):
+    """Return True if nothing turns the body in `case` (the reference is then extended)."""
+    if case.forcing is not None:
+        return False
+    for effect in case.scene.effects:
+        name = getattr(effect, 'effect_name', None)
+        if name not in ('gravity', 'external_wrench'):
+            return False
+    return True
+
+
+def _sample_ticks(case):
+    every = int(round(SAMPLE_INTERVAL / case.tick))
+    return list(range(every, case.ticks + 1, every))
+
+
+def _advance(simulator, case, start, stop):
+    """Take ticks start .. stop - 1 of the case (forced tick by tick)."""
+    if case.forcing is None:
+        simulator.run((stop - start) * case.tick, case.tick)
+        return
+    for index in range(start, stop):
+        case.forcing(simulator, index * case.tick)
+        simulator.step(case.tick)
+
+
+def _fine_rotations(case, substeps):
+    simulator = case.simulator('rk4', substeps=substeps)
+    rotations, done = {}, 0
+    for mark in _sample_ticks(case):
+        _advance(simulator, case, done, mark)
+        done = mark
+        rotations[mark] = np.array(simulator.state.rotation)
+    return rotations
+
+
+def case_reference(case):
+    """
+    Return (rotations, uncertainty, origin) of the case's reference at the sample ticks.
+
+    rotations: {tick count: R (3x3, body to world)}; uncertainty: the reference's own error
+    estimate (rad, the largest over the samples, at least MEASUREMENT_FLOOR); origin: how
+    it was obtained.
+    """
+    marks = _sample_ticks(case)
+    scene = case.scene
+    if is_torque_free(case):
+        keys = [(mark, case.tick) for mark in marks]
+        values, _, origin = reference_quaternions(scene.body, scene.state, keys)
+        rotations = {mark: _double_rotation(values[(mark, case.tick)][0]) for mark in marks}
+        uncertainty = max(values[key][1] for key in values)
+        return rotations, max(uncertainty, MEASUREMENT_FLOOR), f'extended precision ({origin})'
+    fine = _fine_rotations(case, REFERENCE_SUBSTEPS)
+    finer = _fine_rotations(case, 2 * REFERENCE_SUBSTEPS)
+    uncertainty = max(rotation_angle(fine[mark], finer[mark]) for mark in marks)
+    return finer, max(uncertainty, MEASUREMENT_FLOOR), (
+        f'rk4 at {2 * REFERENCE_SUBSTEPS} substeps per tick (gap to {REFERENCE_SUBSTEPS}: '
+        f'{uncertainty:.1e} rad)')
+
+
+def _double_rotation(quaternion):
+    return matrix_from_quaternion(np.array([float(c) for c in quaternion]))
+
+
+def measure_case_run(case, reference, integrator, tolerance=None, substeps=1, repeats=3):
+    """
+    Measure one run of a case; return a dict (see the module docstring).
+
+    Keys: case, method ('<integrator>' fixed or '<integrator>+control'), tolerance,
+    substeps (the fixed count, or the lower bound), error (rad, largest over the samples),
+    steps_per_tick, substeps_min, substeps_max, cpu_per_second (CPU s per simulated s,
+    median of `repeats` timed runs), us_per_tick.
+    """
+    simulator = case.simulator(integrator, tolerance, substeps)
+    error, done = 0.0, 0
+    for mark in _sample_ticks(case):
+        _advance(simulator, case, done, mark)
+        done = mark
+        error = max(error, rotation_angle(simulator.state.rotation, reference[mark]))
+    figures = simulator.substep_statistics()
+    samples = []
+    for _ in range(repeats):
+        timed = case.simulator(integrator, tolerance, substeps)
+        started = time.process_time()
+        _advance(timed, case, 0, case.ticks)
+        samples.append(time.process_time() - started)
+    cpu = statistics.median(samples) / case.span
+    steps = figures['steps'] / figures['ticks'] if tolerance else float(substeps)
+    return {
+        'case': case.name, 'method': integrator + ('+control' if tolerance else ''),
+        'tolerance': tolerance, 'substeps': substeps, 'error': error,
+        'steps_per_tick': steps, 'substeps_min': figures['substeps_min'],
+        'substeps_max': figures['substeps_max'], 'cpu_per_second': cpu,
+        'us_per_tick': cpu * case.tick * 1e6,
+    }
+
+
+def tolerance_sweep(cases, tolerances=TOLERANCES, fixed_methods=FIXED_METHODS,
+                    fixed_substeps=FIXED_SUBSTEPS, repeats=3, progress=None):
+    """
+    Run the sweep over `cases`; return {'references': {...}, 'records': [...]}.
+
+    Error-controlled ``buss`` at each tolerance, and each of `fixed_methods` at each count
+    of `fixed_substeps` until its error falls below 1e-10 rad or its cost passes 2e6 steps
+    per simulated second.  `progress(label)` is called after each run.
+    """
+    references, records = {}, []
+    for case in cases:
+        rotations, uncertainty, origin = case_reference(case)
+        references[case.name] = {'uncertainty': uncertainty, 'origin': origin,
+                                 'span': case.span, 'tick': case.tick}
+        if progress is not None:
+            progress(f'{case.name}: reference')
+        for tolerance in tolerances:
+            records.append(measure_case_run(case, rotations, 'buss', tolerance,
+                                            repeats=repeats))
+            if progress is not None:
+                progress(f'{case.name}: buss tol {tolerance:g}')
+        for method in fixed_methods:
+            for substeps in fixed_substeps:
+                if substeps / case.tick > _MOST_STEPS_PER_SECOND:
+                    break
+                record = measure_case_run(case, rotations, method, None, substeps, repeats)
+                records.append(record)
+                if progress is not None:
+                    progress(f'{case.name}: {method} x{substeps}')
+                if record['error'] < _FINEST_ERROR:
+                    break
+    return {'references': references, 'records': records}
+
+
+def sweep_units(cases, tolerances=TOLERANCES, fixed_methods=FIXED_METHODS,
+                fixed_substeps=FIXED_SUBSTEPS):
+    """Return an upper bound of the progress units tolerance_sweep reports."""
+    return len(cases) * (1 + len(tolerances) + len(fixed_methods) * len(fixed_substeps))
+
+
+def _committed_entries():
+    """Return {fingerprint: (name, values, drift)} of the torque-free built-in scenes."""
+    entries = {}
+    for case in scene_cases(span=SWEEP_SPAN):
+        fingerprint = problem_fingerprint(case.scene.body, case.scene.state)
+        if not is_torque_free(case) or fingerprint in entries:
+            continue
+        print(f'{case.name}: {len(_sample_ticks(case))} times', file=sys.stderr, flush=True)
+        times = {key: exact_time(*key) for key in
+                 ((mark, case.tick) for mark in _sample_ticks(case))}
+        values, drift = extended_reference(case.scene.body.inertia, case.scene.state.quaternion,
+                                           case.scene.state.angular_momentum, times.values())
+        entries[fingerprint] = (case.name, {key_string(*key): (*values[time][0], values[time][1])
+                                            for key, time in times.items()}, drift)
+    return entries
+
+
+def main():
+    """Recompute the committed references of the torque-free built-in scenes; write them."""
+    entries = _committed_entries()
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)),
+                        'scene_reference_values.py')
+    with open(path, 'w') as module:
+        module.write(format_values_module(
+            entries, 'SCENE_REFERENCE_VALUES',
+            'Committed extended-precision reference orientations of the torque-free built-in\n'
+            'scenes (every 0.5 s over 60 s at the scene\'s tick)',
+            'python -m rigid_body_sim.benchmark.tolerance_sweep', digits=24))
+    print(f'wrote {path}', file=sys.stderr)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
