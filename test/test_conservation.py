@@ -7,9 +7,10 @@ constant world torque L(t) = L0 + tau t and under a constant force the COM follo
 parabola x0 + v0 t + F t^2 / (2 m): their kicks integrate these exactly, so only round-off
 (at most ~1 ulp per step and component) may separate them.  rk4 is the classical method on
 the body momentum m = R^T L (integrators/rk4.py): its world L = R m is held to its order
-(the error falls 16x when dt halves), its p and parabola exactly as the others'.  The kinetic energy is not
-conserved exactly by any of these methods; its error must shrink at the method's order and,
-for the second- and fourth-order methods, stay within (|omega| dt)^order over long runs.
+(the error falls 16x when dt halves), its p and parabola exactly as the others'.  The
+kinetic energy is not conserved exactly by any of these methods; its error must shrink at
+the method's order and, for the second- and fourth-order methods, stay within
+(|omega| dt)^order over long runs.
 first_order gains energy at a rate derived in reference.first_order_energy_gain_rate,
 dT/dt = dt/2 (omega x L)^T I_w^{-1} (omega x L) >= 0: its error grows with time, in
 proportion to dt, and must follow that rate.

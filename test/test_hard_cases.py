@@ -436,11 +436,11 @@ def test_needle_spinning_one_radian_per_step_stays_finite_and_keeps_l(name):
 # the axis of largest inertia (Q > 0 grows) towards the smallest (Q < 0 shrinks), and keep
 # only that one.  Per radian of nutation (kappa |c/g| per step) Q changes by a factor
 # exp(2 |Im(c/g)| / |c/g|), independent of the anisotropy: resolving the nutation does not
-# help, only a small theta does (Im(c/g) ~ -theta/2, -theta^3/12, -theta^3/24).  `exact` has c = g.  rk4 integrates
-# m itself by Euler's equations dm/dt = m x I^{-1} m = m x D m, in which the spin drops out
-# (m x m / I_a = 0): its stages see only the nutation, kappa per step, so it too has c = g
-# (up to kappa^4) and keeps Q; its quaternion's error at 3 rad per step is a turn about m,
-# which leaves m = R^T L alone.
+# help, only a small theta does (Im(c/g) ~ -theta/2, -theta^3/12, -theta^3/24).  `exact`
+# has c = g.  rk4 integrates m itself by Euler's equations dm/dt = m x I^{-1} m = m x D m,
+# in which the spin drops out (m x m / I_a = 0): its stages see only the nutation, kappa per
+# step, so it too has c = g (up to kappa^4) and keeps Q; its quaternion's error at 3 rad per
+# step is a turn about m, which leaves m = R^T L alone.
 
 
 def _nutation_factor(name, turn):

@@ -46,12 +46,18 @@ HELD_TICKS = (round(INPUT_TIMEOUT * RATE) - 1, round(INPUT_TIMEOUT * RATE) + 2)
 
 @pytest.fixture(scope='module')
 def sim(tmp_path_factory):
-    """Start the node (default scene, buss, 100 Hz) and a client; stop both at the end."""
+    """
+    Start the node (default scene, buss, 100 Hz) and a client; stop both at the end.
+
+    One step per tick (tolerance 0): the input tests check each tick's change against the
+    one step's kicks; test_tolerance_set_at_run_time_* turns error control on and off.
+    """
     isolate_ros_environment()
     namespace = unique_namespace()
     node = NodeProcess(tmp_path_factory.mktemp('node') / 'node.log', namespace=namespace,
                        parameters={'rate': RATE, 'input_timeout': INPUT_TIMEOUT,
-                                   'max_wrench': MAX_WRENCH, 'integrator': 'buss'})
+                                   'max_wrench': MAX_WRENCH, 'integrator': 'buss',
+                                   'tolerance': 0.0})
     client = Client(namespace)
     try:
         client.wait_until_connected()
@@ -417,6 +423,60 @@ def test_every_integrator_is_accepted_at_run_time_with_the_state_continuous(sim)
             assert np.max(jumps) <= 2.0 * omega * PERIOD, (name, np.max(jumps))
     finally:
         assert sim.set_parameter('integrator', 'buss').successful
+
+
+def _diagnostics_after(sim, since, condition, what):
+    """Return the node's /diagnostics values of the first report after `since` meeting them."""
+    found = []
+
+    def reported():
+        for message in sim.messages('/diagnostics', since):
+            for status in message.status:
+                if status.hardware_id == f'{sim.namespace}/{NODE_NAME}':
+                    values = {kv.key: kv.value for kv in status.values}
+                    if condition(values):
+                        found.append(values)
+                        return True
+        return False
+    sim.wait_for(reported, 10.0, what)
+    return found[0]
+
+
+def test_tolerance_set_at_run_time_splits_the_ticks_and_reports_it(sim):
+    """
+    Error control on at run time: substeps per tick, the estimate and the cost reported.
+
+    At 1e-7 rad/s the default T-handle takes ~46 substeps per tick (docs/scenes.md); the
+    state stays continuous (as for an integrator switch); 0 turns it off again.
+    """
+    omega = np.linalg.norm(INITIAL.angular_velocity(BODY))
+    try:
+        since = time.monotonic()
+        assert sim.set_parameter('tolerance', 1e-7).successful
+        sim.wait_for(lambda: 'error control is now 1e-07 rad/s' in sim.process.output(), 5.0,
+                     'the change')
+        values = _diagnostics_after(
+            sim, since, lambda v: v['tolerance [rad/s]'] == '1e-07' and int(v['substeps']) > 1,
+            'a report under error control')
+        assert 1 < int(values['substeps min']) <= int(values['substeps']) \
+            <= int(values['substeps max']) <= 1000, values
+        assert float(values['step [s]']) == pytest.approx(PERIOD / int(values['substeps']),
+                                                          rel=1e-5)
+        assert 0.0 <= float(values['estimated error rate [rad/s]']) <= 1e-7, values
+        assert 0.0 < float(values['integration CPU per simulated s [s]']) < 1.0, values
+        quaternions = np.array([
+            [m.pose.orientation.x, m.pose.orientation.y, m.pose.orientation.z,
+             m.pose.orientation.w] for m in sim.messages('pose', since)])
+        jumps = np.linalg.norm(np.diff(quaternions, axis=0), axis=1)
+        assert np.max(jumps) <= 2.0 * omega * PERIOD
+    finally:
+        since = time.monotonic()
+        assert sim.set_parameter('tolerance', 0.0).successful
+    values = _diagnostics_after(sim, since, lambda v: v['tolerance [rad/s]'] == 'off',
+                                'a report without error control')
+    assert values['substeps'] == values['substeps max'] == '1'
+    assert values['estimated error rate [rad/s]'] == 'n/a'
+    assert not sim.set_parameter('tolerance', -1e-3).successful  # out of range
 
 
 def test_an_unknown_integrator_is_rejected_with_the_valid_names(sim):

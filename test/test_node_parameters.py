@@ -30,7 +30,7 @@ from rigid_body_sim.scenes import scene_names
 import yaml
 
 CONFIG = Path(__file__).resolve().parent.parent / 'config' / 'rigid_body_sim.yaml'
-RUNTIME_SETTABLE = {'integrator', 'substeps', 'input_timeout', 'max_wrench',
+RUNTIME_SETTABLE = {'integrator', 'substeps', 'tolerance', 'input_timeout', 'max_wrench',
                     'real_time_factor'}
 SCENE_DEPENDENT = {spec.name for spec in PARAMETERS if spec.name not in DEFAULTS}
 TYPES = {bool: ParameterType.PARAMETER_BOOL, int: ParameterType.PARAMETER_INTEGER,
@@ -118,11 +118,13 @@ def test_every_parameter_has_a_typed_documented_descriptor():
 
 
 def test_no_parameters_simulate_the_default_scene_as_it_is(context):
-    """Nothing set: the default scene, its integrator and rate, no body or state override."""
+    """Nothing set: the default scene, its integrator, rate and tolerance, no override."""
     scene, values = declared(context)
     assert scene.name == 'default'
     assert values['integrator'] == scene.integrator and values['rate'] == scene.rate
-    assert all(values[name] is None for name in SCENE_DEPENDENT - {'integrator', 'rate'})
+    assert values['tolerance'] == scene.tolerance
+    assert all(values[name] is None
+               for name in SCENE_DEPENDENT - {'integrator', 'rate', 'tolerance'})
     assert scene_from_parameters(scene, values) is scene
 
 

@@ -152,6 +152,8 @@ effects:
   - external_wrench: {max_torque: 0.5, max_force: 2.0}
 integrator: buss
 rate: 100
+# One step per tick (no error control): each tick changes L by exactly one kick of tau h.
+tolerance: 0
 """
 
 

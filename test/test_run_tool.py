@@ -15,7 +15,8 @@ def test_run_simulates_the_default_scene_and_shows_the_first_flip(capsys):
     """
     assert cli.main(['run', '--duration', '8']) == 0
     output = capsys.readouterr().out
-    assert 'principal moments [1. 2. 3.] kg m^2; integrator splitting, dt 0.01 s' in output
+    assert ('principal moments [1. 2. 3.] kg m^2; integrator buss, dt 0.01 s, tolerance 1e-07 '
+            'rad/s') in output
     rows = {}
     for line in output.splitlines():
         # t, quaternion (4), body angular velocity (3), dE/E, d|L|/|L|

@@ -215,8 +215,9 @@ def test_offered_qos_is_what_discovery_reports_for_the_node_publishers(van_zon_b
 
 
 def test_angular_momentum_read_from_the_bag_is_constant_in_torque_free_scenes(tmp_path):
-    for name, integrator in (('van_zon', None), ('van_zon', 'buss'), ('thrown_box', None),
-                             ('tennis_racket', 'rk4')):
+    # (rk4 integrates the body momentum, so its world L moves at its order: not here.)
+    for name, integrator in (('van_zon', None), ('van_zon', 'splitting'), ('thrown_box', None),
+                             ('tennis_racket', 'exact')):
         scene = load_scene(name)
         bag = tmp_path / f'{name}_{integrator}'
         simulate_to_bag(scene, bag, 2.0, rate=200.0, integrator=integrator)

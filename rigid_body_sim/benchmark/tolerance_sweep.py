@@ -113,7 +113,7 @@ class SweepCase:
 
     @property
     def tick(self):
-        """Get the tick (s)."""
+        """Get the scene's tick in s (1 / rate)."""
         return self.scene.dt
 
     @property
@@ -314,9 +314,9 @@ def main():
     with open(path, 'w') as module:
         module.write(format_values_module(
             entries, 'SCENE_REFERENCE_VALUES',
-            'Committed extended-precision reference orientations of the torque-free built-in\n'
-            'scenes (every 0.5 s over 60 s at the scene\'s tick)',
-            'python -m rigid_body_sim.benchmark.tolerance_sweep', digits=24))
+            'Committed extended-precision references of the torque-free built-in scenes',
+            'python -m rigid_body_sim.benchmark.tolerance_sweep', digits=24,
+            detail="Every 0.5 s over 60 s at each scene's tick (tolerance_sweep.py)."))
     print(f'wrote {path}', file=sys.stderr)
     return 0
 

@@ -207,7 +207,7 @@ class Simulator:
     @property
     def substeps(self):
         """
-        Steps per outer step without a tolerance; the least number with one (int >= 1).
+        Get the steps per outer step without a tolerance, the least with one (int >= 1).
 
         Settable at any time; ValueError for anything but a whole number >= 1.
         """
@@ -226,10 +226,10 @@ class Simulator:
         Return the substeps and the error estimates since the last reset, as a dict.
 
         Keys: tolerance (rad/s, None when off); substeps (of the last outer step),
-        substeps_min, substeps_max, substeps_mean; error_rate (the last estimate, rad/s; nan when off or
-        before the first) and error_rate_max (the largest in the period); steps (integrator
-        steps taken, the estimates' extra steps included), ticks (outer steps), estimates,
-        rejected (outer steps taken again with more substeps).  Without a tolerance only
+        substeps_min, substeps_max, substeps_mean; error_rate (the last estimate, rad/s;
+        nan when off or before the first) and error_rate_max (the largest in the period);
+        steps (integrator steps taken, the estimates' extra steps included), ticks (outer
+        steps), estimates, rejected (outer steps taken again with more substeps).  Without a tolerance only
         tolerance and the substeps are meaningful (the fixed count).  reset=True starts a
         new period after reading.
         """

@@ -40,6 +40,7 @@ from ..ros.conversions import marker_geometry_from_drawing
 from ..ros.conversions import state_messages
 from ..ros.conversions import STATE_TOPICS
 from ..ros.node import NODE_NAME
+from ..ros.node import substep_diagnostics
 
 __all__ = [
     'CLOCK_TOPIC',
@@ -143,7 +144,7 @@ def _tick_count(duration, rate):
 
 
 def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1,
-                    storage='mcap', start_time=0, clock=False, namespace='',
+                    tolerance=None, storage='mcap', start_time=0, clock=False, namespace='',
                     world_frame='world', body_frame='body', progress=False, stop=None):
     """
     Simulate `scene` for `duration` s and write what the node would publish into a bag.
@@ -161,7 +162,11 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
     integrator : str, optional
         Default: the scene's.
     substeps : int
-        Integrator steps per tick, as the node's ``substeps`` parameter.
+        Integrator steps per tick, as the node's ``substeps`` parameter (with a tolerance,
+        the least number).
+    tolerance : float, optional
+        Error control in rad per simulated s, as the node's ``tolerance`` parameter
+        (default: the scene's; 0: off).
     storage : str
         'mcap' or 'sqlite3'.
     start_time : int
@@ -206,7 +211,8 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
     if world_frame == body_frame:
         raise ValueError(f'world_frame and body_frame must differ; both are {world_frame!r}')
     names = topic_names(namespace)
-    simulator = scene.simulator(integrator=integrator)
+    simulator = scene.simulator(integrator=integrator, tolerance=tolerance)
+    simulator.substeps = substeps
     body = simulator.body
     geometry = marker_geometry_from_drawing(scene.drawing)
     serializer = BatchSerializer(body, world_frame, body_frame, geometry)
@@ -216,7 +222,6 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
     diagnostics = _OfflineDiagnostics(scene, simulator, rate, substeps,
                                       _checked_namespace(namespace), clock)
     period = 1.0 / rate
-    step = period / substeps
 
     started = time.perf_counter()
     with BagWriter(bag, storage) as writer:
@@ -255,10 +260,7 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
                 batch_started = perf_counter()
                 for index in range(count):
                     step_started = perf_counter()
-                    if substeps == 1:
-                        simulator.step(period)
-                    else:
-                        simulator.run(period, step)
+                    simulator.step(period)
                     step_durations[index] = perf_counter() - step_started
                     batch.append(simulator.state)
                 serialized = serializer.serialize(batch.filled(), stamps)
@@ -336,6 +338,7 @@ def _set_custom_data(writer, scene, simulator, rate, substeps, start_time):
         'integrator': simulator.integrator,
         'rate': f'{rate:.17g}',
         'substeps': str(substeps),
+        'tolerance': 'off' if simulator.tolerance is None else f'{simulator.tolerance:.17g}',
         'start_time': str(start_time),
         'mass': f'{body.mass:.17g}',
         'inertia': ' '.join(f'{value:.17g}' for value in body.inertia.ravel()),
@@ -362,6 +365,7 @@ class _OfflineDiagnostics:
         self._reference_momentum = float(np.linalg.norm(simulator.state.angular_momentum))
         self._steps = []
         self._ticks = []
+        self._simulated = simulator.time
 
     def record(self, step_durations, batch_duration):
         """
@@ -383,6 +387,7 @@ class _OfflineDiagnostics:
         steps = np.concatenate(self._steps) if self._steps else np.empty(0)
         ticks = np.concatenate(self._ticks) if self._ticks else np.empty(0)
         self._steps, self._ticks = [], []
+        simulated, self._simulated = simulator.time - self._simulated, simulator.time
         # Ticks per wall-clock second, as the node reports them: here as fast as it goes.
         wall = float(ticks.sum())
         achieved = ticks.size / wall if wall > 0.0 else math.inf
@@ -399,8 +404,7 @@ class _OfflineDiagnostics:
             ('achieved rate [Hz]', f'{achieved:.2f}'),
             ('achieved real-time factor', f'{achieved / self._rate:.3f}'),
             ('missed ticks', '0'),
-            ('substeps', str(self._substeps)),
-            ('step [s]', f'{1.0 / (self._rate * self._substeps):.6g}'),
+            *substep_diagnostics(simulator, 1.0 / self._rate, float(steps.sum()), simulated),
             ('step time p50 [ms]', _milliseconds(steps, 50)),
             ('step time max [ms]', _milliseconds(steps, 100)),
             ('tick duration p50 [ms]', _milliseconds(ticks, 50)),

@@ -8,8 +8,9 @@ and rate; the body and initial-state parameters that are set override it (see
 
 Each tick applies the queued inputs, service requests and parameter changes in the order
 they came, expires inputs older than ``input_timeout``, advances the simulation by the
-nominal period 1/rate in ``substeps`` equal steps (simulated time follows the nominal
-period, not wall-clock jitter), then publishes the state.  Ticks come every
+nominal period 1/rate in ``substeps`` equal steps, or with a ``tolerance`` in as many as
+error control chooses (simulated time follows the nominal period, not wall-clock jitter),
+then publishes the state.  Ticks come every
 (1/rate)/real_time_factor s of wall-clock time.  Stamps: the node's clock, or with
 ``publish_clock`` the simulated time, which is then also published on ``/clock``.
 
@@ -87,7 +88,7 @@ from .qos import INPUT_QOS
 from .qos import STATE_QOS
 from ..scenes import load_scene
 
-__all__ = ['RigidBodyNode', 'ConfigurationError', 'main', 'NODE_NAME']
+__all__ = ['RigidBodyNode', 'ConfigurationError', 'main', 'NODE_NAME', 'substep_diagnostics']
 
 NODE_NAME = 'rigid_body_sim'
 """Default node name."""
@@ -170,14 +171,15 @@ class RigidBodyNode(Node):
         self._scene = scene
         body = scene.body
         self._initial_state = scene.state
-        self._simulator = scene.simulator()
+        self._simulator = scene.simulator(tolerance=values['tolerance'])
+        self._simulator.substeps = values['substeps']
         self._rate = scene.rate
         self._period = 1.0 / self._rate
         self._real_time_factor = values['real_time_factor']
         self._wall_period = self._period / self._real_time_factor
-        # One throwaway step loads the integrator's compiled kernel (~0.5 s) now rather than
-        # in the first tick.
-        scene.simulator().step(self._period)
+        # One throwaway step loads the integrator's compiled kernels (~0.5 s) now rather
+        # than in the first tick.
+        _load_kernels(scene, scene.integrator, self._period)
         self._substeps = values['substeps']
         self._input_timeout_ns = int(values['input_timeout'] * 1e9)
         self._max_wrench = values['max_wrench']
@@ -241,13 +243,17 @@ class RigidBodyNode(Node):
         self._system_time = False
         self._tick_durations = np.zeros(_HISTORY)
         self._step_durations = np.zeros(_HISTORY)
-        self._window = (time.monotonic(), 0, 0)  # start, ticks and missed ticks then
+        # Start, ticks, missed ticks and simulated time then.
+        self._window = (time.monotonic(), 0, 0, 0.0)
         self._next_diagnostics = time.monotonic() + _DIAGNOSTICS_PERIOD
         self._set_drift_reference()
         moments = ', '.join(f'{m:.4g}' for m in body.principal_moments)
         effects = ', '.join(scene.effect_names()) or 'none (torque-free)'
         inputs = 'torque and wrench' if scene.accepts_external_wrench else 'no inputs'
         timing = ''
+        tolerance = self._simulator.tolerance
+        if tolerance is not None:
+            timing += f' at least, error control {tolerance:g} rad/s'
         if self._real_time_factor != 1.0:
             timing += f', {self._real_time_factor:g}x real time'
         if self._publish_clock:
@@ -337,10 +343,8 @@ class RigidBodyNode(Node):
         simulator = self._simulator
         stepped = time.perf_counter()
         if not self._paused:
-            if self._substeps == 1:
-                simulator.step(self._period)
-            else:
-                simulator.run(self._period, self._period / self._substeps)
+            # substeps steps, or under error control as many as it chooses.
+            simulator.step(self._period)
             self._clock_ticks += 1
         step_duration = time.perf_counter() - stepped
         if self._ticks >= self._next_subscriber_check:
@@ -453,6 +457,12 @@ class RigidBodyNode(Node):
             self.get_logger().info(f'integrator is now {value}')
         elif name == 'substeps':
             self._substeps = value
+            self._simulator.substeps = value
+        elif name == 'tolerance':
+            # The state is kept; the next tick estimates anew.
+            self._simulator.tolerance = value
+            self.get_logger().info('error control is now ' + (
+                f'{value:g} rad/s' if value > 0.0 else f'off ({self._substeps} substep(s))'))
         elif name == 'input_timeout':
             self._input_timeout_ns = int(value * 1e9)
         elif name == 'real_time_factor':
@@ -541,9 +551,9 @@ class RigidBodyNode(Node):
                 self._max_wrench = parameter.value  # read by the input callbacks
             else:
                 if parameter.name == 'integrator':
-                    # Load the integrator's compiled kernel here (~0.1 s the first time),
+                    # Load the integrator's compiled kernels here (~0.1 s the first time),
                     # not in the tick thread, which would miss ticks meanwhile.
-                    self._scene.simulator(integrator=parameter.value).step(self._period)
+                    _load_kernels(self._scene, parameter.value, self._period)
                 self._queue.append((time.time_ns(),
                                     ('parameter', parameter.name, parameter.value)))
 
@@ -564,9 +574,9 @@ class RigidBodyNode(Node):
 
     def _publish_diagnostics(self):
         now = time.monotonic()
-        window_start, window_ticks, window_missed = self._window
+        window_start, window_ticks, window_missed, window_simulated = self._window
         ticks = self._ticks - window_ticks
-        self._window = (now, self._ticks, self._missed_ticks)
+        self._window = (now, self._ticks, self._missed_ticks, self._simulator.time)
         achieved = ticks / (now - window_start) if now > window_start else 0.0
         requested = self._rate * self._real_time_factor  # ticks per wall-clock second
         tick = self._recent(self._tick_durations, ticks)
@@ -575,6 +585,11 @@ class RigidBodyNode(Node):
         energy = simulator.energy()
         momentum = float(np.linalg.norm(simulator.state.angular_momentum))
         wrench_active = any(held is not None for held in self._inputs.values())
+        # The steps of the window over the simulated time they advanced (a reset restarts
+        # the clock: then over the window's ticks).
+        simulated = simulator.time - window_simulated
+        if simulated <= 0.0:
+            simulated = ticks * self._period
 
         status = DiagnosticStatus()
         status.name = f'{self.get_name()}: simulation'
@@ -596,8 +611,7 @@ class RigidBodyNode(Node):
             ('achieved rate [Hz]', f'{achieved:.2f}'),
             ('achieved real-time factor', f'{achieved / self._rate:.3f}'),
             ('missed ticks', str(self._missed_ticks - window_missed)),
-            ('substeps', str(self._substeps)),
-            ('step [s]', f'{self._period / self._substeps:.6g}'),
+            *substep_diagnostics(simulator, self._period, float(step.sum()), simulated),
             ('step time p50 [ms]', _milliseconds(step, 50)),
             ('step time max [ms]', _milliseconds(step, 100)),
             ('tick duration p50 [ms]', _milliseconds(tick, 50)),
@@ -633,6 +647,43 @@ class RigidBodyNode(Node):
         return (f'{self._ticks} ticks, {self._missed_ticks} missed; tick duration over the '
                 f'last {tick.size}: p50 {_milliseconds(tick, 50)} ms, p99 '
                 f'{_milliseconds(tick, 99)} ms, max {_milliseconds(tick, 100)} ms')
+
+
+def substep_diagnostics(simulator, period, step_seconds, simulated_seconds):
+    """
+    Return the diagnostics (key, value) pairs of the substeps and error control.
+
+    The simulator's figures since the last call (it starts a new period): tolerance (or
+    'off'), substeps in use (the last tick's, and the least and most of the period), the
+    step, the error rate estimated last and the largest of the period (rad/s, 'n/a' off),
+    and the integration's CPU per simulated second: `step_seconds` (the wall time of the
+    steps, pure computation in one thread: their CPU time unless it was preempted) over
+    `simulated_seconds`.  The node and ``rigid-body-sim simulate`` report the same keys.
+    """
+    figures = simulator.substep_statistics(reset=True)
+    controlled = figures['tolerance'] is not None
+
+    def rate(value):
+        return f'{value:.3e}' if controlled and math.isfinite(value) else 'n/a'
+    return [
+        ('tolerance [rad/s]', f'{figures["tolerance"]:g}' if controlled else 'off'),
+        ('substeps', str(figures['substeps'])),
+        ('substeps min', str(figures['substeps_min'])),
+        ('substeps max', str(figures['substeps_max'])),
+        ('step [s]', f'{period / figures["substeps"]:.6g}'),
+        ('estimated error rate [rad/s]', rate(figures['error_rate'])),
+        ('estimated error rate max [rad/s]', rate(figures['error_rate_max'])),
+        ('integration CPU per simulated s [s]',
+         f'{step_seconds / simulated_seconds:.3e}' if simulated_seconds > 0.0 else 'n/a'),
+    ]
+
+
+def _load_kernels(scene, integrator, period):
+    """Load (from numba's cache, or compile) the kernels an integrator runs with, both ways."""
+    simulator = scene.simulator(integrator=integrator)
+    simulator.step(period)
+    simulator.tolerance = 0.0 if simulator.tolerance is not None else 1e-6
+    simulator.step(period)
 
 
 def _never_called(message):

@@ -7,8 +7,9 @@ the effects on it, how to draw it, and the default integrator and rate.  The par
 in three kinds, told apart by the ``default`` of their :class:`ParameterSpec`:
 
 - a value: the node's own settings (frames, inputs, sim time), the same for every scene;
-- :data:`SCENE_VALUE`: ``integrator`` and ``rate`` are declared with the scene's values as
-  their defaults, so ``ros2 param get`` shows what runs; a value the user gives replaces it;
+- :data:`SCENE_VALUE`: ``integrator``, ``rate`` and ``tolerance`` are declared with the
+  scene's values as their defaults, so ``ros2 param get`` shows what runs; a value the user
+  gives replaces it;
 - :data:`NOT_SET`: the body and initial-state parameters (``body.*``, ``initial.*``) are
   declared with their type and no value.  Only those the user sets override the scene's
   values; a default value could not be told from one the user gave and would silently
@@ -99,8 +100,17 @@ PARAMETERS = (
           "Tick rate in Hz; default: the scene's.  Each tick advances the simulation by "
           '1/rate s of simulated time and publishes the state once.',
           value_range=(0.1, 10000.0)),
-    _spec('substeps', int, 1, 'Integrator steps per tick (step = 1 / (rate * substeps) s).',
+    _spec('substeps', int, 1,
+          'Integrator steps per tick (step = 1 / (rate * substeps) s); with a tolerance, the '
+          'least number of substeps.',
           read_only=False, value_range=(1, 100000)),
+    _spec('tolerance', float, SCENE_VALUE,
+          "Error control in rad per simulated second; default: the scene's.  Each tick is "
+          'split into as many equal substeps (at least substeps) as keep the orientation '
+          'error the integrator adds per simulated second at or below it (a step-doubling '
+          "estimate with the integrator's order); 0: off, substeps fixed steps per tick.  May "
+          'change at run time; the state stays continuous.',
+          read_only=False, value_range=(0.0, 1.0)),
     _spec('real_time_factor', float, 1.0,
           'Simulated seconds per wall-clock second: the ticks come every '
           '(1/rate)/real_time_factor s of wall-clock time, each still advancing the '
@@ -223,8 +233,8 @@ def declare_parameters(node, scene):
     node : rclpy.node.Node
         The node to declare them on.
     scene : Scene
-        The scene the node simulates: its integrator and rate are the defaults of the
-        parameters of the same names.
+        The scene the node simulates: its integrator, rate and tolerance are the defaults
+        of the parameters of the same names.
 
     Returns
     -------
@@ -238,7 +248,8 @@ def declare_parameters(node, scene):
         parameter and what it expects.
 
     """
-    scene_values = {'integrator': scene.integrator, 'rate': float(scene.rate)}
+    scene_values = {'integrator': scene.integrator, 'rate': float(scene.rate),
+                    'tolerance': float(scene.tolerance or 0.0)}
     values = {}
     for spec in PARAMETERS:
         if not node.has_parameter(spec.name):

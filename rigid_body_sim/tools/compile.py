@@ -5,8 +5,9 @@ The compiled kernels are cached beside the package (``__pycache__``): the first 
 after an install or an upgrade compiles the ones it needs, 4-10 s each on the reference
 machine (a node's start-up then takes that much longer), and every later one loads them in
 well under a second.  This takes each registered integrator through one step of a free
-body, of a body under a held wrench, under a pivot with gravity and with dissipation: the
-paths the Simulator compiles.  ``make test`` runs it first, so the tests' nodes start fast.
+body, of a body under a held wrench, under a pivot with gravity and with dissipation, each
+at a fixed step and under error control (the controlled kernel): the paths the Simulator
+compiles.  ``make test`` runs it first, so the tests' nodes start fast.
 """
 
 import time
@@ -37,10 +38,13 @@ def main(args):
     for name in sorted(INTEGRATORS):
         started = time.monotonic()
         for _, effects in setups:
-            simulator = Simulator(body, state, integrator=name, effects=effects)
-            simulator.step(1e-3)
-            simulator.set_wrench(force=(0.0, 0.0, 1.0), torque=(0.1, 0.0, 0.0), frame='body')
-            simulator.step(1e-3)
+            for tolerance in (None, 1e-6):
+                simulator = Simulator(body, state, integrator=name, effects=effects,
+                                      tolerance=tolerance)
+                simulator.step(1e-3)
+                simulator.set_wrench(force=(0.0, 0.0, 1.0), torque=(0.1, 0.0, 0.0),
+                                     frame='body')
+                simulator.step(1e-3)
         print(f'  {name:12s} {time.monotonic() - started:6.2f} s', flush=True)
     print(f'compiled the kernels of {len(INTEGRATORS)} integrators in '
           f'{time.monotonic() - total:.1f} s (cached for later runs)')

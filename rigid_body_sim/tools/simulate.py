@@ -40,7 +40,13 @@ def add_arguments(parser):
                         help=f'one of: {", ".join(sorted(INTEGRATORS))} (default: the '
                              "scene's)")
     parser.add_argument('--substeps', type=int, default=1,
-                        help='integrator steps per tick (default: 1)')
+                        help='integrator steps per tick; with a tolerance the least number '
+                             '(default: 1)')
+    parser.add_argument('--tolerance', type=float, default=None,
+                        help="error control in rad per simulated s, as the node's tolerance "
+                             'parameter: each tick is split into as many substeps as keep the '
+                             'orientation error added per second below it; 0: off (default: '
+                             "the scene's)")
     parser.add_argument('--bag',
                         help='bag directory to create (default: <scene>_<date>_<time>)')
     parser.add_argument('--storage', choices=STORAGES, default='mcap',
@@ -96,7 +102,8 @@ def main(args):
     with StopOnSignals() as signals:
         summary = simulate_to_bag(
             scene, bag, args.duration, rate=args.rate, integrator=args.integrator,
-            substeps=args.substeps, storage=args.storage, start_time=start_time,
+            substeps=args.substeps, tolerance=args.tolerance, storage=args.storage,
+            start_time=start_time,
             clock=args.clock, namespace=args.namespace, world_frame=args.world_frame,
             body_frame=args.body_frame, progress=not args.quiet, stop=signals.stop)
     print(summary)

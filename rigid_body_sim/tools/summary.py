@@ -27,7 +27,13 @@ def add_arguments(parser):
     parser.add_argument('--duration', type=float, default=30.0,
                         help='simulated time in s (default: 30)')
     parser.add_argument('--dt', type=float, default=None,
-                        help=f"time step in s (default: 1 / the {DEFAULT_SCENE} scene's rate)")
+                        help=f"time step in s (default: 1 / the {DEFAULT_SCENE} scene's rate); "
+                             'with a tolerance, the tick that error control splits')
+    parser.add_argument('--tolerance', type=float, default=None,
+                        help='error control in rad per simulated s: each step of dt is split '
+                             'into as many substeps as keep the orientation error added per '
+                             f'second below it; 0: off, one step per dt (default: the '
+                             f"{DEFAULT_SCENE} scene's)")
     parser.add_argument('--every', type=float, default=1.0,
                         help='print a line every this many simulated s (default: 1)')
 
@@ -40,13 +46,17 @@ def main(args):
     body = scene.body
     if args.dt is None:
         args.dt = scene.dt
+    tolerance = scene.tolerance if args.tolerance is None else args.tolerance
     # The body and state alone: the scene's only effect, external_wrench, has no input here.
-    simulator = Simulator(body, scene.state, integrator=args.integrator or scene.integrator)
+    simulator = Simulator(body, scene.state, integrator=args.integrator or scene.integrator,
+                          tolerance=tolerance)
     energy0 = simulator.energy()
     momentum0 = np.linalg.norm(simulator.state.angular_momentum)
+    control = ('off' if simulator.tolerance is None
+               else f'{simulator.tolerance:g} rad/s (error control)')
     print(f'body: mass {body.mass:g} kg, principal moments '
           f'{np.array2string(body.principal_moments, precision=4)} kg m^2; '
-          f'integrator {simulator.integrator}, dt {args.dt:g} s')
+          f'integrator {simulator.integrator}, dt {args.dt:g} s, tolerance {control}')
     header = (f'{"t [s]":>8}  {"quaternion (x, y, z, w)":^35}  '
               f'{"body angular velocity [rad/s]":^32}  {"dE/E":>9}  {"d|L|/|L|":>9}')
     print(header)
@@ -71,6 +81,13 @@ def main(args):
         steps += int(round(chunk / args.dt))
         line()
     elapsed = time.perf_counter() - started
+    if simulator.tolerance is not None:
+        figures = simulator.substep_statistics()
+        print(f'{steps} ticks, {figures["substeps_min"]}-{figures["substeps_max"]} substeps '
+              f'each ({figures["steps"]} integrator steps, the estimates\' included) in '
+              f'{elapsed:.3f} s wall-clock ({args.duration / max(elapsed, 1e-12):.0f}x real '
+              'time)')
+        return 0
     print(f'{steps} steps in {elapsed:.3f} s wall-clock '
           f'({args.duration / max(elapsed, 1e-12):.0f}x real time)')
     return 0
