@@ -229,9 +229,9 @@ class Simulator:
         substeps_min, substeps_max, substeps_mean; error_rate (the last estimate, rad/s;
         nan when off or before the first) and error_rate_max (the largest in the period);
         steps (integrator steps taken, the estimates' extra steps included), ticks (outer
-        steps), estimates, rejected (outer steps taken again with more substeps).  Without a tolerance only
-        tolerance and the substeps are meaningful (the fixed count).  reset=True starts a
-        new period after reading.
+        steps), estimates, rejected (outer steps taken again with more substeps).  Without
+        a tolerance only tolerance and the substeps are meaningful (the fixed count).
+        reset=True starts a new period after reading.
         """
         figures = error_control.statistics(self._control)
         if self._tolerance is None:
