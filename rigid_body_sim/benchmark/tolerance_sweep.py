@@ -51,7 +51,7 @@ from ..physics import matrix_from_quaternion
 from ..scenes import load_scene
 from ..scenes import scene_names
 
-__all__ = ['SweepCase', 'scene_cases', 'case_reference', 'measure_case_run',
+__all__ = ['SweepCase', 'scene_cases', 'case_reference', 'measure_case_run', 'advance',
            'tolerance_sweep', 'is_torque_free', 'SAMPLE_INTERVAL', 'TOLERANCES',
            'FIXED_SUBSTEPS', 'FIXED_METHODS', 'NATURAL_SPANS', 'SWEEP_SPAN']
 
@@ -168,7 +168,7 @@ def _sample_ticks(case):
     return list(range(every, case.ticks + 1, every))
 
 
-def _advance(simulator, case, start, stop):
+def advance(simulator, case, start, stop):
     """Take ticks start .. stop - 1 of the case (forced tick by tick)."""
     if case.forcing is None:
         simulator.run((stop - start) * case.tick, case.tick)
@@ -182,7 +182,7 @@ def _fine_rotations(case, substeps):
     simulator = case.simulator('rk4', substeps=substeps)
     rotations, done = {}, 0
     for mark in _sample_ticks(case):
-        _advance(simulator, case, done, mark)
+        advance(simulator, case, done, mark)
         done = mark
         rotations[mark] = np.array(simulator.state.rotation)
     return rotations
@@ -228,7 +228,7 @@ def measure_case_run(case, reference, integrator, tolerance=None, substeps=1, re
     simulator = case.simulator(integrator, tolerance, substeps)
     error, done = 0.0, 0
     for mark in _sample_ticks(case):
-        _advance(simulator, case, done, mark)
+        advance(simulator, case, done, mark)
         done = mark
         error = max(error, rotation_angle(simulator.state.rotation, reference[mark]))
     figures = simulator.substep_statistics()
@@ -236,7 +236,7 @@ def measure_case_run(case, reference, integrator, tolerance=None, substeps=1, re
     for _ in range(repeats):
         timed = case.simulator(integrator, tolerance, substeps)
         started = time.process_time()
-        _advance(timed, case, 0, case.ticks)
+        advance(timed, case, 0, case.ticks)
         samples.append(time.process_time() - started)
     cpu = statistics.median(samples) / case.span
     steps = figures['steps'] / figures['ticks'] if tolerance else float(substeps)

@@ -172,10 +172,21 @@ class Simulator:
         self._step = get_integrator(name)
         self._integrator_name = name
         self._kernel = FAST_KERNELS.get(name) if self._fast else None
-        # A step function without a registered order (a test's spy) is taken as first order,
-        # the most cautious estimate.
-        error_control.set_order(self._control, getattr(self._step, 'order', 1))
+        self._set_order()
         self._plan()
+
+    def _set_order(self):
+        """
+        Give the controller the order of the steps as taken: the integrator's, at most 2
+        with a flow (flow(h/2) step(h) flow(h/2) is a Strang composition: second order).
+
+        A step function without a registered order (a test's spy) is taken as first order,
+        the most cautious estimate.
+        """
+        order = getattr(self._step, 'order', 1)
+        if self._flows:
+            order = min(order, 2)
+        error_control.set_order(self._control, order)
 
     @property
     def tolerance(self):
