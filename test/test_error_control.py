@@ -26,8 +26,6 @@ from rigid_body_sim.physics import Simulator
 from rigid_body_sim.physics import State
 from rigid_body_sim.physics.effects import Dissipation
 from rigid_body_sim.physics.effects import Drag
-from rigid_body_sim.physics.effects import Gravity
-from rigid_body_sim.physics.effects import Pivot
 from rigid_body_sim.physics.integrators import fast
 from rigid_body_sim.scenes import load_scene
 from rigid_body_sim.scenes import scene_names
@@ -142,7 +140,6 @@ def test_estimated_local_error_is_within_a_factor_3_of_the_true_one(
     true = _true_error(setups[setup], integrator, start, h)
     assert true > 1e3 * np.finfo(float).eps
     assert 1.0 / ESTIMATE_FACTOR <= estimate / true <= ESTIMATE_FACTOR, (estimate, true)
-
 
 
 # -- the substep counts: smooth, continuous, the same compiled and readable
@@ -363,4 +360,3 @@ def test_achieved_error_stays_within_the_tolerance_times_the_span(references, na
         done = mark
         error = max(error, rotation_angle(simulator.state.rotation, rotations[mark]))
     assert error <= bound, (error, error / (tolerance * span))
-

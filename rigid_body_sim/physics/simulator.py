@@ -177,10 +177,10 @@ class Simulator:
 
     def _set_order(self):
         """
-        Give the controller the order of the steps as taken: the integrator's, at most 2
-        with a flow (flow(h/2) step(h) flow(h/2) is a Strang composition: second order).
+        Give the controller the order of the steps as taken.
 
-        A step function without a registered order (a test's spy) is taken as first order,
+        The integrator's, at most 2 with a flow (flow(h/2) step(h) flow(h/2) is a Strang
+        composition: second order).  A step function without a registered order (a test's spy) is taken as first order,
         the most cautious estimate.
         """
         order = getattr(self._step, 'order', 1)
