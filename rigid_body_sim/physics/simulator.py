@@ -180,8 +180,8 @@ class Simulator:
         Give the controller the order of the steps as taken.
 
         The integrator's, at most 2 with a flow (flow(h/2) step(h) flow(h/2) is a Strang
-        composition: second order).  A step function without a registered order (a test's spy) is taken as first order,
-        the most cautious estimate.
+        composition: second order).  A step function without a registered order (a test's
+        spy) is taken as first order, the most cautious estimate.
         """
         order = getattr(self._step, 'order', 1)
         if self._flows:
