@@ -52,25 +52,29 @@ from ..scenes import load_scene
 from ..scenes import scene_names
 
 __all__ = ['SweepCase', 'scene_cases', 'case_reference', 'measure_case_run', 'advance',
-           'tolerance_sweep', 'is_torque_free', 'SAMPLE_INTERVAL', 'TOLERANCES',
-           'FIXED_SUBSTEPS', 'FIXED_METHODS', 'NATURAL_SPANS', 'SWEEP_SPAN']
+           'tolerance_sweep', 'sweep_units', 'is_torque_free', 'SAMPLE_INTERVAL',
+           'TOLERANCES', 'FIXED_SUBSTEPS', 'FIXED_METHODS', 'NATURAL_SPANS', 'SWEEP_SPAN',
+           'FINEST_ERROR', 'MOST_STEPS_PER_SECOND']
 
 SAMPLE_INTERVAL = 0.5
 """Simulated time (s) between the samples at which the error is measured."""
 SWEEP_SPAN = 60.0
 """The span (s) of the benchmark's sweep: errors 'over 60 s'."""
 TOLERANCES = tuple(float(f'{m}e{e}') for e in range(-2, -11, -1) for m in (3, 1))
-"""The tolerances (rad per simulated s) swept, 3e-2 down to 1e-10."""
+"""The tolerances (rad per simulated s) swept, 3e-2 down to 1e-10 (until a run is fine
+enough or too dear, see tolerance_sweep)."""
 FIXED_SUBSTEPS = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768,
                   1024, 1536, 2048, 3072, 4096)
 """Substeps per tick of the fixed-step runs (a dense grid: costs are interpolated on it)."""
 FIXED_METHODS = ('buss', 'splitting', 'rk4')
 REFERENCE_SUBSTEPS = 64
-# A fixed-step sweep stops once its error is below this (rad): far under every level the
-# report compares, and the reference's resolution is near.
-_FINEST_ERROR = 1e-10
+# A method's sweep stops once its error is below this (rad): 10x under the finest level the
+# report compares (1e-8).
+FINEST_ERROR = 1e-9
 # Nor does it go on past this many integrator steps per simulated second of the span.
-_MOST_STEPS_PER_SECOND = 2.0e6
+MOST_STEPS_PER_SECOND = 5.0e5
+# Timed runs per record stop after this much CPU (s), after at least one.
+TIMING_BUDGET = 1.0
 
 NATURAL_SPANS = {
     'default': 60.0,        # 4 flips (every 14.4 s)
@@ -232,8 +236,9 @@ def measure_case_run(case, reference, integrator, tolerance=None, substeps=1, re
         done = mark
         error = max(error, rotation_angle(simulator.state.rotation, reference[mark]))
     figures = simulator.substep_statistics()
+    # The accuracy run was the warm-up: the kernels are loaded, none is compiled while timed.
     samples = []
-    for _ in range(repeats):
+    while len(samples) < repeats and not (samples and sum(samples) > TIMING_BUDGET):
         timed = case.simulator(integrator, tolerance, substeps)
         started = time.process_time()
         advance(timed, case, 0, case.ticks)
@@ -255,8 +260,9 @@ def tolerance_sweep(cases, tolerances=TOLERANCES, fixed_methods=FIXED_METHODS,
     Run the sweep over `cases`; return {'references': {...}, 'records': [...]}.
 
     Error-controlled ``buss`` at each tolerance, and each of `fixed_methods` at each count
-    of `fixed_substeps` until its error falls below 1e-10 rad or its cost passes 2e6 steps
-    per simulated second.  `progress(label)` is called after each run.
+    of `fixed_substeps`, each in order until a run's error falls below FINEST_ERROR or its
+    steps pass MOST_STEPS_PER_SECOND of simulated time.  `progress(label)` is called after
+    each case's reference and each run.
     """
     references, records = {}, []
     for case in cases:
@@ -265,21 +271,23 @@ def tolerance_sweep(cases, tolerances=TOLERANCES, fixed_methods=FIXED_METHODS,
                                  'span': case.span, 'tick': case.tick}
         if progress is not None:
             progress(f'{case.name}: reference')
-        for tolerance in tolerances:
-            records.append(measure_case_run(case, rotations, 'buss', tolerance,
-                                            repeats=repeats))
+        runs = [('buss', tolerance, 1) for tolerance in tolerances] + [
+            (method, None, substeps) for method in fixed_methods for substeps in fixed_substeps]
+        stopped = set()
+        for integrator, tolerance, substeps in runs:
+            method = integrator + ('+control' if tolerance else '')
+            if method in stopped or (tolerance is None and
+                                     substeps / case.tick > MOST_STEPS_PER_SECOND):
+                stopped.add(method)
+                continue
+            record = measure_case_run(case, rotations, integrator, tolerance, substeps, repeats)
+            records.append(record)
             if progress is not None:
-                progress(f'{case.name}: buss tol {tolerance:g}')
-        for method in fixed_methods:
-            for substeps in fixed_substeps:
-                if substeps / case.tick > _MOST_STEPS_PER_SECOND:
-                    break
-                record = measure_case_run(case, rotations, method, None, substeps, repeats)
-                records.append(record)
-                if progress is not None:
-                    progress(f'{case.name}: {method} x{substeps}')
-                if record['error'] < _FINEST_ERROR:
-                    break
+                progress(f'{case.name}: {method} '
+                         + (f'tol {tolerance:g}' if tolerance else f'x{substeps}'))
+            if record['error'] < FINEST_ERROR or (
+                    record['steps_per_tick'] / case.tick > MOST_STEPS_PER_SECOND):
+                stopped.add(method)
     return {'references': references, 'records': records}
 
 
