@@ -82,7 +82,7 @@ def sweep_markdown(result, rows):
         f'{result["machine"]["date_utc"]}; machine, load and timer as in results.md.  '
         f'Wall time of the sweep: {result["wall_seconds"]:.0f} s.',
         '',
-        "Each built-in scene at its own tick (1 / rate) over "
+        'Each built-in scene at its own tick (1 / rate) over '
         f"{config['span']:g} s: `buss` under error control at each tolerance (rad per "
         'simulated second; the substeps per tick chosen by physics/error_control.py), and '
         'fixed-step `buss`, `splitting` and `rk4` at 1, 2, 3, 4, 6, 8, ... substeps per tick.  '
