@@ -6,8 +6,11 @@ installed) on five torque-free benchmark bodies at dt = 10 .. 0.001 s, measures 
 orientation error at 10 s and 100 s against an extended-precision reference, the energy and
 |L| drift, and the CPU time per step, and writes results.md (tables), results.json,
 results.csv and work_precision.png / work_precision_100s.png (error against CPU per simulated
-second) to --out.  --quick: two bodies, three steps and horizons of 2 s and 10 s, for CI
-(seconds, not minutes).
+second) to --out.  Then the tolerance sweep (benchmark/tolerance_sweep.py): every built-in
+scene at its own rate over 60 s, error-controlled buss at tolerances 3e-2 .. 1e-10 rad/s
+beside fixed-step buss, splitting and rk4, written as tolerance_sweep.md/.json/.csv/.png.
+--quick: two bodies, three steps and horizons of 2 s and 10 s, and a 2 s sweep of two
+scenes, for CI (seconds, not minutes).  --tolerance-sweep: the sweep alone.
 """
 
 import os
@@ -29,6 +32,16 @@ def add_arguments(parser):
                         help='timing repeats, the median is kept (default: 5, quick: 3)')
     parser.add_argument('--no-mujoco', action='store_true',
                         help='leave out the MuJoCo peer even if it is installed')
+    sweep = parser.add_mutually_exclusive_group()
+    sweep.add_argument('--tolerance-sweep', action='store_true',
+                       help='run only the tolerance sweep (error-controlled buss against '
+                            'fixed steps on the built-in scenes, ~20 min; with --quick: '
+                            'seconds)')
+    sweep.add_argument('--no-tolerance-sweep', action='store_true',
+                       help='skip the tolerance sweep that follows the work-precision runs')
+    parser.add_argument('--scenes', nargs='+', metavar='SCENE', default=None,
+                        help='the built-in scenes the sweep takes (default: all; quick: '
+                             'van_zon and heavy_top)')
 
 
 def _progress_bar(total):
@@ -58,8 +71,74 @@ def _silence_mujoco_warnings():
     return lambda: mujoco.set_mju_user_warning(previous)
 
 
+def _command(args):
+    return ('rigid-body-sim bench' + (' --quick' if args.quick else '')
+            + ('' if args.repeats is None else f' --repeats {args.repeats}')
+            + (' --no-mujoco' if args.no_mujoco else '')
+            + (' --tolerance-sweep' if args.tolerance_sweep else '')
+            + (' --no-tolerance-sweep' if args.no_tolerance_sweep else '')
+            + (' --scenes ' + ' '.join(args.scenes) if args.scenes else '')
+            + f' --out {args.out}')
+
+
+def run_tolerance_sweep(args):
+    """Run the tolerance sweep, write tolerance_sweep.*, print the goal's count; return paths."""
+    from ..benchmark.report import machine_info
+    from ..benchmark.tolerance_report import control_goal_table
+    from ..benchmark.tolerance_report import write_sweep_outputs
+    from ..benchmark.tolerance_sweep import FIXED_SUBSTEPS
+    from ..benchmark.tolerance_sweep import SAMPLE_INTERVAL
+    from ..benchmark.tolerance_sweep import scene_cases
+    from ..benchmark.tolerance_sweep import sweep_units
+    from ..benchmark.tolerance_sweep import SWEEP_SPAN
+    from ..benchmark.tolerance_sweep import tolerance_sweep
+    from ..benchmark.tolerance_sweep import TOLERANCES
+    from ..scenes import scene_names
+
+    if args.quick:
+        names = args.scenes or ['van_zon', 'heavy_top']
+        span, tolerances, substeps = 2.0, (1e-3, 1e-5, 1e-7), (1, 2, 4, 8)
+    else:
+        names = args.scenes or scene_names()
+        span, tolerances, substeps = SWEEP_SPAN, TOLERANCES, FIXED_SUBSTEPS
+    unknown = sorted(set(names) - set(scene_names()))
+    if unknown:
+        raise ValueError(f'--scenes: no built-in scene {", ".join(unknown)}; '
+                         f'the scenes are {", ".join(scene_names())}')
+    repeats = args.repeats or 3
+    cases = scene_cases(names, span=span)
+    machine = machine_info()
+    started = time.perf_counter()
+    bar, advance = _progress_bar(sweep_units(cases, tolerances, fixed_substeps=substeps))
+    bar.set_description('tolerance sweep')
+    try:
+        result = tolerance_sweep(cases, tolerances, fixed_substeps=substeps, repeats=repeats,
+                                 progress=advance)
+    finally:
+        bar.close()
+    machine['load_average_end'] = list(os.getloadavg())
+    result.update({
+        'machine': machine, 'command': _command(args),
+        'config': {'scenes': names, 'span': span, 'tolerances': list(tolerances),
+                   'fixed_substeps': list(substeps), 'sample_interval': SAMPLE_INTERVAL,
+                   'repeats': repeats, 'quick': bool(args.quick)},
+        'wall_seconds': time.perf_counter() - started,
+    })
+    paths = write_sweep_outputs(result, args.out)
+    rows = control_goal_table(result)
+    judged = [row for row in rows if row['verdict'] in ('holds', 'fails')]
+    print(f'bench: error-controlled buss costs at most 1.5x the best fixed-step buss at '
+          f'{sum(row["verdict"] == "holds" for row in judged)} of {len(judged)} judged '
+          f'(scene, error level) pairs ({len(rows) - len(judged)} not reached or unresolved)')
+    return paths
+
+
 def main(args):
     """Run the benchmark, write the outputs, print where they are; return 0."""
+    if args.tolerance_sweep:
+        for path in run_tolerance_sweep(args).values():
+            print(f'bench: wrote {path}')
+        return 0
     from ..benchmark.bodies import benchmark_cases
     from ..benchmark.measure import FULL
     from ..benchmark.measure import QUICK
@@ -98,9 +177,7 @@ def main(args):
                    'horizons': list(config.horizons), 'repeats': config.repeats,
                    'time_budget': config.time_budget, 'quick': bool(args.quick)},
         'cases': {case.name: case.description for case in benchmark_cases(config.cases)},
-        'command': 'rigid-body-sim bench' + (' --quick' if args.quick else '')
-                   + ('' if args.repeats is None else f' --repeats {args.repeats}')
-                   + (' --no-mujoco' if args.no_mujoco else '') + f' --out {args.out}',
+        'command': _command(args),
         'wall_seconds': time.perf_counter() - started,
         'cpu_seconds': time.process_time() - cpu_started,
     })
@@ -118,6 +195,8 @@ def main(args):
               f'{counts["holds"]} of {len(rows)} (body, error level) pairs'
               + (f'; {others}' if others else '')
               + ('' if horizon == 'short' else ' (information only)'))
+    if not args.no_tolerance_sweep:
+        paths.update(run_tolerance_sweep(args))
     for path in paths.values():
         print(f'bench: wrote {path}')
     return 0
