@@ -20,6 +20,7 @@ TOOLS = {
     'simulate': 'simulate',
     'record': 'record',
     'plot': 'plot',
+    'animate': 'animate',
     'compile': 'compile',
 }
 

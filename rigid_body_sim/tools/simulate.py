@@ -62,6 +62,11 @@ def add_arguments(parser):
     parser.add_argument('--world-frame', default='world', help='world frame id (default: world)')
     parser.add_argument('--body-frame', default='body', help='body frame id (default: body)')
     parser.add_argument('--quiet', action='store_true', help='no progress bar')
+    parser.add_argument('--animate', nargs='?', const='', default=None, metavar='FILE',
+                        help='then animate the bag (rigid-body-sim animate) into FILE, .gif '
+                             'or .mp4 (default: <bag>.gif beside the bag)')
+    from .animate import add_animation_options
+    add_animation_options(parser, prefix='animate-')
 
 
 def start_time_nanoseconds(text):
@@ -113,4 +118,9 @@ def main(args):
         print(f'rigid-body-sim simulate: {signals.received.name}: stopped after '
               f'{summary.duration:g} of {args.duration:g} simulated s; the bag is complete up '
               'to there', file=sys.stderr)
+        return signals.exit_code
+    if args.animate is not None:
+        from .animate import render
+        return render(bag, args.animate or None, args.animate_fps, args.animate_speed,
+                      args.animate_max_size, args.namespace, quiet=args.quiet)
     return signals.exit_code
