@@ -86,6 +86,7 @@ from .qos import CLOCK_QOS
 from .qos import DIAGNOSTICS_QOS
 from .qos import INPUT_QOS
 from .qos import STATE_QOS
+from .start_up import start_up_phase
 from ..scenes import load_scene
 
 __all__ = ['RigidBodyNode', 'ConfigurationError', 'main', 'NODE_NAME', 'substep_diagnostics']
@@ -702,6 +703,26 @@ def _relative(value, reference):
     return f'{(value - reference) / abs(reference):+.3e}'
 
 
+def _spin_until_signalled(node):
+    """
+    Serve the node's services and inputs until the context shuts down or a signal comes.
+
+    rclpy.spin would wait without a timeout (the ticks run in a thread of their own, so the
+    wait set has no timer): a SIGINT then relies on rclpy's guard condition alone to wake
+    the wait, and once in a few hundred stops (a benchmark saw it) the node stayed blocked
+    in rcl_wait with the signal noted but never acted on.  Waiting at most _STOP_LATENCY
+    lets Python run its signal handler within that time in every case.
+    """
+    # As rclpy.spin does it, with a timeout.
+    executor = rclpy.get_global_executor()
+    executor.add_node(node)
+    try:
+        while executor.context.ok():
+            executor.spin_once(timeout_sec=_STOP_LATENCY)
+    finally:
+        executor.remove_node(node)
+
+
 def main(args=None):
     """
     Run the node until SIGINT or SIGTERM; return the exit code.
@@ -709,6 +730,7 @@ def main(args=None):
     0 after a clean shutdown; 1 if the configuration is invalid (one error is logged) or the
     simulation failed; 2 if the ROS arguments cannot be parsed.
     """
+    start_up_phase('rclpy.init')
     try:
         rclpy.init(args=args)
     except KeyboardInterrupt:
@@ -719,9 +741,11 @@ def main(args=None):
     node = None
     code = 0
     try:
+        start_up_phase('node')
         node = RigidBodyNode()
         node.start()
-        rclpy.spin(node)
+        start_up_phase('spin')
+        _spin_until_signalled(node)
     except ConfigurationError:
         code = 1
     except (KeyboardInterrupt, ExternalShutdownException):
