@@ -312,15 +312,26 @@ def test_use_sim_time_logs_messages_at_the_simulated_time(tmp_path, node_100_hz)
     poses = messages[f'{namespace}/pose']
     stamps = np.array([stamp_of(m.data) for m in poses])
     log_times = np.array([m.log_time for m in poses])
-    # A message is logged at the latest /clock taken before it: usually its own tick's
-    # (the node publishes /clock first), a tick earlier when the pose overtook its /clock
-    # on the way (two DDS readers), later when it waited in the queue or came before the
-    # first /clock (best effort matched later).  So within a few ticks, mostly none.
-    lag = log_times - stamps
-    assert np.all(lag > -100_000_000) and np.all(lag < 2_000_000_000), (lag.min(), lag.max())
-    assert np.median(np.abs(lag)) <= 10_000_000
+    # Every message is logged at a /clock value: the latest taken before it, or the first
+    # one for those taken before any /clock came (the node publishes /clock only once it
+    # has seen the recorder's subscription, which under load can be seconds after the
+    # state topics matched); the recorder says how many those were.
+    assert set(log_times) <= set(clock_times)
     assert np.all(np.diff(log_times) >= 0)
-    assert log_times.min() >= clock_times.min()
+    early = stamps < clock_times[0]
+    said = re.search(r'(\d+) message\(s\) taken before the first /clock are logged at its '
+                     r'time, (\d+) ns', recorder.output())
+    if said is not None:
+        assert int(said.group(2)) == clock_times[0], recorder.output()
+    # After the first /clock, a pose is logged at its own tick's /clock (the node publishes
+    # /clock first), or at an earlier one when it was published after the /clock queue was
+    # taken in the recorder's pass, before its own queue was: by at most the longest pass
+    # (which the recorder reports) and a tick; later when it waited in the queue.
+    longest_pass = int(re.search(r'longest pass (\d+) ms', recorder.output()).group(1))
+    lag = (log_times - stamps)[~early]
+    # (+1 ms: the report rounds to whole ms.)
+    assert lag.size and np.all(lag >= -(longest_pass + 11) * 1_000_000), (lag.min(), longest_pass)
+    assert np.median(np.abs(lag)) <= 10_000_000
 
 
 class TopicPublisher:

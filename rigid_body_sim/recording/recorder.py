@@ -190,6 +190,7 @@ class _Recorder:
         # index (a killed recorder's) must be in time order for rosbags to read it.
         self.buffer = []
         self.sim_time = None  # ns, from /clock (use_sim_time): None before the first one
+        self.first_sim_time = None  # ns, the first /clock's: the time of earlier messages
         self.wait_set = None
         self.ready_handles = []
         # The node's topics (in its namespace) are subscribed at once, with known types.
@@ -288,11 +289,17 @@ class _Recorder:
         if not buffer:
             return
         if self.use_sim_time and buffer[0][0] < 0:
-            # Taken before the first /clock: they get its time (0 if none came).
-            first = self.sim_time
+            # Taken before the first /clock: they get its time (0 if none came), so the bag
+            # stays in time order; the node publishes /clock only once it has seen a
+            # subscriber, which under load can be seconds after the state topics matched.
+            first = self.first_sim_time
+            early = sum(1 for item in buffer if item[0] < 0)
             if first is None:
-                self.log('no /clock received: messages taken before any have bag time 0')
+                self.log(f'no /clock received: the {early} message(s) taken have bag time 0')
                 first = 0
+            else:
+                self.log(f'{early} message(s) taken before the first /clock are logged at '
+                         f'its time, {first} ns')
             buffer[:] = [(first if item[0] < 0 else item[0],) + item[1:] for item in buffer]
         buffer.sort(key=_log_time)
         count = len(buffer)
@@ -320,6 +327,8 @@ class _Recorder:
             # rosgraph_msgs/Clock in CDR: 4-byte encapsulation, int32 sec, uint32 nanosec.
             seconds = int.from_bytes(data[4:8], 'little', signed=True)
             self.sim_time = seconds * 1_000_000_000 + int.from_bytes(data[8:12], 'little')
+            if self.first_sim_time is None:
+                self.first_sim_time = self.sim_time
         if not topic.recorded:
             return
         if self.use_sim_time:
