@@ -62,6 +62,8 @@ DEFAULT_SCENE = 'default'
 
 DEFAULT_INTEGRATOR = 'buss'
 DEFAULT_RATE = 100.0
+RATE_RANGE = (0.1, 10000.0)
+"""The tick rates (Hz) a scene and the node take."""
 DEFAULT_TOLERANCE = 1e-7
 """Error control (rad per simulated s) of a scene file without ``tolerance:``: the largest
 that keeps every built-in scene within 1e-3 rad over 60 s (the T-handle and the tennis racket
@@ -464,7 +466,11 @@ def parse_scene(data, source='<scene>'):
 
     `source` names the scene in error messages.  The schema: see the module docstring.
     """
-    return _SceneReader(source).read(data)
+    # Overflows (a 1e308 in a quaternion's norm, a mass times a size squared) give inf or
+    # nan, which the reader's finiteness checks then refuse naming the key: numpy's
+    # RuntimeWarnings on the way would only add lines without the key.
+    with np.errstate(over='ignore', invalid='ignore', divide='ignore'):
+        return _SceneReader(source).read(data)
 
 
 class _SceneReader:
@@ -488,16 +494,23 @@ class _SceneReader:
         body, body_shape = self.body(mapping['body'])
         effects = self.effects(mapping.get('effects', []))
         pivot = next((e for e in effects if getattr(e, 'effect_name', None) == 'pivot'), None)
+        self.pivot_path = next((f'effects[{index}].pivot' for index, e in enumerate(effects)
+                                if e is pivot), 'effects')
         state = self.initial(mapping.get('initial', {}), body, pivot)
         integrator = mapping.get('integrator', DEFAULT_INTEGRATOR)
         if not isinstance(integrator, str) or integrator not in INTEGRATORS:
             valid = ', '.join(sorted(INTEGRATORS))
             raise self.error('integrator', f'unknown integrator {integrator!r}; valid: {valid}')
         rate = self.number(mapping.get('rate', DEFAULT_RATE), 'rate', 'Hz', positive=True)
+        # The node's range for its rate parameter (ros/parameters.py): beyond it a tick is
+        # too short for the clock (and 1 / rate underflows long before 1e308 Hz).
+        if not RATE_RANGE[0] <= rate <= RATE_RANGE[1]:
+            raise self.error('rate', f'must be {RATE_RANGE[0]:g} to {RATE_RANGE[1]:g} Hz, got '
+                                     f'{rate:g}')
         tolerance = self.number(mapping.get('tolerance', DEFAULT_TOLERANCE), 'tolerance',
                                 'rad/s')
-        if tolerance < 0.0:
-            raise self.error('tolerance', f'must be >= 0 rad/s (0: off), got {tolerance:g}')
+        if not 0.0 <= tolerance <= 1.0:
+            raise self.error('tolerance', f'must be 0 (off) to 1 rad/s, got {tolerance:g}')
         drawing = self.drawing(mapping.get('draw', {}), body, body_shape, mapping['body'])
         return Scene(name=name, description=description, body=body, state=state,
                      effects=tuple(effects), integrator=integrator, rate=rate,
@@ -560,7 +573,9 @@ class _SceneReader:
     def body(self, value):
         """Return (RigidBody, shape or None) of the body section."""
         shape = value.get('shape') if isinstance(value, dict) else None
-        shape_keys = _SHAPE_KEYS.get(shape, ())
+        # A shape of the wrong YAML type (a list, a mapping) is not hashable: it gets the
+        # shape error below, not a TypeError here.
+        shape_keys = _SHAPE_KEYS.get(shape, ()) if isinstance(shape, str) else ()
         keys = ('mass', 'shape', 'inertia') + tuple(k for s in SHAPES for k in _SHAPE_KEYS[s])
         body = self.mapping(value, 'body', keys, required=('mass',))
         mass = self.number(body['mass'], 'body.mass', 'kg', positive=True)
@@ -593,13 +608,22 @@ class _SceneReader:
                     raise self.error(path, f'must be > 0 m, got {sizes[key].tolist()}')
             else:
                 sizes[key] = self.number(body[key], path, 'm', positive=True)
-        if shape == 'box':
-            return RigidBody.box(mass, sizes['size']), shape
-        if shape == 'ellipsoid':
-            return RigidBody.ellipsoid(mass, sizes['semi_axes']), shape
-        if shape == 'sphere':
-            return RigidBody.sphere(mass, sizes['radius']), shape
-        return RigidBody.cylinder(mass, sizes['radius'], sizes['height']), shape
+        # Huge masses or sizes overflow the inertia to inf: said here, naming the keys,
+        # without numpy's RuntimeWarnings on the way.
+        with np.errstate(over='ignore', invalid='ignore'):
+            try:
+                if shape == 'box':
+                    return RigidBody.box(mass, sizes['size']), shape
+                if shape == 'ellipsoid':
+                    return RigidBody.ellipsoid(mass, sizes['semi_axes']), shape
+                if shape == 'sphere':
+                    return RigidBody.sphere(mass, sizes['radius']), shape
+                return RigidBody.cylinder(mass, sizes['radius'], sizes['height']), shape
+            except ValueError as error:
+                given = ', '.join(f'{key} {np.asarray(size).tolist()} m'
+                                  for key, size in sizes.items())
+                raise self.error('body.mass', f'{mass:g} kg with {given} gives no valid '
+                                              f'inertia ({error})') from None
 
     def inertia_body(self, mass, value):
         path = 'body.inertia'
@@ -674,9 +698,27 @@ class _SceneReader:
         rotation = None
         if 'orientation' in initial:
             rotation = self.orientation(initial['orientation'])
-        state = State.from_velocity(body, rotation=rotation, **vectors)
-        if pivot is not None:
-            state = pivot.constrain(body).project(state)
+        # A finite but huge angular velocity can overflow L = R I omega or the energy
+        # 1/2 omega . L: refused naming the key, without numpy's warnings.
+        given = next((f'initial.{key}' for key in ('angular_velocity_body',
+                                                   'angular_velocity_world') if key in vectors),
+                     'initial')
+        with np.errstate(over='ignore', invalid='ignore'):
+            try:
+                state = State.from_velocity(body, rotation=rotation, **vectors)
+            except ValueError as error:
+                raise self.error(given, f'gives a state that is not finite ({error})') from None
+            if pivot is not None:
+                try:
+                    state = pivot.constrain(body).project(state)
+                except ValueError as error:
+                    raise self.error(self.pivot_path, f'no valid body about this pivot '
+                                                      f'({error})') from None
+            energy = state.kinetic_energy(body)
+        if not (np.isfinite(energy) and np.all(np.isfinite(state.angular_momentum))):
+            raise self.error(given, f'gives a kinetic energy of {energy:g} J and an angular '
+                                    f'momentum of {np.asarray(state.angular_momentum).tolist()}'
+                                    ' kg m^2/s: not finite')
         return state
 
     def orientation(self, value):

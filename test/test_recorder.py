@@ -44,6 +44,7 @@ from rosbags.interfaces import QosReliability
 from rosbags.rosbag2 import Reader
 from rosbags.rosbag2.errors import ReaderError
 from std_msgs.msg import String
+import yaml
 
 pytestmark = pytest.mark.xdist_group('node')
 
@@ -73,6 +74,25 @@ class RecorderProcess:
             assert self.process.poll() is None, self.output()
             assert time.monotonic() < deadline, 'the recorder recorded nothing:\n' + \
                 self.output()
+            time.sleep(0.05)
+
+    def wait_for_counts(self, bag, least, timeout=120.0):
+        """Wait until the flushed metadata.yaml counts at least least[topic] of each topic."""
+        deadline = time.monotonic() + timeout
+        metadata = Path(bag) / 'metadata.yaml'
+
+        def counts():
+            if not metadata.exists():
+                return {}
+            try:
+                info = yaml.safe_load(metadata.read_text())['rosbag2_bagfile_information']
+            except (yaml.YAMLError, KeyError, TypeError):
+                return {}  # caught between the writer's truncate and write: look again
+            return {entry['topic_metadata']['name']: entry['message_count']
+                    for entry in info.get('topics_with_message_count') or []}
+        while not all(counts().get(topic, 0) >= count for topic, count in least.items()):
+            assert self.process.poll() is None, self.output()
+            assert time.monotonic() < deadline, f'not {least} recorded:\n{self.output()}'
             time.sleep(0.05)
 
     def finish(self, timeout=60.0):
@@ -302,7 +322,11 @@ def test_use_sim_time_logs_messages_at_the_simulated_time(tmp_path, node_100_hz)
     namespace = node_100_hz
     bag = tmp_path / 'sim_time'
     recorder = RecorderProcess(tmp_path / 'recorder.log', bag, '--namespace', namespace,
-                               '--use-sim-time', '--duration', '4')
+                               '--use-sim-time')
+    # Until the flushed metadata counts 2 s of /clock and of poses: an event, however long
+    # discovery takes on a loaded machine (a fixed --duration missed the poses there).
+    recorder.wait_for_counts(bag, {'/clock': 200, f'{namespace}/pose': 200})
+    recorder.process.send_signal(signal.SIGINT)
     assert recorder.finish() == 0, recorder.output()
     messages = mcap_messages(storage_file(bag, 'mcap'))
     clock = messages['/clock']

@@ -12,12 +12,14 @@ from .integrators import register_integrator
 from .rotations import matrix_from_quaternion
 from .rotations import quaternion_from_matrix
 from .simulator import Simulator
+from .simulator import unresolved_rotation
 from .state import State
 
 __all__ = [
     'RigidBody',
     'State',
     'Simulator',
+    'unresolved_rotation',
     'INTEGRATORS',
     'FAST_KERNELS',
     'get_integrator',

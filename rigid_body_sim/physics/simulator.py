@@ -22,7 +22,12 @@ from .integrators.fast import TORQUE_BODY
 from .integrators.fast import TORQUE_WORLD
 from .state import State
 
-__all__ = ['Simulator']
+__all__ = ['Simulator', 'unresolved_rotation', 'RESOLVED_ROTATION']
+
+RESOLVED_ROTATION = 0.5
+"""The largest rotation (rad) per integrator step that the steps resolve: beyond it every
+method's error per step is O(1) (the Taylor and Magnus series the methods truncate are in
+|omega| h), so the motion is not followed, whatever the method keeps conserved."""
 
 _FRAMES = ('world', 'body')
 # Steps per kernel call when a progress callback wants to hear about a long run.
@@ -589,3 +594,26 @@ class Simulator:
         total = self._time + y
         self._time_compensation = (total - self._time) - y
         self._time = total
+
+
+def unresolved_rotation(body, state, period, substeps=1, tolerance=None):
+    """
+    Return a one-line warning if a tick's steps turn the body too far, else None.
+
+    The body turns by |omega| h per step of h = period / substeps s (period: one tick, s);
+    under error control (`tolerance` not None) the steps can shrink down to period /
+    error_control.MAX_SUBSTEPS.  Beyond :data:`RESOLVED_ROTATION` rad per step the warning
+    says by how much and names what to raise (``rate`` or ``substeps``).  Shared by the node
+    and ``rigid-body-sim simulate``, which show it once, at the start.
+    """
+    with np.errstate(over='ignore', invalid='ignore'):
+        speed = float(np.linalg.norm(state.angular_velocity(body)))
+    finest = error_control.MAX_SUBSTEPS if tolerance else substeps
+    angle = speed * period / finest
+    if not angle > RESOLVED_ROTATION:
+        return None
+    control = (f'even at {finest} substeps, the most error control takes' if tolerance
+               else f'at {substeps} substep(s) per tick')
+    return (f'the body turns {angle:.3g} rad per integrator step (|omega| {speed:.3g} rad/s, '
+            f'a tick of {period:g} s {control}): more than the {RESOLVED_ROTATION:g} rad a '
+            'step resolves, so the motion is not followed; raise rate or substeps')

@@ -87,6 +87,7 @@ from .qos import DIAGNOSTICS_QOS
 from .qos import INPUT_QOS
 from .qos import STATE_QOS
 from .start_up import start_up_phase
+from ..physics import unresolved_rotation
 from ..scenes import load_scene
 
 __all__ = ['RigidBodyNode', 'ConfigurationError', 'main', 'NODE_NAME', 'substep_diagnostics']
@@ -265,6 +266,10 @@ class RigidBodyNode(Node):
             f'{self._rate:g} Hz x {self._substeps} substep(s){timing}; publishing pose, '
             f'twist, angular_momentum, odom, marker in frame {self._world_frame!r}; '
             f'subscribed to {inputs}')
+        warning = unresolved_rotation(body, self._simulator.state, self._period,
+                                      self._substeps, tolerance)
+        if warning is not None:
+            self.get_logger().warning(warning)
 
     def _warn_unknown_overrides(self):
         # rclpy ignores overrides of undeclared parameters: a typo in a params file would

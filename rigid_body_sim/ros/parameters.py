@@ -36,6 +36,7 @@ from rclpy.parameter import Parameter
 from ..physics import get_integrator
 from ..physics import INTEGRATORS
 from ..scenes import DEFAULT_SCENE
+from ..scenes import RATE_RANGE
 from ..scenes import SHAPES
 
 __all__ = [
@@ -99,7 +100,7 @@ PARAMETERS = (
     _spec('rate', float, SCENE_VALUE,
           "Tick rate in Hz; default: the scene's.  Each tick advances the simulation by "
           '1/rate s of simulated time and publishes the state once.',
-          value_range=(0.1, 10000.0)),
+          value_range=RATE_RANGE),
     _spec('substeps', int, 1,
           'Integrator steps per tick (step = 1 / (rate * substeps) s); with a tolerance, the '
           'least number of substeps.',

@@ -104,6 +104,14 @@ def main(args):
     if Path(bag).exists():
         raise ValueError(f'{bag} exists already; give a new --bag directory')
     start_time = start_time_nanoseconds(args.start_time)
+    rate = scene.rate if args.rate is None else args.rate
+    tolerance = scene.tolerance if args.tolerance is None else (args.tolerance or None)
+    if rate > 0.0:
+        from ..physics import unresolved_rotation
+        warning = unresolved_rotation(scene.body, scene.state, 1.0 / rate, args.substeps,
+                                      tolerance)
+        if warning is not None:
+            print(f'rigid-body-sim simulate: warning: {warning}', file=sys.stderr)
     with StopOnSignals() as signals:
         summary = simulate_to_bag(
             scene, bag, args.duration, rate=args.rate, integrator=args.integrator,

@@ -33,9 +33,14 @@ import numpy as np
 
 from .registry import check_number
 from .registry import Effect
+from .registry import ParameterError
 from .registry import register_effect
 from ..rotations import cross
 from ..state import State
+
+
+MAX_DAMPING = 1.0e6
+"""The largest damping accepted (dimensionless)."""
 
 
 @register_effect('dissipation')
@@ -53,6 +58,12 @@ class Dissipation(Effect):
 
     def __init__(self, damping):
         self.damping = check_number(damping, 'damping', positive=True)
+        # Above 1 the body already relaxes within a turn; the flow stays finite up to 1e6
+        # and beyond (measured on flat_spin), but products with it overflow near 1e308: far from
+        # physics and far from overflow.
+        if self.damping > MAX_DAMPING:
+            raise ParameterError('damping', f'must be at most {MAX_DAMPING:g} (a ratio of '
+                                            f'turning rates), got {self.damping:g}')
 
     def flow(self, body, state, dt):
         """Return the state after dt s of dissipation alone: R turned, x, p and L unchanged."""
