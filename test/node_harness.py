@@ -213,7 +213,7 @@ class Client:
         while not condition():
             if time.monotonic() > deadline:
                 raise AssertionError(f'timed out after {timeout:g} s waiting for {what}')
-            time.sleep(0.01)
+            time.sleep(0.01)  # waits-for: poll interval of wait_for(condition)
 
     def wait_for_messages(self, topic, count, since=None, timeout=DISCOVERY_TIMEOUT):
         """Wait until `count` messages arrived on `topic` (after `since`); return them."""

@@ -378,7 +378,7 @@ def test_rejection_warnings_are_throttled_to_one_a_second(sim):
     start = time.monotonic()
     for _ in range(20):
         sim.publish_torque([0.0, 0.0, 1.0], 'odom')
-        time.sleep(0.01)
+        time.sleep(0.01)  # waits-for: pace of twenty publications
     elapsed = time.monotonic() - start
     time.sleep(2 * SETTLE)
     warnings = sim.process.output().count(reason) - before

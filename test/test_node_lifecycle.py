@@ -39,7 +39,7 @@ def wait_for_output(node, text, timeout=30.0):
     while text not in node.output():
         assert node.alive(), f'the node exited ({node.process.returncode}):\n{node.output()}'
         assert time.monotonic() < deadline, f'no {text!r} from the node:\n{node.output()}'
-        time.sleep(0.05)
+        time.sleep(0.05)  # waits-for: poll interval of the loop waiting for the output line
 
 
 def run_with_client(node, check):
@@ -93,7 +93,7 @@ def _wait_for_phase(node, phase):
     while f'start-up phase: {phase}' not in node.output():
         assert node.alive(), f'the node exited ({node.process.returncode}):\n{node.output()}'
         assert time.monotonic() < deadline, f'no phase {phase!r}:\n{node.output()}'
-        time.sleep(0.001)
+        time.sleep(0.001)  # waits-for: poll interval of the loop waiting for the phase's line
 
 
 def _assert_quiet_exit(node, signal_number):

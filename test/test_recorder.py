@@ -74,7 +74,7 @@ class RecorderProcess:
             assert self.process.poll() is None, self.output()
             assert time.monotonic() < deadline, 'the recorder recorded nothing:\n' + \
                 self.output()
-            time.sleep(0.05)
+            time.sleep(0.05)  # waits-for: poll interval of the loop waiting for the first flush
 
     def wait_for_counts(self, bag, least, timeout=120.0):
         """Wait until the flushed metadata.yaml counts at least least[topic] of each topic."""
@@ -93,7 +93,7 @@ class RecorderProcess:
         while not all(counts().get(topic, 0) >= count for topic, count in least.items()):
             assert self.process.poll() is None, self.output()
             assert time.monotonic() < deadline, f'not {least} recorded:\n{self.output()}'
-            time.sleep(0.05)
+            time.sleep(0.05)  # waits-for: poll interval of the loop waiting for the counts
 
     def finish(self, timeout=60.0):
         """Wait for the exit; return the exit code."""
@@ -174,7 +174,7 @@ def wait_until_ticking(node, timeout=120.0):
     while 'simulating scene' not in node.output():
         assert node.alive(), node.output()
         assert time.monotonic() < deadline, f'the node did not start:\n{node.output()}'
-        time.sleep(0.1)
+        time.sleep(0.1)  # waits-for: poll interval of the loop waiting for the start line
     time.sleep(0.5)
 
 
@@ -407,7 +407,7 @@ def test_topics_the_node_does_not_publish_are_found_by_discovery_with_their_qos(
                                    f'{namespace}/nobody_publishes', '--duration', '6')
         while recorder.process.poll() is None:
             publisher.publish(best_effort)
-            time.sleep(0.01)
+            time.sleep(0.01)  # waits-for: pace of the publisher while the recorder runs
         assert recorder.finish() == 0, recorder.output()
     finally:
         publisher.close()

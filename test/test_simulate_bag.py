@@ -386,7 +386,7 @@ def test_sigint_and_sigterm_stop_simulate_with_a_complete_bag(tmp_path, signal_n
         while not (bag / 'stopped.mcap').exists():
             assert process.poll() is None, process.communicate()
             assert time.monotonic() < deadline
-            time.sleep(0.05)
+            time.sleep(0.05)  # waits-for: poll interval of the loop waiting for the file
         time.sleep(1.0)
         process.send_signal(signal_number)
         out, err = process.communicate(timeout=60.0)
