@@ -240,6 +240,11 @@ class _McapStorage(McapWriter):
         # rosbags' close_chunk, with each message index packed in one go (it writes two
         # integers per message through BytesIO calls); entries are (time, offset) pairs or
         # arrays of them.  Chunk CRC 0: not computed, as rosbag2 writes by default.
+        # Once the bag has been flushed, a full chunk is followed at once by a new
+        # provisional end: else, between this chunk and the next flush (most of the time
+        # when a chunk fills many times per flush period, as simulate's do), a SIGKILL
+        # would leave a file without its end that no reader opens.
+        flushed = self._provisional_end_at is not None
         self._drop_provisional_end()
         chunk = self.chunk
         uncompressed = chunk.bio.getvalue()
@@ -270,15 +275,20 @@ class _McapStorage(McapWriter):
         record.write(struct.pack('<QQ', len(compressed), len(uncompressed)))
         self.chunks.append(record)
         self.chunk = PendingChunk(2**63 - 1, 0, BytesIO(), defaultdict(list))
+        if flushed:
+            self._write_provisional_end()
+
+    def _write_provisional_end(self):
+        self._provisional_end_at = self.bio.tell()
+        self.bio.write(_PROVISIONAL_END)
+        self.bio.flush()
 
     def flush(self, sync):
         """Write the pending chunk and a provisional end; the file is then a valid MCAP."""
         if self.chunk.bio.tell():
             self.close_chunk()
         self._drop_provisional_end()
-        self._provisional_end_at = self.bio.tell()
-        self.bio.write(_PROVISIONAL_END)
-        self.bio.flush()
+        self._write_provisional_end()
         if sync:
             os.fsync(self.bio.fileno())
 

@@ -16,6 +16,7 @@ Typical use:
 """
 
 from datetime import datetime
+import math
 from pathlib import Path
 import sys
 import time
@@ -62,6 +63,10 @@ def add_arguments(parser):
     parser.add_argument('--world-frame', default='world', help='world frame id (default: world)')
     parser.add_argument('--body-frame', default='body', help='body frame id (default: body)')
     parser.add_argument('--quiet', action='store_true', help='no progress bar')
+    parser.add_argument('--flush-period', type=float, default=1.0, metavar='S',
+                        help='wall-clock s between flushes: killed at any moment (even kill '
+                             '-9), the bag reads as it is up to the last one (default 1; 0: '
+                             'only at the end)')
     parser.add_argument('--animate', nargs='?', const='', default=None, metavar='FILE',
                         help='then animate the bag (rigid-body-sim animate) into FILE, .gif '
                              'or .mp4 (default: <bag>.gif beside the bag)')
@@ -104,6 +109,8 @@ def main(args):
     if Path(bag).exists():
         raise ValueError(f'{bag} exists already; give a new --bag directory')
     start_time = start_time_nanoseconds(args.start_time)
+    if not (math.isfinite(args.flush_period) and args.flush_period >= 0.0):
+        raise ValueError(f'--flush-period must be a number of s >= 0; got {args.flush_period:g}')
     rate = scene.rate if args.rate is None else args.rate
     tolerance = scene.tolerance if args.tolerance is None else (args.tolerance or None)
     if rate > 0.0:
@@ -118,7 +125,8 @@ def main(args):
             substeps=args.substeps, tolerance=args.tolerance, storage=args.storage,
             start_time=start_time,
             clock=args.clock, namespace=args.namespace, world_frame=args.world_frame,
-            body_frame=args.body_frame, progress=not args.quiet, stop=signals.stop)
+            body_frame=args.body_frame, progress=not args.quiet, stop=signals.stop,
+            flush_period=args.flush_period)
     print(summary)
     for topic, count in summary.message_counts.items():
         print(f'  {topic}: {count}')
