@@ -5,9 +5,10 @@ Importing the node (rclpy, the DDS middleware, numba's compiled kernels) takes o
 seconds.  A Ctrl-C in that time would otherwise end it with a KeyboardInterrupt traceback,
 and a SIGTERM (``kill``, a launch file shutting down) would kill it with status -15 before
 rclpy installs its own handlers.  This module imports nothing heavy, and its first statement
-sets both signals to raise KeyboardInterrupt and note that a signal came; then it imports
-and runs :func:`rigid_body_sim.ros.node.main`, where rclpy's handlers take over (chaining to
-this one).  A KeyboardInterrupt raised inside an extension module's initialisation comes out
+sets both signals to be noted (:mod:`.start_up`); :func:`main`, inside its try, makes them
+raise KeyboardInterrupt from then on and ends at once if one came during the import, then
+imports and runs :func:`rigid_body_sim.ros.node.main`, where rclpy's handlers take over
+(chaining to this one).  A KeyboardInterrupt raised inside an extension module's initialisation comes out
 as another exception (numba's ``ImportError: numba._devicearray failed to import``), so any
 exception after a signal ends the start-up quietly with exit code 0, not only
 KeyboardInterrupt.
