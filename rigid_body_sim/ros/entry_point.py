@@ -8,10 +8,10 @@ rclpy installs its own handlers.  This module imports nothing heavy, and its fir
 sets both signals to be noted (:mod:`.start_up`); :func:`main`, inside its try, makes them
 raise KeyboardInterrupt from then on and ends at once if one came during the import, then
 imports and runs :func:`rigid_body_sim.ros.node.main`, where rclpy's handlers take over
-(chaining to this one).  A KeyboardInterrupt raised inside an extension module's initialisation comes out
-as another exception (numba's ``ImportError: numba._devicearray failed to import``), so any
-exception after a signal ends the start-up quietly with exit code 0, not only
-KeyboardInterrupt.
+(chaining to this one).  A KeyboardInterrupt raised inside an extension module's
+initialisation comes out as another exception (numba's ``ImportError: numba._devicearray
+failed to import``), so any exception after a signal ends the start-up quietly with exit
+code 0, not only KeyboardInterrupt.
 
 What no Python program can cover is the interpreter's own start before this module's first
 statement (about 50 ms on the 2-core build machine, site-packages' ``.pth`` files included):
