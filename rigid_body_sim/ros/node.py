@@ -709,6 +709,20 @@ def _relative(value, reference):
     return f'{(value - reference) / abs(reference):+.3e}'
 
 
+def _quiet_half_built_executor(unraisable):
+    # rclpy's Executor.__del__ reads self._sigint_gc, which __init__ sets only once the
+    # context proved valid: an executor whose construction met a context that a signal had
+    # just shut down prints "Exception ignored ... AttributeError" when collected.  That
+    # one message, and no other, is dropped.
+    error = unraisable.exc_value
+    if isinstance(error, AttributeError) and '_sigint_gc' in str(error):
+        return
+    _PREVIOUS_UNRAISABLE_HOOK(unraisable)
+
+
+_PREVIOUS_UNRAISABLE_HOOK = sys.unraisablehook
+
+
 def _spin_until_signalled(node):
     """
     Serve the node's services and inputs until the context shuts down or a signal comes.
@@ -720,9 +734,16 @@ def _spin_until_signalled(node):
     lets Python run its signal handler within that time in every case.
     """
     # As rclpy.spin does it, with a timeout.
-    with signals_deferred():
-        executor = rclpy.get_global_executor()
-        executor.add_node(node)
+    try:
+        with signals_deferred():
+            executor = rclpy.get_global_executor()
+            executor.add_node(node)
+    except RuntimeError:
+        # rclpy's own handler shut the context down (a signal just now): the executor
+        # could not be built on it; a clean stop.
+        if node.context.ok():
+            raise
+        return
     try:
         while executor.context.ok():
             executor.spin_once(timeout_sec=_STOP_LATENCY)
@@ -738,6 +759,7 @@ def main(args=None):
     simulation failed; 2 if the ROS arguments cannot be parsed.
     """
     start_up_phase('rclpy.init')
+    sys.unraisablehook = _quiet_half_built_executor
     try:
         rclpy.init(args=args)
     except KeyboardInterrupt:
