@@ -341,6 +341,9 @@ def load_scene(name_or_path=DEFAULT_SCENE):
             data = read_scene_yaml(stream, source)
     except OSError as error:
         raise ValueError(f'{source}: cannot read: {error.strerror}') from None
+    except UnicodeDecodeError as error:
+        raise ValueError(f'{source}: not UTF-8 text: byte {error.object[error.start]:#04x} at '
+                         f'offset {error.start}') from None
     return parse_scene(data, source)
 
 
@@ -357,12 +360,14 @@ def read_scene_yaml(stream, source='<scene>'):
         ``<source>: not valid YAML: ...``, or ``<source>: <key path>: duplicate key ...``.
 
     """
-    loader = _SceneYamlLoader(stream)
     try:
-        try:
-            node = loader.get_single_node()
-        except yaml.YAMLError as error:
-            raise ValueError(f'{source}: not valid YAML: {_one_line(error)}') from None
+        # The reader checks the text's characters as it is built (a control character is a
+        # ReaderError here).
+        loader = _SceneYamlLoader(stream)
+        node = loader.get_single_node()
+    except yaml.YAMLError as error:
+        raise ValueError(f'{source}: not valid YAML: {_one_line(error)}') from None
+    try:
         if node is None:
             return None
         _reject_duplicate_keys(loader, node, source)
@@ -400,7 +405,7 @@ class _SceneYamlLoader(yaml.SafeLoader):
         """Return a float; a value that is none (an explicit !!float tag) is a YAML error."""
         try:
             return self.construct_yaml_float(node)
-        except ValueError:
+        except (ValueError, IndexError):  # IndexError: an empty one (`rate: !!float`)
             raise yaml.constructor.ConstructorError(
                 None, None, f'{self.construct_scalar(node)!r} is not a number',
                 node.start_mark) from None

@@ -478,7 +478,7 @@ def wrench_input_from_message(message, world_frame, body_frame, max_wrench):
         if not np.all(np.isfinite(vector)):
             raise RejectedInput(f'non-finite {name} {vector.tolist()}: every component must '
                                 'be a finite number', 'non-finite')
-        magnitude = math.sqrt(vector @ vector)
+        magnitude = math.hypot(*vector)  # no overflow for components near 1e154
         if magnitude > max_wrench:
             raise RejectedInput(f'{name} magnitude {magnitude:.6g} {unit} is above '
                                 f'max_wrench = {max_wrench:g}', 'magnitude')

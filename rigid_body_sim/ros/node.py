@@ -82,6 +82,7 @@ from .parameters import declare_parameters
 from .parameters import declare_scene_parameter
 from .parameters import PARAMETERS
 from .parameters import scene_from_parameters
+from .parameters import show_effective_values
 from .qos import CLOCK_QOS
 from .qos import DIAGNOSTICS_QOS
 from .qos import INPUT_QOS
@@ -170,7 +171,8 @@ class RigidBodyNode(Node):
         scene = load_scene(declare_scene_parameter(self))
         values = declare_parameters(self, scene)
         self._warn_unknown_overrides()
-        scene = scene_from_parameters(scene, values)
+        named_scene, scene = scene, scene_from_parameters(scene, values)
+        parameter_sources = show_effective_values(self, named_scene, values, scene)
         self._scene = scene
         body = scene.body
         self._initial_state = scene.state
@@ -267,6 +269,7 @@ class RigidBodyNode(Node):
             f'{self._rate:g} Hz x {self._substeps} substep(s){timing}; publishing pose, '
             f'twist, angular_momentum, odom, marker in frame {self._world_frame!r}; '
             f'subscribed to {inputs}')
+        self.get_logger().info(parameter_sources)
         warning = unresolved_rotation(body, self._simulator.state, self._period,
                                       self._substeps, tolerance)
         if warning is not None:
@@ -276,7 +279,9 @@ class RigidBodyNode(Node):
         # rclpy ignores overrides of undeclared parameters: a typo in a params file would
         # silently leave the default in place.  (No public accessor exists in Jazzy.)
         overrides = getattr(self, '_parameter_overrides', {})
-        known = {spec.name for spec in PARAMETERS} | {'use_sim_time'}
+        # rclpy's own parameters, which a dumped parameter file holds too.
+        known = {spec.name for spec in PARAMETERS} | {'use_sim_time',
+                                                      'start_type_description_service'}
         unknown = sorted(set(overrides) - known)
         if unknown:
             self.get_logger().warning(

@@ -59,7 +59,7 @@ examples:
 
 def _default(spec):
     if spec.default is NOT_SET:
-        return 'not set'
+        return "the scene's (shown once running)"
     if spec.default is SCENE_VALUE:
         return "the scene's"
     return repr(spec.default) if isinstance(spec.default, str) else str(spec.default).lower() \

@@ -11,9 +11,16 @@ in three kinds, told apart by the ``default`` of their :class:`ParameterSpec`:
   scene's values as their defaults, so ``ros2 param get`` shows what runs; a value the user
   gives replaces it;
 - :data:`NOT_SET`: the body and initial-state parameters (``body.*``, ``initial.*``) are
-  declared with their type and no value.  Only those the user sets override the scene's
-  values; a default value could not be told from one the user gave and would silently
-  replace the scene's body (``ros2 param get`` answers "Parameter not set" for the others).
+  declared with their type and no value, so that the values the user gives can be told
+  from the scene's; once the scene is built, :func:`show_effective_values` gives every one
+  that is not set the value the simulation runs with (the scene's, or what follows from the
+  overrides: a new mass scales a shape's inertia).  Every parameter then has a value:
+  ``ros2 param dump`` and every tool that lists and gets parameters see the simulation
+  (rclpy answers a GetParameters request with nothing at all if one name in it has no
+  value), and a dump loaded back with ``--params-file`` gives the same simulation:
+  :func:`scene_from_parameters` takes a value equal to the scene's, or one that follows from
+  the others (the inertia of the given shape, the world angular velocity of the given body
+  one, a pivot body's position), as no override.
 
 :func:`declare_scene_parameter` and :func:`declare_parameters` declare them with a
 ParameterDescriptor each; :func:`scene_from_parameters` applies the values that are set to
@@ -49,6 +56,8 @@ __all__ = [
     'declare_parameters',
     'parameter_descriptor',
     'scene_from_parameters',
+    'effective_values',
+    'show_effective_values',
     'check_integrator',
 ]
 
@@ -78,7 +87,8 @@ read_only, value_range ((from, to) inclusive, or None) and constraints (text).""
 # A unit quaternion given to 4 decimals is off by up to ~1e-4 in norm; such a slightly
 # unnormalised value is normalised, anything further from 1 is a mistake and is refused.
 _QUATERNION_NORM_TOLERANCE = 1e-3
-_FROM_SCENE = " Not set (default): the scene's."
+_FROM_SCENE = (" Default: the scene's value (the one the simulation runs with); a value equal to "
+               'it, or following from the others, overrides nothing.')
 
 
 def _spec(name, kind, default, description, read_only=True, value_range=None,
@@ -268,6 +278,8 @@ def declare_parameters(node, scene):
 def _declare(node, spec, default):
     if default is NOT_SET:
         default = _PARAMETER_TYPES[spec.kind][1]  # declared typed, without a value
+        # Writable until show_effective_values has given it the value that runs.
+        spec = spec._replace(read_only=False)
     try:
         node.declare_parameter(spec.name, default, parameter_descriptor(spec))
     except InvalidParameterTypeException:
@@ -389,7 +401,7 @@ def scene_from_parameters(scene, values):
         the scene's own checks, ``<scene file> (overrides): <key path>``.
 
     """
-    value = dict(values).get
+    value = _overriding(scene, values).get
     integrator = value('integrator')
     if integrator is not None:
         reason = check_integrator(integrator)
@@ -403,7 +415,8 @@ def scene_from_parameters(scene, values):
     shape = value('body.shape') or None  # empty: not set
     inertia = value('body.inertia')
     if shape is not None and inertia is not None:
-        raise ValueError('set body.shape (with body.size) or body.inertia, not both')
+        raise ValueError('body.inertia is not the inertia of body.shape and body.size: set '
+                         'body.shape (with body.size) or body.inertia, not both')
     overrides = {'integrator': integrator, 'rate': rate, 'mass': value('body.mass')}
     mass = overrides['mass'] if overrides['mass'] is not None else scene.body.mass
     overrides['body'] = _body_section(scene, shape, value('body.size'), mass)
@@ -413,10 +426,164 @@ def scene_from_parameters(scene, values):
         overrides['orientation'] = _orientation(value('initial.orientation'))
     if value('initial.angular_velocity_body') is not None and \
             value('initial.angular_velocity_world') is not None:
-        raise ValueError('set initial.angular_velocity_body or initial.angular_velocity_world, '
-                         'not both')
+        raise ValueError('initial.angular_velocity_body and initial.angular_velocity_world '
+                         'disagree (omega_world != R omega_body): set one of them')
     for name in ('position', 'velocity', 'angular_velocity_body', 'angular_velocity_world'):
         overrides[name] = value(f'initial.{name}')
     if all(override is None for override in overrides.values()):
         return scene
     return scene.with_overrides(**overrides)
+
+
+_SCENE_PARAMETERS = tuple(spec.name for spec in PARAMETERS if spec.default is NOT_SET)
+
+
+def effective_values(scene):
+    """
+    Return the body.* and initial.* parameter values that describe `scene`.
+
+    body.mass (kg), body.inertia (kg m^2, 9 row-major values, body frame), body.shape and
+    body.size (the shape's sizes in m; '' and [] for a body given by its inertia), and the
+    initial orientation (quaternion x, y, z, w, body to world), COM position (m) and
+    velocity (m/s) in the world frame, angular velocity (rad/s) in the body and in the
+    world frame: the one the scene file gives as it gives it, the others read from the
+    scene's body and built state.
+    """
+    body, state = scene.body, scene.state
+    initial = scene.data.get('initial') or {}
+    section = scene.data.get('body', {})
+    shape = '' if 'inertia' in section else section.get('shape', '')
+    size = []
+    for key, count in _SIZE_KEYS.get(shape, ()):
+        size += [float(section[key])] if count == 1 else [float(v) for v in section[key]]
+    # The angular velocity the scene gives, as it gives it: recomputed from L it would
+    # round differently for another orientation, and then seem an override.
+    angular_velocity = {
+        frame: [float(v) for v in initial[f'angular_velocity_{frame}']]
+        if f'angular_velocity_{frame}' in initial else [float(v) for v in computed]
+        for frame, computed in (('body', state.angular_velocity_body(body)),
+                                ('world', state.angular_velocity(body)))}
+    return {
+        'body.mass': float(body.mass),
+        'body.inertia': [float(v) for v in np.asarray(body.inertia).reshape(-1)],
+        'body.shape': shape,
+        'body.size': size,
+        'initial.orientation': [float(v) for v in state.quaternion],
+        'initial.position': [float(v) for v in state.position],
+        'initial.velocity': [float(v) for v in state.velocity(body)],
+        'initial.angular_velocity_body': angular_velocity['body'],
+        'initial.angular_velocity_world': angular_velocity['world'],
+    }
+
+
+def _same(given, effective):
+    if isinstance(effective, str):
+        return given == effective
+    if isinstance(effective, float):
+        return float(given) == effective
+    return [float(v) for v in given] == effective
+
+
+def _follows(given, effective):
+    # Recomputed from the same inputs by the same code, a derived value comes out bit for bit
+    # equal; 1e-12 relative only forgives a value written with fewer digits.
+    try:
+        given = np.asarray(given, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        return False
+    effective = np.asarray(effective, dtype=float)
+    return given.shape == effective.shape and bool(np.all(
+        np.abs(given - effective) <= 1e-12 * (np.abs(effective).max(initial=0.0) + 1e-300)))
+
+
+def _overriding(scene, values):
+    """
+    Return `values` without the body and initial values that change nothing.
+
+    A value equal to the scene's is no override; neither is one that follows from the other
+    values given (checked on the scene they make): the inertia of the body they describe,
+    in a pivot scene the COM position and velocity, and of two angular velocities the one
+    recomputed from the other (the node shows both).  An empty body.shape or body.size (a
+    body given by its inertia) is no value.  What is left are the user's overrides.
+    """
+    values = {name: value for name, value in dict(values).items()
+              if value is not None and not (name in ('body.shape', 'body.size')
+                                            and len(value) == 0)}
+    given = [name for name in _SCENE_PARAMETERS if name in values]
+    if not given:
+        return values
+    derived = ['body.inertia']
+    if scene.pivot is not None:
+        derived += ['initial.position', 'initial.velocity']
+    # The scene's own frame first: a hand-written pair is then read as the scene reads it.
+    pair = ['initial.angular_velocity_body', 'initial.angular_velocity_world']
+    if 'angular_velocity_world' in (scene.data.get('initial') or {}):
+        pair.reverse()
+    both = all(name in values for name in pair)
+    scene_values = effective_values(scene)
+    for name in given:
+        if name not in derived and not (both and name in pair) and \
+                _same(values[name], scene_values[name]):
+            del values[name]
+
+    def made_without(*names):
+        return effective_values(scene_from_parameters(scene, {
+            name: value for name, value in values.items()
+            if name not in derived and name not in names}))
+
+    if both:
+        # The one the node built its state from reproduces the other bit for bit (the node
+        # computed it so); applying the other instead would round the momentum differently.
+        for primary, secondary in (pair, pair[::-1]):
+            if made_without(secondary)[secondary] == [float(v) for v in values[secondary]]:
+                break
+        else:
+            primary, secondary = pair
+            if not _follows(values[secondary], made_without(secondary)[secondary]):
+                secondary = None  # they disagree: scene_from_parameters says so
+        if secondary is not None:
+            del values[secondary]
+            if _same(values[primary], scene_values[primary]):
+                del values[primary]
+    # The body before the motion: a pivot body's COM velocity follows from its inertia too.
+    for level in (['body.inertia'], ['initial.position', 'initial.velocity']):
+        derived = [name for name in derived if name not in level]
+        level = [name for name in level if name in values]
+        if level:
+            made_values = made_without(*level)
+            for name in level:
+                if _follows(values[name], made_values[name]):
+                    del values[name]
+    return values
+
+
+def show_effective_values(node, scene, values, effective_scene):
+    """
+    Give each body.* and initial.* parameter that is not set the value the simulation has.
+
+    Then make them read-only (they were declared writable for this); return the report
+    of which values override the scene, for the start-up log.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The node, its parameters declared by :func:`declare_parameters`.
+    scene : Scene
+        The scene the ``scene`` parameter names.
+    values : mapping
+        What :func:`declare_parameters` returned (None: not set).
+    effective_scene : Scene
+        `scene` with `values` applied (:func:`scene_from_parameters`): what runs.
+
+    """
+    shown = effective_values(effective_scene)
+    for name in _SCENE_PARAMETERS:
+        spec = _SPECS[name]
+        if values.get(name) is None:
+            node.set_parameters([Parameter(name, _PARAMETER_TYPES[spec.kind][1],
+                                           shown[name])])
+        node.set_descriptor(name, parameter_descriptor(spec))
+    overriding = [name for name in _overriding(scene, values) if name in _SCENE_PARAMETERS]
+    return (f'body and initial parameters overriding the scene {scene.name!r}: '
+            f'{", ".join(overriding) or "none"}; the others hold its values (or what '
+            'follows from the overrides)')
