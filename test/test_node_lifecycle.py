@@ -63,7 +63,12 @@ def test_a_signal_ends_the_node_cleanly_with_exit_code_0(tmp_path, signal_number
                        parameters={'rate': '1000.0'})
     try:
         wait_for_output(node, STARTED)
-        time.sleep(1.0)  # ticking and publishing
+        # Ticking and publishing to a subscriber when the signal comes.
+        client = Client(node.namespace)
+        try:
+            client.wait_for_messages('pose', 100)
+        finally:
+            client.close()
         node.send_signal(signal_number)
         code = node.wait(15.0)
     finally:

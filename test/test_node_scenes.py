@@ -10,6 +10,7 @@ Each test starts its own nodes (in namespaces of their own) and clients.
 import time
 
 from node_harness import Client
+from node_harness import DISCOVERY_TIMEOUT
 from node_harness import isolate_ros_environment
 from node_harness import NODE_NAME
 from node_harness import NodeProcess
@@ -169,7 +170,11 @@ def test_an_input_beyond_the_scenes_limits_is_scaled_down_to_them(tmp_path):
         since = time.monotonic()
         client.publish_torque([0.0, 1.2, 1.6], 'world')  # |tau| = 2 N m
         client.publish_wrench([0.0, 0.0, 8.0], [0.0, 0.0, 0.0], 'world')
-        time.sleep(1.0)
+        client.wait_for(lambda: 'scaled a torque input down' in node.output()
+                        and 'scaled a wrench input down' in node.output(), DISCOVERY_TIMEOUT,
+                        'both inputs to be scaled down')
+        client.wait_for_messages('angular_momentum', int(rate), since=since)
+        client.wait_for_messages('twist', int(rate), since=since)
         momenta = [np.array([m.vector.x, m.vector.y, m.vector.z])
                    for m in client.messages('angular_momentum', since)]
         velocities = [np.array([t.linear.x, t.linear.y, t.linear.z])

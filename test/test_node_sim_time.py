@@ -112,17 +112,15 @@ def test_real_time_factor_scales_the_wall_rate_not_the_stamps(tmp_path, rate,
     node, client = start(tmp_path, {'publish_clock': True, 'rate': rate,
                                     'real_time_factor': real_time_factor})
     try:
-        # As in test_node_dds: a window in which other processes starved this 2-core
-        # machine is measured again rather than failing the test.
-        for _ in range(5):
-            window_start = time.monotonic()
-            time.sleep(2.0)
-            received = [(arrival, nanoseconds(m.header.stamp))
-                        for arrival, m in client.received('pose') if arrival > window_start]
-            arrivals = [arrival for arrival, _ in received]
-            measured = (len(arrivals) - 1) / (arrivals[-1] - arrivals[0])
-            if abs(measured / wall_rate - 1.0) <= 0.1:
-                break
+        # The rates over 3 s worth of messages, however long they take to come: the tick
+        # keeps its deadlines on average (a late tick is caught up).
+        window_start = time.monotonic()
+        count = int(3 * wall_rate)
+        client.wait_for_messages('pose', count, since=window_start)
+        received = [(arrival, nanoseconds(m.header.stamp))
+                    for arrival, m in client.received('pose') if arrival > window_start][:count]
+        arrivals = [arrival for arrival, _ in received]
+        measured = (len(arrivals) - 1) / (arrivals[-1] - arrivals[0])
         assert abs(measured / wall_rate - 1.0) <= 0.1, (measured, wall_rate)
         stamps = [stamp for _, stamp in received]
         assert_nominal_spacing(stamps, period_ns, 'pose stamps')
@@ -148,9 +146,8 @@ def test_a_node_on_sim_time_still_ticks(tmp_path, publish_clock):
                                     'rate': rate})
     try:
         since = time.monotonic()
-        time.sleep(1.0)
         for topic in STATE_TYPES:
-            assert len(client.messages(topic, since)) >= 0.5 * rate, topic
+            client.wait_for_messages(topic, int(0.5 * rate), since=since)
         stamps = [nanoseconds(m.header.stamp) for m in client.messages('pose', since)]
         if publish_clock:
             assert_nominal_spacing(stamps, round(1e9 / rate), 'pose stamps')

@@ -167,7 +167,7 @@ def assert_logged_at_the_receive_time(messages):
 
 def wait_until_ticking(node, timeout=120.0):
     """
-    Wait until the node logged its start, then half a second more for its first ticks.
+    Wait until the node logged its start (recordings then wait for the counts they need).
 
     On a fresh clone the first node compiles the numba kernels, which on a busy machine
     takes longer than a short recording: a fixed sleep is not enough.
@@ -177,7 +177,6 @@ def wait_until_ticking(node, timeout=120.0):
         assert node.alive(), node.output()
         assert time.monotonic() < deadline, f'the node did not start:\n{node.output()}'
         time.sleep(0.1)  # waits-for: poll interval of the loop waiting for the start line
-    time.sleep(0.5)
 
 
 @pytest.fixture
@@ -266,7 +265,7 @@ def test_sigint_and_sigterm_finish_a_complete_bag(tmp_path, node_100_hz, signal_
     bag = tmp_path / 'stopped'
     recorder = RecorderProcess(tmp_path / 'recorder.log', bag, '--namespace', namespace)
     recorder.wait_until_recording(bag)
-    time.sleep(1.5)
+    recorder.wait_for_counts(bag, {f'{namespace}/pose': 100})
     recorder.process.send_signal(signal_number)
     assert recorder.finish() == 0, recorder.output()
     assert bag_is_complete(bag)
@@ -299,7 +298,7 @@ def test_a_recorder_killed_with_sigkill_leaves_a_readable_bag_that_recovers(
     recorder = RecorderProcess(tmp_path / 'recorder.log', bag, '--namespace', namespace,
                                '--storage', storage, '--flush-period', '0.2')
     recorder.wait_until_recording(bag)
-    time.sleep(2.0)
+    recorder.wait_for_counts(bag, {f'{namespace}/pose': 150})
     recorder.process.kill()
     recorder.finish()
     assert not bag_is_complete(bag)

@@ -89,6 +89,16 @@ def read_rosbags(bag):
     return facts, messages
 
 
+def _flushed_poses(metadata):
+    """Return the /pose count of a provisional metadata.yaml (0 if caught mid-write)."""
+    try:
+        info = yaml.safe_load(metadata.read_text())['rosbag2_bagfile_information']
+        return next(entry['message_count'] for entry in info['topics_with_message_count']
+                    if entry['topic_metadata']['name'] == '/pose')
+    except (yaml.YAMLError, KeyError, TypeError, StopIteration):
+        return 0
+
+
 def read_mcap(path):
     """Return (channels by topic, topic -> [(log time, decoded message)]) read with mcap."""
     messages = {}
@@ -389,7 +399,12 @@ def test_sigint_and_sigterm_stop_simulate_with_a_complete_bag(tmp_path, signal_n
             assert process.poll() is None, process.communicate()
             assert time.monotonic() < deadline
             time.sleep(0.05)  # waits-for: poll interval of the loop waiting for the file
-        time.sleep(1.0)
+        # Then until a flush has written 100 ticks (simulate flushes every second).
+        metadata = bag / 'metadata.yaml'
+        while not (metadata.exists() and _flushed_poses(metadata) >= 100):
+            assert process.poll() is None, process.communicate()
+            assert time.monotonic() < deadline
+            time.sleep(0.05)  # waits-for: poll interval of the loop waiting for the flush
         process.send_signal(signal_number)
         out, err = process.communicate(timeout=60.0)
     finally:
