@@ -135,8 +135,9 @@ def _rates(sim, seconds):
     """
     Measure each topic's rate in Hz over `seconds` worth of its messages.
 
-    However long they take to come: no window to miss.  State topics from their arrival times (the tick keeps its deadlines on average: a
-    late tick is caught up at once); /diagnostics from its stamps.
+    However long they take to come: no window to miss.  State topics from their arrival
+    times (the tick keeps its deadlines on average: a late tick is caught up at once);
+    /diagnostics from its stamps.
     """
     start = time.monotonic()
     rates = {}
