@@ -1,0 +1,41 @@
+"""Tests of the IMU core: the specific force at the mount point and Kalibr's noise model."""
+
+import numpy as np
+
+from rigid_body_sim.physics.imu import KalibrNoise
+from rigid_body_sim.physics.imu import specific_force_body
+
+GRAVITY = np.array([0.0, 0.0, -9.81])
+IDENTITY = np.array([0.0, 0.0, 0.0, 1.0])
+
+
+def test_free_fall_reads_zero_specific_force():
+    reading = specific_force_body(GRAVITY, np.zeros(3), np.zeros(3), IDENTITY,
+                                  np.zeros(3), GRAVITY)
+    assert np.array_equal(reading, np.zeros(3))
+
+
+def test_body_at_rest_reads_gravity_up():
+    reading = specific_force_body(np.zeros(3), np.zeros(3), np.zeros(3), IDENTITY,
+                                  np.array([0.1, 0.0, 0.0]), GRAVITY)
+    assert np.array_equal(reading, np.array([0.0, 0.0, 9.81]))
+
+
+def test_spin_off_the_mount_point_reads_centripetal_omega_squared_r():
+    omega, r = 3.0, 0.2
+    reading = specific_force_body(np.zeros(3), np.zeros(3), np.array([0.0, 0.0, omega]),
+                                  IDENTITY, np.array([r, 0.0, 0.0]), np.zeros(3))
+    # Toward the axis: -omega^2 r along x; round-off of two cross products only.
+    np.testing.assert_allclose(reading, [-omega ** 2 * r, 0.0, 0.0], rtol=1e-15, atol=0)
+
+
+def test_same_seed_gives_the_same_noise_sequence():
+    first, second = KalibrNoise(1e-3, 1e-4, 1e-2, seed=7), KalibrNoise(1e-3, 1e-4, 1e-2, seed=7)
+    for _ in range(100):
+        assert np.array_equal(first.corrupt(np.zeros(3), 0.01), second.corrupt(np.zeros(3), 0.01))
+
+
+def test_noise_off_equals_the_truth():
+    noise = KalibrNoise(0.0, 0.0, 0.0, seed=1)
+    truth = np.array([0.1, -0.2, 9.81])
+    assert np.array_equal(noise.corrupt(truth, 0.01), truth)
