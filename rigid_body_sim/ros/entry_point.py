@@ -20,6 +20,7 @@ a signal then takes its default action, as for any Python executable.
 import sys
 
 from .start_up import install_signal_handlers
+from .start_up import raise_on_signals
 from .start_up import signalled
 from .start_up import start_up_phase
 
@@ -40,6 +41,11 @@ def _asks_for_help(arguments):
 def main(args=None):
     """Run the node (see :func:`rigid_body_sim.ros.node.main`); return the exit code."""
     try:
+        # A signal noted since the handlers were set (during this module's import) ends
+        # the start-up here; from now on one raises KeyboardInterrupt, caught below.
+        raise_on_signals()
+        if signalled():
+            return 0
         if _asks_for_help(sys.argv if args is None else args):
             from .node_help import help_text
             print(help_text())

@@ -86,6 +86,7 @@ from .qos import CLOCK_QOS
 from .qos import DIAGNOSTICS_QOS
 from .qos import INPUT_QOS
 from .qos import STATE_QOS
+from .start_up import signals_deferred
 from .start_up import start_up_phase
 from ..physics import unresolved_rotation
 from ..scenes import load_scene
@@ -719,8 +720,9 @@ def _spin_until_signalled(node):
     lets Python run its signal handler within that time in every case.
     """
     # As rclpy.spin does it, with a timeout.
-    executor = rclpy.get_global_executor()
-    executor.add_node(node)
+    with signals_deferred():
+        executor = rclpy.get_global_executor()
+        executor.add_node(node)
     try:
         while executor.context.ok():
             executor.spin_once(timeout_sec=_STOP_LATENCY)

@@ -10,26 +10,57 @@ begins (handlers, imports, rclpy.init, node, spin), so that a test can send a si
 every phase by waiting for its line, whatever the machine's speed.
 """
 
+import contextlib
 import os
 import signal
 import sys
 
-__all__ = ['install_signal_handlers', 'signalled', 'start_up_phase']
+__all__ = ['install_signal_handlers', 'raise_on_signals', 'signals_deferred', 'signalled',
+           'start_up_phase']
 
 _TRACE = os.environ.get('RIGID_BODY_SIM_TRACE_START_UP') == '1'
 # The signals that arrived: an exception that follows one is its consequence.
 _received = []
+# Whether a signal raises KeyboardInterrupt: not before the caller can catch it (the rest
+# of the entry point's own import, where only noting it is safe).
+_raising = []
 
 
 def _interrupt(signal_number, frame):
     _received.append(signal_number)
-    raise KeyboardInterrupt
+    if _raising:
+        raise KeyboardInterrupt
 
 
 def install_signal_handlers():
-    """Make SIGINT and SIGTERM raise KeyboardInterrupt and note that they came."""
+    """Make SIGINT and SIGTERM noted (and, after raise_on_signals(), raise KeyboardInterrupt)."""
     signal.signal(signal.SIGTERM, _interrupt)
     signal.signal(signal.SIGINT, _interrupt)
+
+
+def raise_on_signals():
+    """From now on a signal raises KeyboardInterrupt (call it inside a try that catches it)."""
+    _raising.append(True)
+
+
+@contextlib.contextmanager
+def signals_deferred():
+    """
+    Only note signals inside the block; raise KeyboardInterrupt after it if one came.
+
+    For constructors that a KeyboardInterrupt would leave half-built (rclpy's executor then
+    prints a traceback from its __del__).
+    """
+    raising = bool(_raising)
+    _raising.clear()
+    before = len(_received)
+    try:
+        yield
+    finally:
+        if raising:
+            _raising.append(True)
+    if raising and len(_received) > before:
+        raise KeyboardInterrupt
 
 
 def signalled():
