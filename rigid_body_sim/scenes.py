@@ -43,6 +43,8 @@ from .physics.effects import ParameterError
 from .physics.effects.registry import check_number
 from .physics.effects.registry import check_vector
 from .physics.effects.registry import describe_value
+from .physics.imu import Imu
+from .physics.imu import ImuModel
 from .physics.rotations import quaternion_from_matrix
 
 __all__ = [
@@ -73,7 +75,11 @@ SHAPES = ('box', 'cylinder', 'sphere', 'ellipsoid')
 
 # The keys each part of a scene may have; anything else is an error.
 _TOP_KEYS = ('name', 'description', 'body', 'initial', 'effects', 'integrator', 'rate',
-             'tolerance', 'draw')
+             'tolerance', 'imu', 'draw')
+_IMU_KEYS = ('position', 'orientation') + ImuModel.NOISE_KEYS + ('seed',)
+_IMU_UNITS = {'gyro_noise_density': 'rad/s/sqrt(Hz)', 'gyro_random_walk': 'rad/s^2/sqrt(Hz)',
+              'gyro_bias_sigma': 'rad/s', 'accel_noise_density': 'm/s^2/sqrt(Hz)',
+              'accel_random_walk': 'm/s^3/sqrt(Hz)', 'accel_bias_sigma': 'm/s^2'}
 _SHAPE_KEYS = {
     'box': ('size',),
     'cylinder': ('radius', 'height'),
@@ -173,6 +179,7 @@ class Scene:
     rate: float
     drawing: Drawing
     tolerance: float = DEFAULT_TOLERANCE
+    imu: ImuModel = ImuModel()
     source: str = '<scene>'
     data: dict = field(default_factory=dict, repr=False, compare=False)
 
@@ -195,6 +202,18 @@ class Scene:
     def pivot(self):
         """Return the scene's pivot effect, or None if the body is free."""
         return self._effect('pivot')
+
+    @property
+    def gravity(self):
+        """Return the gravitational field in m/s^2, world frame (zeros without gravity)."""
+        gravity = self._effect('gravity')
+        return np.zeros(3) if gravity is None else np.array(gravity.acceleration)
+
+    def imu_sensor(self, model=None):
+        """Return the IMU of `model` (default: the scene's) on the body, gravity and pivot."""
+        pivot = self.pivot
+        return Imu(self.imu if model is None else model, self.body, self.gravity,
+                   None if pivot is None else -np.asarray(pivot.point, dtype=float))
 
     def effect_names(self):
         """Return the names of the scene's effects, in order."""
@@ -517,10 +536,11 @@ class _SceneReader:
         if not 0.0 <= tolerance <= 1.0:
             raise self.error('tolerance', f'must be 0 (off) to 1 rad/s, got {tolerance:g}')
         drawing = self.drawing(mapping.get('draw', {}), body, body_shape, mapping['body'])
+        imu = self.imu(mapping.get('imu', {}))
         return Scene(name=name, description=description, body=body, state=state,
                      effects=tuple(effects), integrator=integrator, rate=rate,
                      drawing=drawing, source=self.source, data=copy.deepcopy(mapping),
-                     tolerance=tolerance or None)
+                     tolerance=tolerance or None, imu=imu)
 
     def reject_empty_sections(self, mapping):
         """
@@ -530,7 +550,7 @@ class _SceneReader:
         lines below it were lost or mis-indented.  Leaving a section out is the documented
         way to get its defaults; ``effects: []`` says "no effects".
         """
-        for key in ('body', 'initial', 'draw'):
+        for key in ('body', 'initial', 'imu', 'draw'):
             if key in mapping and mapping[key] is None:
                 remedy = ('the scene requires it' if key == 'body' else
                           'give its keys, or leave the line out for the defaults')
@@ -726,8 +746,7 @@ class _SceneReader:
                                     ' kg m^2/s: not finite')
         return state
 
-    def orientation(self, value):
-        path = 'initial.orientation'
+    def orientation(self, value, path='initial.orientation'):
         if isinstance(value, (list, tuple)) and len(value) != 4:
             raise self.error(path, f'expected 4 numbers (quaternion x, y, z, w), got '
                                    f'{len(value)}')
@@ -741,6 +760,31 @@ class _SceneReader:
             raise self.error(path, f'expected a unit quaternion (x, y, z, w), got norm '
                                    f'{norm:.9g}')
         return quaternion / norm
+
+    def imu(self, value):
+        """Read the imu section: mount pose and Kalibr noise terms (all optional)."""
+        self.mapping(value, 'imu', _IMU_KEYS)
+        values = {}
+        if 'position' in value:
+            values['position'] = tuple(float(v) for v in self.vector(
+                value['position'], 'imu.position', 'm'))
+        if 'orientation' in value:
+            values['orientation'] = tuple(float(v) for v in self.orientation(
+                value['orientation'], 'imu.orientation'))
+        for key in ImuModel.NOISE_KEYS:
+            if key in value:
+                number = self.number(value[key], f'imu.{key}', _IMU_UNITS[key])
+                if number < 0.0:
+                    raise self.error(f'imu.{key}', f'must be >= 0 {_IMU_UNITS[key]} (0: off), '
+                                                   f'got {number:g}')
+                values[key] = float(number)
+        if 'seed' in value:
+            seed = value['seed']
+            if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2 ** 63:
+                raise self.error('imu.seed', f'expected a whole number 0 to 2^63 - 1, got '
+                                             f'{describe_value(seed)}')
+            values['seed'] = seed
+        return ImuModel(**values)
 
     def drawing(self, value, body, body_shape, body_data):
         draw = self.mapping(value, 'draw', _DRAW_KEYS)

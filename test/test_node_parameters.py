@@ -22,6 +22,7 @@ from rigid_body_sim.ros.parameters import declare_parameters
 from rigid_body_sim.ros.parameters import declare_scene_parameter
 from rigid_body_sim.ros.parameters import DEFAULTS
 from rigid_body_sim.ros.parameters import effective_values
+from rigid_body_sim.ros.parameters import imu_model_from_parameters
 from rigid_body_sim.ros.parameters import NOT_SET
 from rigid_body_sim.ros.parameters import parameter_descriptor
 from rigid_body_sim.ros.parameters import PARAMETERS
@@ -125,8 +126,10 @@ def test_no_parameters_simulate_the_default_scene_as_it_is(context):
     assert scene.name == 'default'
     assert values['integrator'] == scene.integrator and values['rate'] == scene.rate
     assert values['tolerance'] == scene.tolerance
-    assert all(values[name] is None
-               for name in SCENE_DEPENDENT - {'integrator', 'rate', 'tolerance'})
+    assert all(values[name] is None for name in SCENE_DEPENDENT
+               if name not in ('integrator', 'rate', 'tolerance') and
+               not name.startswith('imu.'))
+    assert imu_model_from_parameters(values) == scene.imu
     assert scene_from_parameters(scene, values) is scene
 
 

@@ -65,7 +65,7 @@ TYPE_NAMES = {'/pose': 'geometry_msgs/msg/PoseStamped', '/twist': 'geometry_msgs
               '/angular_momentum': 'geometry_msgs/msg/Vector3Stamped',
               '/odom': 'nav_msgs/msg/Odometry', '/marker': 'visualization_msgs/msg/Marker',
               '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
-              '/clock': 'rosgraph_msgs/msg/Clock'}
+              '/clock': 'rosgraph_msgs/msg/Clock', '/imu': 'sensor_msgs/msg/Imu'}
 STAMPED = ('/pose', '/angular_momentum', '/odom', '/marker')
 SHARE = Path(__file__).resolve().parent.parent / '.venv' / 'share'
 
@@ -127,12 +127,13 @@ def test_counts_are_duration_times_rate_for_every_state_topic(van_zon_bag):
     bag, _, summary = van_zon_bag
     facts, messages = read_rosbags(bag)
     ticks = 3500
-    for topic in ('/pose', '/twist', '/angular_momentum', '/odom', '/marker', '/clock'):
+    for topic in ('/pose', '/twist', '/angular_momentum', '/odom', '/marker', '/imu',
+                  '/clock'):
         assert len(messages[topic]) == ticks, topic
         assert facts['connections'][topic].msgcount == ticks
     # /diagnostics once per simulated second: at 1, 2 and 3 s.
     assert len(messages['/diagnostics']) == 3
-    assert facts['message_count'] == 6 * ticks + 3 == sum(summary.message_counts.values())
+    assert facts['message_count'] == 7 * ticks + 3 == sum(summary.message_counts.values())
 
 
 def test_types_and_frames_are_the_nodes(van_zon_bag):
@@ -337,7 +338,8 @@ def test_namespace_moves_the_state_topics_only(tmp_path):
     simulate_to_bag(load_scene('default'), tmp_path / 'ns', 0.1, namespace='sat1')
     facts, messages = read_rosbags(tmp_path / 'ns')
     assert set(facts['connections']) == {'/sat1/pose', '/sat1/twist', '/sat1/angular_momentum',
-                                         '/sat1/odom', '/sat1/marker', '/diagnostics'}
+                                         '/sat1/odom', '/sat1/marker', '/sat1/imu',
+                                         '/diagnostics'}
     assert len(messages['/sat1/pose']) == 10 and '/diagnostics' not in messages
 
 

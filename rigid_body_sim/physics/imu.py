@@ -1,10 +1,29 @@
 """
 What a body-mounted IMU measures: kinematics at the mount point and Kalibr's noise model.
 
-Core only (numpy, no ROS).  Not yet wired to the simulator or the node (issue 13, part 2):
-the caller supplies the COM acceleration and angular acceleration the effects produce.
+An IMU fixed in the body at r (from the COM, body frame) with orientation q_bi (IMU to
+body) reads, in its own frame:
+
+- the angular velocity omega (a gyro sees the body's rotation wherever it sits);
+- the specific force a_point - g, with a_point = a_COM + alpha x r + omega x (omega x r):
+  0 in free fall, g up at rest, omega^2 r toward the axis on a spinning body.
+
+a_COM and alpha are the instantaneous accelerations of the simulated motion
+(:func:`accelerations`): from the total wrench of the held inputs and the effects (gravity,
+drag, ...) by Newton and Euler, and for a body on a pivot from the pivot system (Euler's
+equation about the fixed point with the parallel-axis inertia, then a_COM = alpha x r_c +
+omega x (omega x r_c)), so the pivot's reaction, which is never computed, is in it all the
+same.  Not in it: the internal torque of the `dissipation` effect, which changes omega at
+constant L through the integrator only (its alpha is of the order of damping x omega^2).
+
+Noise (off by default): :class:`KalibrNoise` per sensor, the white noise and bias random
+walk of Kalibr's IMU model (units as Kalibr defines them), a turn-on bias, a seed.
+Core only: numpy, no ROS.
 """
 
+from dataclasses import dataclass
+
+import numba
 import numpy as np
 
 from .rotations import matrix_from_quaternion
@@ -59,8 +78,200 @@ class KalibrNoise:
         self._rng = np.random.default_rng(seed)
         self.bias = self._rng.normal(0.0, float(turn_on_bias_sigma), 3)
 
+    def error(self, dt):
+        """Advance by one sample of period dt s; return its error: bias plus white noise."""
+        self.bias = self.bias + self._rng.normal(0.0, self.random_walk * np.sqrt(dt), 3)
+        return self.bias + self._rng.normal(0.0, self.noise_density / np.sqrt(dt), 3)
+
     def corrupt(self, truth, dt):
         """Return `truth` (shape (3,)) plus bias and white noise for a sample of period dt."""
-        self.bias = self.bias + self._rng.normal(0.0, self.random_walk * np.sqrt(dt), 3)
-        white = self._rng.normal(0.0, self.noise_density / np.sqrt(dt), 3)
-        return np.asarray(truth, dtype=float) + self.bias + white
+        return np.asarray(truth, dtype=float) + self.error(dt)
+
+    def white_variance(self, dt):
+        """Return the white noise's variance per sample of period dt: (sigma / sqrt(dt))^2."""
+        return self.noise_density ** 2 / dt
+
+
+@dataclass(frozen=True)
+class ImuModel:
+    """
+    Where an IMU sits on the body and how noisy it is (a scene's ``imu:`` section).
+
+    position : (3,) m from the COM, body frame.  orientation : unit quaternion (x, y, z, w),
+    IMU frame to body frame.  gyro_* in rad/s/sqrt(Hz) (noise density), rad/s^2/sqrt(Hz)
+    (random walk), rad/s (turn-on bias sigma); accel_* in m/s^2/sqrt(Hz), m/s^3/sqrt(Hz),
+    m/s^2.  seed : int, the noise sequence's (the same seed, the same sequence).
+    """
+
+    position: tuple = (0.0, 0.0, 0.0)
+    orientation: tuple = (0.0, 0.0, 0.0, 1.0)
+    gyro_noise_density: float = 0.0
+    gyro_random_walk: float = 0.0
+    gyro_bias_sigma: float = 0.0
+    accel_noise_density: float = 0.0
+    accel_random_walk: float = 0.0
+    accel_bias_sigma: float = 0.0
+    seed: int = 0
+
+    NOISE_KEYS = ('gyro_noise_density', 'gyro_random_walk', 'gyro_bias_sigma',
+                  'accel_noise_density', 'accel_random_walk', 'accel_bias_sigma')
+
+    @property
+    def noisy(self):
+        """Return True if any noise term is not zero."""
+        return any(getattr(self, key) != 0.0 for key in self.NOISE_KEYS)
+
+
+def accelerations(body, state, force, torque, pivot_offset=None):
+    """
+    Return (a_COM, alpha): the instantaneous COM and angular accelerations, world frame.
+
+    Free body: a = F / m; dL/dt = tau with L = I_w omega gives
+    alpha = I_w^{-1} (tau - omega x L).  On a pivot, the same about the fixed point:
+    tau_p = tau + r_c x F, L_p = L + r_c x p, I_p the parallel-axis inertia, and the COM
+    moves on a sphere about it: a = alpha x r_c + omega x (omega x r_c).
+
+    Parameters
+    ----------
+    body : RigidBody
+        Mass (kg) and inertia about the COM (kg m^2, body frame).
+    state : State
+        The physical state (world frame, L about the COM).
+    force, torque : array_like, shape (3,)
+        Total applied force through the COM (N) and torque about it (N m), world frame;
+        a constraint's reaction excluded.
+    pivot_offset : array_like, shape (3,), optional
+        For a body on a pivot: the COM's offset from the pivot, body frame (m).
+
+    """
+    rotation = state.rotation
+    omega = state.angular_velocity(body)
+    force = np.asarray(force, dtype=float)
+    torque = np.asarray(torque, dtype=float)
+    if pivot_offset is None:
+        inertia_world = rotation @ body.inertia @ rotation.T
+        alpha = np.linalg.solve(inertia_world,
+                                torque - np.cross(omega, state.angular_momentum))
+        return force / body.mass, alpha
+    offset = np.asarray(pivot_offset, dtype=float)
+    r = rotation @ offset
+    pivot_inertia = body.inertia + body.mass * (offset @ offset * np.eye(3)
+                                                - np.outer(offset, offset))
+    inertia_world = rotation @ pivot_inertia @ rotation.T
+    momentum_pivot = state.angular_momentum + np.cross(r, state.linear_momentum)
+    alpha = np.linalg.solve(inertia_world, torque + np.cross(r, force)
+                            - np.cross(omega, momentum_pivot))
+    return np.cross(alpha, r) + np.cross(omega, np.cross(omega, r)), alpha
+
+
+class Imu:
+    """
+    A simulated IMU on a body: truth at its mount, plus noise advanced once per sample.
+
+    Parameters
+    ----------
+    model : ImuModel
+    body : RigidBody
+    gravity : array_like, shape (3,)
+        The gravitational field, m/s^2, world frame (zeros without gravity).
+    pivot_offset : array_like, shape (3,), optional
+        The COM's offset from a pivot, body frame, m (see :func:`accelerations`).
+
+    """
+
+    def __init__(self, model, body, gravity=(0.0, 0.0, 0.0), pivot_offset=None):
+        self.model = model
+        self._body = body
+        self._gravity = np.asarray(gravity, dtype=float)
+        self._pivot_offset = None if pivot_offset is None else np.asarray(pivot_offset, float)
+        self._position = np.asarray(model.position, dtype=float)
+        self._orientation = np.asarray(model.orientation, dtype=float)
+        # IMU to body.
+        self._mount_rotation = matrix_from_quaternion(self._orientation)
+        seeds = np.random.SeedSequence(model.seed).spawn(2)
+        self.gyro_noise = KalibrNoise(model.gyro_noise_density, model.gyro_random_walk,
+                                      model.gyro_bias_sigma, seeds[0])
+        self.accel_noise = KalibrNoise(model.accel_noise_density, model.accel_random_walk,
+                                       model.accel_bias_sigma, seeds[1])
+        self._gyro_error = np.zeros(3)
+        self._accel_error = np.zeros(3)
+        inverse = body.inertia_inverse
+        if self._pivot_offset is None:
+            pivot_inverse, offset, pivoted = inverse, np.zeros(3), 0.0
+        else:
+            offset = self._pivot_offset
+            pivot_inverse = np.linalg.inv(body.inertia + body.mass * (
+                offset @ offset * np.eye(3) - np.outer(offset, offset)))
+            pivoted = 1.0
+        # Packed for the compiled kernel: I^-1, I_pivot^-1 (body), m, pivoted, d, r, the
+        # mount rotation (IMU to body), q_bi, g.
+        self._constants = np.concatenate([
+            np.asarray(inverse).reshape(-1), pivot_inverse.reshape(-1),
+            [body.mass, pivoted], offset, self._position, self._mount_rotation.reshape(-1),
+            self._orientation, self._gravity])
+
+    def advance(self, dt):
+        """Draw the noise of the next sample, dt s after the last (once per sample)."""
+        if self.model.noisy:
+            self._gyro_error = self.gyro_noise.error(dt)
+            self._accel_error = self.accel_noise.error(dt)
+
+    def truth(self, state, force, torque):
+        """
+        Return (orientation, angular_velocity, specific_force) without noise.
+
+        orientation: the IMU frame in the world, quaternion (x, y, z, w); angular velocity
+        (rad/s) and specific force (m/s^2) in the IMU frame.  The same as
+        :func:`accelerations` and :func:`specific_force_body` (tested to round-off), in one
+        compiled call: simulate computes it every tick.
+        """
+        values = _imu_truth(state.quaternion, state.rotation, state.angular_momentum,
+                            state.linear_momentum, np.asarray(force, dtype=float),
+                            np.asarray(torque, dtype=float), self._constants)
+        return values[0:4], values[4:7], values[7:10]
+
+    def reading(self, state, force, torque):
+        """Return (orientation, angular_velocity, specific_force) with this sample's noise."""
+        orientation, omega, specific_force = self.truth(state, force, torque)
+        return orientation, omega + self._gyro_error, specific_force + self._accel_error
+
+
+@numba.njit(cache=True, nogil=True)
+def _imu_truth(quaternion, rotation, angular_momentum, linear_momentum, force, torque,
+               constants):
+    """Compiled :meth:`Imu.truth`: [q_world_imu (4), omega_imu (3), specific force (3)]."""
+    inverse = constants[0:9].reshape((3, 3))
+    pivot_inverse = constants[9:18].reshape((3, 3))
+    mass, pivoted = constants[18], constants[19]
+    offset, position = constants[20:23], constants[23:26]
+    mount = constants[26:35].reshape((3, 3))
+    mount_quaternion, gravity = constants[35:39], constants[39:42]
+    # Omega = I^-1 R^T L (body), omega = R Omega.
+    omega_body = inverse @ (rotation.T @ angular_momentum)
+    omega = rotation @ omega_body
+    if pivoted == 0.0:
+        # alpha = R I^-1 R^T (tau - omega x L), a = F / m.
+        alpha = rotation @ (inverse @ (rotation.T @ (
+            torque - np.cross(omega, angular_momentum))))
+        acceleration = force / mass
+    else:
+        # About the pivot: tau_p = tau + r x F, L_p = L + r x p; the COM on its sphere.
+        r = rotation @ offset
+        momentum_pivot = angular_momentum + np.cross(r, linear_momentum)
+        alpha = rotation @ (pivot_inverse @ (rotation.T @ (
+            torque + np.cross(r, force) - np.cross(omega, momentum_pivot))))
+        acceleration = np.cross(alpha, r) + np.cross(omega, np.cross(omega, r))
+    alpha_body = rotation.T @ alpha
+    specific_force = rotation.T @ (acceleration - gravity) + np.cross(alpha_body, position) \
+        + np.cross(omega_body, np.cross(omega_body, position))
+    out = np.empty(10)
+    ax, ay, az, aw = quaternion[0], quaternion[1], quaternion[2], quaternion[3]
+    bx, by, bz, bw = mount_quaternion[0], mount_quaternion[1], mount_quaternion[2], \
+        mount_quaternion[3]
+    out[0] = aw * bx + ax * bw + ay * bz - az * by
+    out[1] = aw * by - ax * bz + ay * bw + az * bx
+    out[2] = aw * bz + ax * by - ay * bx + az * bw
+    out[3] = aw * bw - ax * bx - ay * by - az * bz
+    out[4:7] = mount.T @ omega_body
+    out[7:10] = mount.T @ specific_force
+    return out

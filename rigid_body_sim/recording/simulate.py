@@ -21,6 +21,7 @@ apart when that is a whole number of ns, else within 1 ns of it.
 
 import json
 import math
+import struct
 import time
 
 from builtin_interfaces.msg import Time
@@ -30,12 +31,16 @@ from diagnostic_msgs.msg import KeyValue
 import numpy as np
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Imu
 
 from .bag_writer import BagWriter
 from .bag_writer import offered_qos
+from .state_batch import _column
 from .state_batch import BatchSerializer
 from .state_batch import StateBatch
 from ..ros import qos
+from ..ros.conversions import fill_imu_message
+from ..ros.conversions import imu_message
 from ..ros.conversions import marker_geometry_from_drawing
 from ..ros.conversions import state_messages
 from ..ros.conversions import STATE_TOPICS
@@ -55,6 +60,7 @@ __all__ = [
 
 DIAGNOSTICS_TOPIC = '/diagnostics'
 CLOCK_TOPIC = '/clock'
+IMU_TOPIC = 'imu'
 
 
 # Ticks serialised and written at once (at most; a batch also ends with each simulated
@@ -149,7 +155,7 @@ def _tick_count(duration, rate):
 def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1,
                     tolerance=None, storage='mcap', start_time=0, clock=False, namespace='',
                     world_frame='world', body_frame='body', progress=False, stop=None,
-                    flush_period=FLUSH_PERIOD):
+                    flush_period=FLUSH_PERIOD, imu_frame='imu'):
     """
     Simulate `scene` for `duration` s and write what the node would publish into a bag.
 
@@ -179,8 +185,10 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
         Also write /clock at every tick.
     namespace : str
         Namespace of the state topics ('' or '/name'), as the node's ``__ns``.
-    world_frame, body_frame : str
-        Frame ids, as the node's parameters.
+    world_frame, body_frame, imu_frame : str
+        Frame ids, as the node's parameters.  The ``imu`` topic (sensor_msgs/Imu) holds
+        the scene's IMU (its ``imu:`` section: mount, noise and seed) as the node publishes
+        it: the same readings, the same noise for the same seed.
     progress : bool
         Show a tqdm progress bar (on stderr).
     stop : threading.Event, optional
@@ -227,6 +235,8 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
     # The message classes, hence type names, are those of conversions.state_messages.
     types = {topic: message_type_name(type(message)) for topic, message in state_messages(
         body, simulator.state, 0, world_frame, body_frame, geometry).items()}
+    imu = scene.imu_sensor()
+    imu_rows = _ImuRows(imu, simulator, imu_frame, 1.0 / rate)
     diagnostics = _OfflineDiagnostics(scene, simulator, rate, substeps,
                                       _checked_namespace(namespace), clock)
     period = 1.0 / rate
@@ -241,6 +251,9 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
         state_offer = [offered_qos(qos.STATE_QOS)]
         connections = [(topic, writer.add_topic(names[topic], types[topic], state_offer))
                        for topic in STATE_TOPICS]
+        connections.append((IMU_TOPIC, writer.add_topic(
+            f'{_checked_namespace(namespace)}/{IMU_TOPIC}', message_type_name(Imu),
+            state_offer)))
         diagnostics_connection = writer.add_topic(
             DIAGNOSTICS_TOPIC, message_type_name(DiagnosticArray),
             [offered_qos(qos.DIAGNOSTICS_QOS)])
@@ -272,7 +285,9 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
                     simulator.step(period)
                     step_durations[index] = perf_counter() - step_started
                     batch.append(simulator.state)
+                    imu_rows.append(stamps[index])
                 serialized = serializer.serialize(batch.filled(), stamps)
+                serialized[IMU_TOPIC] = imu_rows.take()
                 if clock_connection is not None:
                     serialized[CLOCK_TOPIC] = _clock_rows(stamps)
                 writer.write_rows(row_connections,
@@ -297,6 +312,57 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
     written = tick - 1
     return SimulationSummary(writer.path, written, written * period, counts,
                              time.perf_counter() - started, stopped=written < ticks)
+
+
+class _ImuRows:
+    """The serialised imu messages of a batch of ticks, as the node publishes them."""
+
+    def __init__(self, imu, simulator, frame_id, period):
+        self._imu = imu
+        self._simulator = simulator
+        self._wrench = simulator.wrench_function()  # offline: the effects only
+        self._period = period
+        self._values = []
+        self._stamps = []
+        # The message's byte layout, found as conversions._layout does: sentinel values
+        # serialised once, then located (each a unique 8-byte pattern).
+        message = imu_message(frame_id, imu, period)
+        sentinels = [-8.765432109876e17 - 1.0e6 * k for k in range(10)]
+        fill_imu_message(message, 1987654321 * 1_000_000_000 + 987654321, sentinels[0:4],
+                         sentinels[4:7], sentinels[7:10])
+        template = bytes(serialize_message(message))
+        self._offsets = [template.index(struct.pack('<d', value)) for value in sentinels]
+        self._stamp_offset = template.index(struct.pack('<iI', 1987654321, 987654321))
+        self._template = np.frombuffer(template, dtype=np.uint8)
+
+    def append(self, stamp):
+        """Add the reading of the simulator's state, stamped `stamp` (ns)."""
+        imu = self._imu
+        imu.advance(self._period)
+        state = self._simulator.state
+        if self._wrench is None:
+            force = torque = _NO_VECTOR
+        else:
+            force, torque = self._wrench(state, self._simulator.time)
+        self._values.append(np.concatenate(imu.reading(state, force, torque)))
+        self._stamps.append(stamp)
+
+    def take(self):
+        """Return the rows added since the last take, (ticks, size) uint8."""
+        values, stamps = np.array(self._values), np.array(self._stamps, dtype=np.int64)
+        self._values, self._stamps = [], []
+        data = np.empty((len(values), self._template.size), dtype=np.uint8)
+        data[:] = self._template
+        seconds, nanoseconds = np.divmod(stamps, 1_000_000_000)
+        _column(data, self._stamp_offset, '<i4')[:] = seconds
+        _column(data, self._stamp_offset + 4, '<u4')[:] = nanoseconds
+        for index, offset in enumerate(self._offsets):
+            _column(data, offset, '<f8')[:] = values[:, index]
+        return data
+
+
+_NO_VECTOR = np.zeros(3)
+_NO_VECTOR.flags.writeable = False
 
 
 def _clock_rows(stamps):

@@ -67,10 +67,13 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Imu as ImuMessage
 from std_srvs.srv import SetBool
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker
 
+from .conversions import fill_imu_message
+from .conversions import imu_message
 from .conversions import marker_geometry_from_drawing
 from .conversions import RejectedInput
 from .conversions import STATE_TOPICS
@@ -80,6 +83,7 @@ from .conversions import WrenchInput
 from .parameters import check_integrator
 from .parameters import declare_parameters
 from .parameters import declare_scene_parameter
+from .parameters import imu_model_from_parameters
 from .parameters import PARAMETERS
 from .parameters import scene_from_parameters
 from .parameters import show_effective_values
@@ -100,6 +104,8 @@ NODE_NAME = 'rigid_body_sim'
 _MESSAGE_TYPES = {'pose': PoseStamped, 'twist': Twist, 'angular_momentum': Vector3Stamped,
                   'odom': Odometry, 'marker': Marker}
 _INPUT_TOPICS = {'torque': Vector3Stamped, 'wrench': WrenchStamped}
+_NO_VECTOR = np.zeros(3)
+_NO_VECTOR.flags.writeable = False
 _CLOCK_TOPIC = '/clock'
 _DIAGNOSTICS_PERIOD = 1.0  # s
 _WARNING_PERIOD = 1.0  # s between two warnings of the same kind
@@ -200,6 +206,14 @@ class RigidBodyNode(Node):
         self._state_publishers = [
             (topic, self.create_publisher(_MESSAGE_TYPES[topic], topic, STATE_QOS))
             for topic in STATE_TOPICS]
+        # The simulated IMU: computed only while someone listens; its noise (if any) drawn
+        # every tick, so a seed gives the same sequence whenever a subscriber comes.
+        self._imu = scene.imu_sensor(imu_model_from_parameters(values))
+        self._imu_publisher = self.create_publisher(ImuMessage, 'imu', STATE_QOS)
+        self._imu_message = imu_message(values['imu_frame'], self._imu, self._period)
+        self._imu_subscribed = False
+        self._imu_noisy = self._imu.model.noisy
+        self._wrench = self._simulator.wrench_function()
         self._diagnostics_publisher = self.create_publisher(
             DiagnosticArray, '/diagnostics', DIAGNOSTICS_QOS)
         # Simulated time: _clock_ticks whole periods since start-up, counted on through
@@ -255,6 +269,7 @@ class RigidBodyNode(Node):
         moments = ', '.join(f'{m:.4g}' for m in body.principal_moments)
         effects = ', '.join(scene.effect_names()) or 'none (torque-free)'
         inputs = 'torque and wrench' if scene.accepts_external_wrench else 'no inputs'
+        imu_noise = f'noise seed {self._imu.model.seed}' if self._imu_noisy else 'no noise'
         timing = ''
         tolerance = self._simulator.tolerance
         if tolerance is not None:
@@ -267,8 +282,8 @@ class RigidBodyNode(Node):
             f'simulating scene {scene.name!r}: a body of {body.mass:g} kg, principal moments '
             f'({moments}) kg m^2, effects: {effects}; {self._simulator.integrator} at '
             f'{self._rate:g} Hz x {self._substeps} substep(s){timing}; publishing pose, '
-            f'twist, angular_momentum, odom, marker in frame {self._world_frame!r}; '
-            f'subscribed to {inputs}')
+            f'twist, angular_momentum, odom, marker in frame {self._world_frame!r}, imu in '
+            f'frame {values["imu_frame"]!r} ({imu_noise}); subscribed to {inputs}')
         self.get_logger().info(parameter_sources)
         warning = unresolved_rotation(body, self._simulator.state, self._period,
                                       self._substeps, tolerance)
@@ -358,6 +373,8 @@ class RigidBodyNode(Node):
             # substeps steps, or under error control as many as it chooses.
             simulator.step(self._period)
             self._clock_ticks += 1
+            if self._imu_noisy:
+                self._imu.advance(self._period)
         step_duration = time.perf_counter() - stepped
         if self._ticks >= self._next_subscriber_check:
             self._check_subscribers()
@@ -373,6 +390,8 @@ class RigidBodyNode(Node):
             serialized = self._serializer.serialize(simulator.state, stamp, self._subscribed)
             for topic, publisher in self._subscribed.items():
                 publisher.publish(serialized[topic])
+        if self._imu_subscribed:
+            self._publish_imu(stamp)
         index = self._ticks % _HISTORY
         self._step_durations[index] = step_duration
         self._tick_durations[index] = time.perf_counter() - started
@@ -386,6 +405,17 @@ class RigidBodyNode(Node):
 
     tick_error = None
     """The exception that stopped the tick thread, if one did."""
+
+    def _publish_imu(self, stamp):
+        # The accelerations at the published state, from the wrench acting on it now.
+        simulator = self._simulator
+        state = simulator.state
+        if self._wrench is None:
+            force = torque = _NO_VECTOR
+        else:
+            force, torque = self._wrench(state, simulator.time)
+        reading = self._imu.reading(state, force, torque)
+        self._imu_publisher.publish(fill_imu_message(self._imu_message, stamp, *reading))
 
     def _simulated_nanoseconds(self):
         # k periods of 1/rate s in ns, rounded; in integer arithmetic for a whole number of
@@ -403,6 +433,7 @@ class RigidBodyNode(Node):
         # whether the node's clock follows /clock (use_sim_time) or the system clock.
         self._subscribed = {topic: publisher for topic, publisher in self._state_publishers
                             if publisher.get_subscription_count() > 0}
+        self._imu_subscribed = self._imu_publisher.get_subscription_count() > 0
         self._clock_subscribed = self._publish_clock and \
             self._clock_publisher.get_subscription_count() > 0
         clock = self.get_clock()
@@ -504,6 +535,7 @@ class RigidBodyNode(Node):
                                     torque_world=parts['world'][1],
                                     force_body=parts['body'][0],
                                     torque_body=parts['body'][1])
+        self._wrench = self._simulator.wrench_function()
         self._set_drift_reference()
 
     def _set_drift_reference(self):

@@ -42,6 +42,7 @@ from rclpy.parameter import Parameter
 
 from ..physics import get_integrator
 from ..physics import INTEGRATORS
+from ..physics.imu import ImuModel
 from ..scenes import DEFAULT_SCENE
 from ..scenes import RATE_RANGE
 from ..scenes import SHAPES
@@ -58,6 +59,7 @@ __all__ = [
     'scene_from_parameters',
     'effective_values',
     'show_effective_values',
+    'imu_model_from_parameters',
     'check_integrator',
 ]
 
@@ -146,6 +148,28 @@ PARAMETERS = (
           'larger inputs are rejected (inputs within it are then scaled down to the '
           "scene's external_wrench limits, if it has any).",
           read_only=False, value_range=(0.0, 1.0e12)),
+    _spec('imu_frame', str, 'imu',
+          "Frame id of the simulated IMU (the imu topic's header): fixed in the body at "
+          'imu.position with orientation imu.orientation.'),
+    _spec('imu.position', list, SCENE_VALUE,
+          "Where the IMU sits: m from the centre of mass, body frame; default: the scene's "
+          '(its imu section), else the COM.'),
+    _spec('imu.orientation', list, SCENE_VALUE,
+          'The IMU frame in the body frame, a unit quaternion (x, y, z, w); default: the '
+          "scene's, else aligned with the body."),
+    *(_spec(f'imu.{key}', float, SCENE_VALUE,
+            f"IMU noise (Kalibr's model): {meaning} in {unit}; default: the scene's, else 0 "
+            '(off).', value_range=(0.0, 1.0e6))
+      for key, meaning, unit in (
+          ('gyro_noise_density', 'gyroscope white noise density', 'rad/s/sqrt(Hz)'),
+          ('gyro_random_walk', 'gyroscope bias random walk', 'rad/s^2/sqrt(Hz)'),
+          ('gyro_bias_sigma', 'gyroscope turn-on bias sigma', 'rad/s'),
+          ('accel_noise_density', 'accelerometer white noise density', 'm/s^2/sqrt(Hz)'),
+          ('accel_random_walk', 'accelerometer bias random walk', 'm/s^3/sqrt(Hz)'),
+          ('accel_bias_sigma', 'accelerometer turn-on bias sigma', 'm/s^2'))),
+    _spec('imu.seed', int, SCENE_VALUE,
+          'Seed of the IMU noise (the same seed, the same noise sequence); default: the '
+          "scene's, else 0.", value_range=(0, 2 ** 63 - 1)),
     _spec('body.mass', float, NOT_SET,
           'Mass of the body in kg (> 0).  A body given by shape keeps its shape (its '
           'inertia scales with the mass); one given by inertia keeps its inertia.'
@@ -260,7 +284,12 @@ def declare_parameters(node, scene):
 
     """
     scene_values = {'integrator': scene.integrator, 'rate': float(scene.rate),
-                    'tolerance': float(scene.tolerance or 0.0)}
+                    'tolerance': float(scene.tolerance or 0.0),
+                    'imu.position': [float(v) for v in scene.imu.position],
+                    'imu.orientation': [float(v) for v in scene.imu.orientation],
+                    'imu.seed': int(scene.imu.seed)}
+    scene_values.update({f'imu.{key}': float(getattr(scene.imu, key))
+                         for key in ImuModel.NOISE_KEYS})
     values = {}
     for spec in PARAMETERS:
         if not node.has_parameter(spec.name):
@@ -587,3 +616,29 @@ def show_effective_values(node, scene, values, effective_scene):
     return (f'body and initial parameters overriding the scene {scene.name!r}: '
             f'{", ".join(overriding) or "none"}; the others hold its values (or what '
             'follows from the overrides)')
+
+
+def imu_model_from_parameters(values):
+    """
+    Return the :class:`ImuModel` the imu.* parameter values describe.
+
+    Raises
+    ------
+    ValueError
+        For a position that is not 3 finite numbers (m) or an orientation that is not a unit
+        quaternion; the message names the parameter.
+
+    """
+    position = np.array(values['imu.position'], dtype=float).reshape(-1)
+    if position.size != 3 or not np.all(np.isfinite(position)):
+        raise ValueError(f"parameter 'imu.position' must be 3 finite numbers in m (body "
+                         f'frame, from the COM); got {position.tolist()}')
+    orientation = np.array(values['imu.orientation'], dtype=float).reshape(-1)
+    norm = math.sqrt(orientation @ orientation) if orientation.size == 4 else math.nan
+    if not abs(norm - 1.0) <= _QUATERNION_NORM_TOLERANCE:
+        raise ValueError(f"parameter 'imu.orientation' must be a unit quaternion (x, y, z, "
+                         f'w), IMU to body; got {orientation.tolist()}')
+    return ImuModel(position=tuple(position.tolist()),
+                    orientation=tuple((orientation / norm).tolist()),
+                    seed=int(values['imu.seed']),
+                    **{key: float(values[f'imu.{key}']) for key in ImuModel.NOISE_KEYS})
