@@ -505,7 +505,12 @@ class _SceneReader:
 
     def error(self, path, problem):
         prefix = f'{self.source}: {path}: ' if path else f'{self.source}: '
-        return ValueError(prefix + problem)
+        message = prefix + problem
+        if not message.isprintable():
+            # A key with a newline or a control character in it: shown escaped, so the
+            # error stays one line.
+            message = ''.join(c if c.isprintable() else repr(c)[1:-1] for c in message)
+        return ValueError(message)
 
     def read(self, data):
         mapping = self.mapping(data, '', _TOP_KEYS)

@@ -139,3 +139,13 @@ def test_a_spin_the_steps_cannot_resolve_is_warned_about_naming_rate_and_substep
     data['initial']['angular_velocity_body'] = [0.0, 0.0, 400.0]
     scene = parse_scene(data, SOURCE)
     assert unresolved_rotation(scene.body, scene.state, scene.dt, 1, None) is None
+
+
+@pytest.mark.parametrize('key', ['\n', 'b\tad', '\x1b[31m'])
+def test_a_key_with_a_control_character_is_named_escaped_in_one_line(key):
+    data = {'name': 'x', 'description': 'y', 'body': {'mass': 1.0, 'inertia': [1.0, 2.0, 3.0]},
+            'effects': [{'pivot': {key: None}}]}
+    with pytest.raises(ValueError) as raised:
+        parse_scene(data, SOURCE)
+    message = str(raised.value)
+    assert message.isprintable() and repr(key)[1:-1] in message, message
