@@ -176,14 +176,14 @@ PARAMETERS = (
           + _FROM_SCENE),
     _spec('body.inertia', list, NOT_SET,
           'Inertia tensor about the centre of mass in the body frame, kg m^2: 9 numbers '
-          "(row-major 3x3) or 3 (the diagonal).  Replaces the scene's body (not with "
-          'body.shape).' + _FROM_SCENE,
+          "(row-major 3x3) or 3 (the diagonal).  Replaces the scene's body (with "
+          "body.shape only if it is that shape's inertia)." + _FROM_SCENE,
           constraints='symmetric, positive definite, principal moments satisfy '
                       'I1 + I2 >= I3'),
     _spec('body.shape', str, NOT_SET,
           'Solid body of uniform density whose inertia follows from its mass and '
-          "body.size (needed unless the scene's body has this shape).  Not set or empty: "
-          "the scene's.",
+          "body.size (needed unless the scene's body has this shape).  Empty: a body "
+          "given by its inertia.  Default: the scene's.",
           constraints='one of: ' + ', '.join(SHAPES)),
     _spec('body.size', list, NOT_SET,
           "Dimensions in m of body.shape (or of the scene's shape): box (a, b, c) edges; "
@@ -193,19 +193,19 @@ PARAMETERS = (
           'Initial orientation, body to world, as a unit quaternion (x, y, z, w).'
           + _FROM_SCENE),
     _spec('initial.position', list, NOT_SET,
-          'Initial position of the centre of mass in m, world frame (not in a scene with a '
-          'pivot, where it follows from the pivot).' + _FROM_SCENE),
+          'Initial position of the centre of mass in m, world frame (in a scene with a '
+          'pivot only the one that follows from the pivot).' + _FROM_SCENE),
     _spec('initial.velocity', list, NOT_SET,
-          'Initial velocity of the centre of mass in m/s, world frame (not with a pivot).'
-          + _FROM_SCENE),
+          'Initial velocity of the centre of mass in m/s, world frame (with a pivot only '
+          'the one that follows).' + _FROM_SCENE),
     _spec('initial.angular_velocity_body', list, NOT_SET,
           "Initial angular velocity in rad/s, body frame; replaces the scene's angular "
-          'velocity in either frame (not with initial.angular_velocity_world).'
-          + _FROM_SCENE),
+          'velocity in either frame (with initial.angular_velocity_world only if they '
+          'agree).' + _FROM_SCENE),
     _spec('initial.angular_velocity_world', list, NOT_SET,
           "Initial angular velocity in rad/s, world frame; replaces the scene's angular "
-          'velocity in either frame (not with initial.angular_velocity_body).'
-          + _FROM_SCENE),
+          'velocity in either frame (with initial.angular_velocity_body only if they '
+          'agree).' + _FROM_SCENE),
 )
 """Every parameter of the node, in declaration order."""
 
