@@ -9,8 +9,13 @@ results.csv and work_precision.png / work_precision_100s.png (error against CPU 
 second) to --out.  Then the tolerance sweep (benchmark/tolerance_sweep.py): every built-in
 scene at its own rate over 60 s, error-controlled buss at tolerances 3e-2 .. 1e-10 rad/s
 beside fixed-step buss, splitting and rk4, written as tolerance_sweep.md/.json/.csv/.png.
---quick: two bodies, three steps and horizons of 2 s and 10 s, and a 2 s sweep of two
-scenes, for CI (seconds, not minutes).  --tolerance-sweep: the sweep alone.
+Then the forced benchmark (benchmark/forces.py): heavy_top, bike_wheel, a non-diagonal body
+on an off-axis pivot, van Zon's body under an oscillating world torque and a box under a
+body-fixed torque, every integrator and error-controlled buss beside MuJoCo, against DOP853
+references, written as forces.md/.json/.csv and forces_work_precision.png.
+--quick: two bodies, three steps and horizons of 2 s and 10 s, a 2 s sweep of two scenes and
+two forced bodies over 0.5 s, for CI (seconds, not minutes).  --tolerance-sweep: the sweep
+alone; --forces: the forced benchmark alone.
 """
 
 import os
@@ -33,6 +38,9 @@ def add_arguments(parser):
     parser.add_argument('--no-mujoco', action='store_true',
                         help='leave out the MuJoCo peer even if it is installed')
     sweep = parser.add_mutually_exclusive_group()
+    sweep.add_argument('--forces', action='store_true',
+                       help='run only the forced benchmark (torques, gravity, a pivot; '
+                            'MuJoCo beside; ~10 min; with --quick: seconds)')
     sweep.add_argument('--tolerance-sweep', action='store_true',
                        help='run only the tolerance sweep (error-controlled buss against '
                             'fixed steps on the built-in scenes, ~20 min; with --quick: '
@@ -76,6 +84,7 @@ def _command(args):
             + ('' if args.repeats is None else f' --repeats {args.repeats}')
             + (' --no-mujoco' if args.no_mujoco else '')
             + (' --tolerance-sweep' if args.tolerance_sweep else '')
+            + (' --forces' if getattr(args, 'forces', False) else '')
             + (' --no-tolerance-sweep' if args.no_tolerance_sweep else '')
             + (' --scenes ' + ' '.join(args.scenes) if args.scenes else '')
             + f' --out {args.out}')
@@ -133,8 +142,55 @@ def run_tolerance_sweep(args):
     return paths
 
 
+def run_forces_benchmark(args):
+    """Run the forced benchmark, write forces.*, print the goal's count; return paths."""
+    from ..benchmark.forces import FORCES_FULL
+    from ..benchmark.forces import FORCES_QUICK
+    from ..benchmark.forces import forces_goal_table
+    from ..benchmark.forces import forces_units
+    from ..benchmark.forces import run_forces
+    from ..benchmark.forces_report import forces_goal_counts
+    from ..benchmark.forces_report import write_forces_outputs
+    from ..benchmark.report import machine_info
+
+    config = FORCES_QUICK if args.quick else FORCES_FULL
+    if args.repeats is not None:
+        config = config.__class__(config.cases, config.horizon, config.tolerances,
+                                  args.repeats, config.time_budget, config.dts_per_case)
+    with_mujoco = not args.no_mujoco
+    machine = machine_info()
+    started = time.perf_counter()
+    bar, advance = _progress_bar(forces_units(config, with_mujoco))
+    bar.set_description('forces')
+    restore_warnings = _silence_mujoco_warnings()
+    try:
+        result = run_forces(config, with_mujoco=with_mujoco, progress=advance)
+    finally:
+        bar.close()
+        restore_warnings()
+    machine['load_average_end'] = list(os.getloadavg())
+    result.update({'machine': machine, 'command': _command(args),
+                   'config': {'cases': list(config.cases), 'horizon': config.horizon,
+                              'tolerances': list(config.tolerances),
+                              'repeats': config.repeats, 'quick': bool(args.quick)},
+                   'wall_seconds': time.perf_counter() - started})
+    paths = write_forces_outputs(result, args.out)
+    counts = forces_goal_counts(forces_goal_table(result))
+    summary = '; '.join(f'{case} {count["holds"]} hold, {count["fails"]} fail, '
+                        f'{count["peer not reached"]} MuJoCo not reached, '
+                        f'{count["undecided"] + count["no peer"]} undecided'
+                        for case, count in counts.items())
+    print(f"bench: forced bodies, our best at most half of MuJoCo's best CPU per error "
+          f'level 1e-2..1e-10: {summary}')
+    return paths
+
+
 def main(args):
     """Run the benchmark, write the outputs, print where they are; return 0."""
+    if getattr(args, 'forces', False):
+        for path in run_forces_benchmark(args).values():
+            print(f'bench: wrote {path}')
+        return 0
     if args.tolerance_sweep:
         for path in run_tolerance_sweep(args).values():
             print(f'bench: wrote {path}')
@@ -197,6 +253,7 @@ def main(args):
               + ('' if horizon == 'short' else ' (information only)'))
     if not args.no_tolerance_sweep:
         paths.update(run_tolerance_sweep(args))
+    paths.update(run_forces_benchmark(args))
     for path in paths.values():
         print(f'bench: wrote {path}')
     return 0

@@ -17,6 +17,7 @@ from .registry import effect_parameters
 from .registry import EFFECTS
 from .registry import ParameterError
 from .registry import register_effect
+from .sinusoidal_torque import SinusoidalTorque
 
 __all__ = [
     'EFFECTS',
@@ -26,6 +27,7 @@ __all__ = [
     'Gravity',
     'ParameterError',
     'Pivot',
+    'SinusoidalTorque',
     'create_effect',
     'effect_parameters',
     'register_effect',

@@ -1,0 +1,458 @@
+"""
+What accuracy costs when forces act: the work-precision benchmark on forced bodies.
+
+Five cases, each a scene (body, initial state, effects) plus an optional held wrench:
+
+- ``heavy_top``: the built-in scene, a symmetric top on a pivot under gravity (150 rad/s);
+- ``bike_wheel``: the built-in scene, a wheel spinning at 40 rad/s held at one end of its
+  axle, precessing under gravity;
+- ``offaxis_pivot``: a body whose inertia tensor is not diagonal in its frame, on a pivot off
+  every principal axis, under gravity, started tumbling;
+- ``van_zon_sinusoid``: van Zon's body (I = 10, 20, 26; Omega0 = 1, 15, 1) under a world-frame
+  torque oscillating at 0.4 Hz (the ``sinusoidal_torque`` effect);
+- ``body_torque``: a box under a constant torque fixed in the body (held, frame 'body').
+
+For each case, method and step dt: the orientation error (rotation angle, rad) at the
+horizon against an independent reference, and the CPU time per simulated second (median of
+fresh timed runs, ``time.process_time``).  Methods: every registered integrator at fixed
+steps, ``buss`` under error control at a range of tolerances (its tick 1/rate of the scene),
+and MuJoCo's Euler, RK4 and implicitfast.
+
+Reference: the equations of motion solved by scipy's DOP853 at rtol 1e-13 (atol 1e-15 of the
+state's scale), independent of every integrator scored: for a free body the quaternion and
+the world angular momentum about the COM (forces do not turn a free body), for a pivot the
+same about the pivot with the parallel-axis inertia and the moment of the forces about it.
+Its convergence is shown by the same solve at rtol 1e-12: their gap at the horizon is taken
+as the reference's uncertainty (conservatively: the rtol 1e-13 solve is about ten times
+closer), and error levels below it are not judged.
+
+The MuJoCo twin is built from the scene, not by hand per case: a free joint (or, with a
+pivot, a ball joint at the anchor with the COM offset in `inertial pos`), the inertia tensor
+(`fullinertia`), the scene's gravity; a body-fixed torque as the generalised force of the
+joint's rotational dofs (`qfrc_applied`, which are body-frame: constant, set once); a
+time-varying world torque through `xfrc_applied`, set each step at the step's mid time in a
+Python loop, as a user of MuJoCo's Python API would (MuJoCo has no time-dependent applied
+force; its RK4 then sees the midpoint value in all four stages).
+"""
+
+from dataclasses import asdict
+from dataclasses import dataclass
+import math
+import statistics
+import time
+
+import numpy as np
+
+from .peer_mujoco import mujoco_available
+from .peer_mujoco import MUJOCO_INTEGRATORS
+from .reference import rotation_angle
+from ..physics import INTEGRATORS
+from ..physics import matrix_from_quaternion
+from ..scenes import load_scene
+from ..scenes import parse_scene
+
+__all__ = ['FORCED_CASE_NAMES', 'ForcedCase', 'forced_cases', 'forced_reference',
+           'ForcesConfig', 'FORCES_FULL', 'FORCES_QUICK', 'run_forces', 'forces_goal_table',
+           'forces_units']
+
+FORCED_CASE_NAMES = ('heavy_top', 'bike_wheel', 'offaxis_pivot', 'van_zon_sinusoid',
+                     'body_torque')
+REFERENCE_RTOL = 1e-13
+CHECK_RTOL = 1e-12
+LEVELS = tuple(10.0 ** -k for k in range(2, 11))
+MIN_SAMPLE_CPU = 2e-3
+
+_OFFAXIS = {
+    'name': 'offaxis_pivot', 'description': 'non-diagonal body on a pivot off its axes',
+    'body': {'mass': 1.5, 'inertia': [[0.020, 0.003, -0.002], [0.003, 0.030, 0.004],
+                                      [-0.002, 0.004, 0.040]]},
+    'initial': {'orientation': [0.2, -0.1, 0.3, 0.92736184954957],
+                'angular_velocity_body': [3.0, -2.0, 12.0]},
+    'effects': [{'pivot': {'point': [0.05, -0.03, 0.08]}}, 'gravity']}
+_VAN_ZON = {
+    'name': 'van_zon_sinusoid', 'description': "van Zon's body under an oscillating torque",
+    'body': {'mass': 1.0, 'inertia': [10.0, 20.0, 26.0]},
+    'initial': {'angular_velocity_body': [1.0, 15.0, 1.0]},
+    'effects': [{'sinusoidal_torque': {'amplitude': [3.0, -2.0, 4.0], 'frequency': 0.4}}]}
+_BODY_TORQUE = {
+    'name': 'body_torque', 'description': 'box under a torque fixed in the body',
+    'body': {'mass': 2.0, 'shape': 'box', 'size': [0.4, 0.25, 0.1]},
+    'initial': {'angular_velocity_body': [0.5, 1.0, 2.0]}}
+
+
+@dataclass(frozen=True)
+class ForcedCase:
+    """A scene, an optional held body-frame torque (N m) and the steps it is run at."""
+
+    name: str
+    scene: object
+    held_torque_body: tuple
+    dts: tuple
+
+    @property
+    def description(self):
+        """Return the scene's one-line description."""
+        return self.scene.description
+
+
+def forced_cases(names=FORCED_CASE_NAMES):
+    """Return the ForcedCase of each name."""
+    built = {
+        'heavy_top': lambda: ForcedCase('heavy_top', load_scene('heavy_top'), None,
+                                        (3e-3, 1e-3, 3e-4, 1e-4, 3e-5)),
+        'bike_wheel': lambda: ForcedCase('bike_wheel', load_scene('bike_wheel'), None,
+                                         (1e-2, 3e-3, 1e-3, 3e-4, 1e-4)),
+        'offaxis_pivot': lambda: ForcedCase('offaxis_pivot', parse_scene(_OFFAXIS, 'forces'),
+                                            None, (1e-2, 3e-3, 1e-3, 3e-4, 1e-4)),
+        'van_zon_sinusoid': lambda: ForcedCase(
+            'van_zon_sinusoid', parse_scene(_VAN_ZON, 'forces'), None,
+            (3e-2, 1e-2, 3e-3, 1e-3, 3e-4)),
+        'body_torque': lambda: ForcedCase('body_torque', parse_scene(_BODY_TORQUE, 'forces'),
+                                          (0.05, -0.02, 0.1), (3e-2, 1e-2, 3e-3, 1e-3, 3e-4)),
+    }
+    unknown = sorted(set(names) - set(built))
+    if unknown:
+        raise ValueError(f'unknown forced case(s) {", ".join(unknown)}; valid: '
+                         f'{", ".join(FORCED_CASE_NAMES)}')
+    return [built[name]() for name in names]
+
+
+# -- the reference
+
+
+def _torque_function(case):
+    """Return torque(q, t) in N m, world: about the pivot for a pivot scene, else the COM."""
+    scene = case.scene
+    body = scene.body
+    force = body.mass * scene.gravity
+    sinusoids = [effect for effect in scene.effects
+                 if getattr(effect, 'effect_name', None) == 'sinusoidal_torque']
+    held = None if case.held_torque_body is None else np.array(case.held_torque_body)
+    pivot = scene.pivot
+    offset = None if pivot is None else -np.asarray(pivot.point, dtype=float)
+
+    def torque(rotation, time):
+        total = np.zeros(3)
+        for effect in sinusoids:
+            total = total + effect.torque(time)
+        if held is not None:
+            total = total + rotation @ held
+        if offset is not None:
+            total = total + np.cross(rotation @ offset, force)
+        return total
+    return torque
+
+
+def forced_reference(case, times, rtol=REFERENCE_RTOL):
+    """
+    Return the reference rotation matrices at `times` (s), solved by DOP853 at `rtol`.
+
+    y = (q (x, y, z, w), L): dq/dt = 1/2 (omega, 0) q, omega = R I^-1 R^T L,
+    dL/dt = tau(R, t); about the pivot (I the parallel-axis inertia, L = L_com + r x p) in a
+    pivot scene.  Independent of the integrators: scipy's Runge-Kutta, its own equations.
+    """
+    from scipy.integrate import solve_ivp
+
+    scene = case.scene
+    body, state = scene.body, scene.state
+    inertia = np.array(body.inertia)
+    momentum = np.array(state.angular_momentum)
+    pivot = scene.pivot
+    if pivot is not None:
+        offset = -np.asarray(pivot.point, dtype=float)
+        inertia = inertia + body.mass * (offset @ offset * np.eye(3) - np.outer(offset, offset))
+        r = state.rotation @ offset
+        momentum = momentum + np.cross(r, state.linear_momentum)
+    inverse = np.linalg.inv(inertia)
+    torque = _torque_function(case)
+
+    def derivative(time, y):
+        q = y[:4] / np.linalg.norm(y[:4])
+        rotation = matrix_from_quaternion(q)
+        omega = rotation @ (inverse @ (rotation.T @ y[4:]))
+        x, yq, z, w = q
+        ox, oy, oz = omega
+        # (omega, 0) q, the Hamilton product in (x, y, z, w) storage.
+        dq = 0.5 * np.array([ox * w + oy * z - oz * yq, oy * w - ox * z + oz * x,
+                             oz * w + ox * yq - oy * x, -ox * x - oy * yq - oz * z])
+        return np.concatenate([dq, torque(rotation, time)])
+
+    y0 = np.concatenate([state.quaternion, momentum])
+    scale = max(1.0, float(np.linalg.norm(momentum)))
+    solution = solve_ivp(derivative, (0.0, max(times)), y0, method='DOP853', rtol=rtol,
+                         atol=1e-15 * scale, t_eval=sorted(set(times)))
+    if not solution.success:
+        raise RuntimeError(f'{case.name}: the reference solve failed: {solution.message}')
+    return {float(t): matrix_from_quaternion(y[:4] / np.linalg.norm(y[:4]))
+            for t, y in zip(solution.t, solution.y.T)}
+
+
+# -- our runs and MuJoCo's
+
+
+class _Ours:
+    family = 'ours'
+
+    def __init__(self, case, integrator, dt, tolerance=None):
+        self.case, self.integrator, self.dt, self.tolerance = case, integrator, dt, tolerance
+        self.reset()
+
+    def reset(self):
+        simulator = self.case.scene.simulator(integrator=self.integrator,
+                                              tolerance=self.tolerance or 0.0)
+        simulator.substeps = 1
+        if self.case.held_torque_body is not None:
+            simulator.set_wrench(torque=self.case.held_torque_body, frame='body')
+        self.simulator = simulator
+
+    def advance(self, steps):
+        self.simulator.run(steps * self.dt, self.dt)
+
+    def rotation(self):
+        state = self.simulator.state
+        if not np.all(np.isfinite(state.quaternion)):
+            return None
+        return state.rotation
+
+
+def forced_mjcf(case, integrator, dt):
+    """Return the MJCF text of the case's scene with MuJoCo's `integrator` at step dt."""
+    scene = case.scene
+    body = scene.body
+    inertia = np.asarray(body.inertia)
+    number = repr
+    full = (f'fullinertia="{number(float(inertia[0, 0]))} {number(float(inertia[1, 1]))} '
+            f'{number(float(inertia[2, 2]))} {number(float(inertia[0, 1]))} '
+            f'{number(float(inertia[0, 2]))} {number(float(inertia[1, 2]))}"')
+    gravity = ' '.join(number(float(g)) for g in scene.gravity)
+    pivot = scene.pivot
+    if pivot is None:
+        joint, position, com = '<freejoint name="joint"/>', '0 0 0', '0 0 0'
+    else:
+        joint = '<joint name="joint" type="ball" pos="0 0 0"/>'
+        position = ' '.join(number(float(a)) for a in pivot.anchor)
+        com = ' '.join(number(-float(p)) for p in pivot.point)
+    return f"""<mujoco model="rigid_body_sim_forces">
+  <option timestep="{number(float(dt))}" integrator="{integrator}" gravity="{gravity}">
+    <flag contact="disable" constraint="disable"/>
+  </option>
+  <worldbody>
+    <body name="body" pos="{position}">
+      {joint}
+      <inertial pos="{com}" mass="{number(float(body.mass))}" {full}/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+class _Mujoco:
+    family = 'mujoco'
+
+    def __init__(self, case, integrator, dt):
+        import mujoco
+        self.mujoco = mujoco
+        self.case, self.dt = case, dt
+        self.model = mujoco.MjModel.from_xml_string(
+            forced_mjcf(case, MUJOCO_INTEGRATORS[integrator], dt))
+        self.data = mujoco.MjData(self.model)
+        scene = case.scene
+        self.sinusoids = [effect for effect in scene.effects
+                          if getattr(effect, 'effect_name', None) == 'sinusoidal_torque']
+        self.held = None if case.held_torque_body is None else np.array(case.held_torque_body)
+        self.per_step = bool(self.sinusoids)
+        self.reset()
+
+    def reset(self):
+        mujoco, data, scene = self.mujoco, self.data, self.case.scene
+        mujoco.mj_resetData(self.model, data)
+        state, body = scene.state, scene.body
+        x, y, z, w = state.quaternion
+        if scene.pivot is None:
+            data.qpos[:] = np.concatenate([state.position, [w, x, y, z]])
+            data.qvel[:] = np.concatenate([state.velocity(body),
+                                           state.angular_velocity_body(body)])
+        else:
+            data.qpos[:] = [w, x, y, z]
+            data.qvel[:] = state.angular_velocity_body(body)
+        if self.held is not None:
+            # The joint's rotational dofs are body-frame angular velocities, so their
+            # generalised force is the body-frame torque: constant, set once, seen by every
+            # stage of MuJoCo's RK4 as our kernels see the held torque.
+            rotational = slice(3, 6) if scene.pivot is None else slice(0, 3)
+            data.qfrc_applied[rotational] = self.held
+
+    def _quaternion(self):
+        qpos = self.data.qpos
+        w, x, y, z = qpos[3:7] if self.case.scene.pivot is None else qpos[0:4]
+        return np.array([x, y, z, w])
+
+    def advance(self, steps):
+        mujoco, model, data = self.mujoco, self.model, self.data
+        if not self.per_step:
+            mujoco.mj_step(model, data, nstep=int(steps))
+            return
+        applied = data.xfrc_applied[1]
+        for _ in range(int(steps)):
+            torque = np.zeros(3)
+            for effect in self.sinusoids:
+                torque += effect.torque(data.time + 0.5 * self.dt)
+            applied[3:6] = torque
+            mujoco.mj_step(model, data)
+
+    def rotation(self):
+        if any(self.data.warning[i].number > 0 for i in range(len(self.data.warning))):
+            return None
+        quaternion = self._quaternion()
+        if not np.all(np.isfinite(quaternion)):
+            return None
+        return matrix_from_quaternion(quaternion / np.linalg.norm(quaternion))
+
+
+# -- the sweep
+
+
+@dataclass(frozen=True)
+class ForcesConfig:
+    """Cases, horizon (s), tolerances of controlled buss, timing repeats and budget (CPU s)."""
+
+    cases: tuple
+    horizon: float
+    tolerances: tuple
+    repeats: int
+    time_budget: float
+    dts_per_case: int = 0  # 0: all of the case's steps; else the first n
+
+
+FORCES_FULL = ForcesConfig(FORCED_CASE_NAMES, 10.0, (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8), 3,
+                           2.0)
+FORCES_QUICK = ForcesConfig(('heavy_top', 'body_torque'), 0.5, (1e-4,), 1, 0.2, 2)
+
+
+@dataclass
+class ForcedRecord:
+    """One (case, method, dt or tolerance): orientation error at the horizon, CPU cost."""
+
+    case: str
+    method: str
+    family: str
+    dt: float
+    tolerance: float
+    steps: int
+    error: float
+    us_per_step: float
+    cpu_per_sim_second: float
+    diverged: bool
+
+
+def _measure(run, steps, reference, config):
+    run.advance(steps)
+    rotation = run.rotation()
+    error = math.inf if rotation is None else rotation_angle(rotation, reference)
+    samples, spent = [], 0.0
+    while len(samples) < config.repeats and not (samples and spent > config.time_budget):
+        elapsed, runs = 0.0, 0
+        while runs == 0 or elapsed < MIN_SAMPLE_CPU:
+            run.reset()
+            started = time.process_time()
+            run.advance(steps)
+            elapsed += time.process_time() - started
+            runs += 1
+        samples.append(elapsed / runs)
+        spent += elapsed
+    return error, statistics.median(samples)
+
+
+def _dts(case, config):
+    return case.dts[:config.dts_per_case] if config.dts_per_case else case.dts
+
+
+def forces_units(config, with_mujoco=True):
+    """Return the number of progress units :func:`run_forces` reports."""
+    methods = len(INTEGRATORS) + (len(MUJOCO_INTEGRATORS) if with_mujoco and
+                                  mujoco_available() else 0)
+    return sum(2 + methods * len(_dts(case, config)) + len(config.tolerances)
+               for case in forced_cases(config.cases))
+
+
+def run_forces(config, with_mujoco=True, progress=None):
+    """Run the forced sweep; return {'records', 'references', 'methods', 'mujoco'}."""
+    methods = sorted(INTEGRATORS)
+    mujoco_status = 'skipped on request (--no-mujoco)'
+    if with_mujoco and mujoco_available():
+        methods += list(MUJOCO_INTEGRATORS)
+        mujoco_status = 'included'
+    elif with_mujoco:
+        mujoco_status = 'not installed (import mujoco failed): peer skipped'
+    records, references = [], {}
+    for case in forced_cases(config.cases):
+        dts = _dts(case, config)
+        tick = 1.0 / case.scene.rate
+        runs = {dt: max(1, int(round(config.horizon / dt))) for dt in dts + (tick,)}
+        times = sorted({steps * dt for dt, steps in runs.items()})
+        reference = forced_reference(case, times)
+        if progress is not None:
+            progress(f'{case.name}: reference')
+        check = forced_reference(case, times, rtol=CHECK_RTOL)
+        uncertainty = max(rotation_angle(reference[t], check[t]) for t in reference)
+        references[case.name] = {'rtol': REFERENCE_RTOL, 'check_rtol': CHECK_RTOL,
+                                 'uncertainty': uncertainty,
+                                 'description': case.description}
+        if progress is not None:
+            progress(f'{case.name}: reference check')
+        for method in methods:
+            for dt in dts:
+                steps = runs[dt]
+                run = (_Mujoco if method in MUJOCO_INTEGRATORS else _Ours)(case, method, dt)
+                error, cpu = _measure(run, steps, reference[steps * dt], config)
+                records.append(asdict(ForcedRecord(
+                    case.name, method, run.family, dt, 0.0, steps, error,
+                    cpu / steps * 1e6, cpu / (steps * dt), not math.isfinite(error))))
+                if progress is not None:
+                    progress(f'{case.name}: {method} dt={dt:g}')
+        steps = runs[tick]
+        for tolerance in config.tolerances:
+            run = _Ours(case, 'buss', tick, tolerance)
+            error, cpu = _measure(run, steps, reference[steps * tick], config)
+            records.append(asdict(ForcedRecord(
+                case.name, 'buss_controlled', 'ours', tick, tolerance, steps, error,
+                cpu / steps * 1e6, cpu / (steps * tick), not math.isfinite(error))))
+            if progress is not None:
+                progress(f'{case.name}: buss tolerance {tolerance:g}')
+    return {'records': records, 'references': references, 'methods': methods,
+            'mujoco': mujoco_status}
+
+
+def forces_goal_table(result, levels=LEVELS):
+    """
+    Return per (case, level) our best and MuJoCo's best CPU per simulated second.
+
+    Best: the least CPU among the runs whose error at the horizon is at or below the level.
+    Verdict 'holds' (ours <= 1/2 MuJoCo's), 'fails' (more, or only MuJoCo reaches it),
+    'peer not reached' (only ours reaches it at the steps tried), 'no peer', or 'undecided'
+    (neither reaches it, or it is below the reference's uncertainty).
+    """
+    rows = []
+    for case, reference in result['references'].items():
+        records = [r for r in result['records'] if r['case'] == case]
+        for level in levels:
+            def best(family):
+                reached = [r for r in records if r['family'] == family and r['error'] <= level]
+                return min(reached, key=lambda r: r['cpu_per_sim_second'], default=None)
+            ours, peer = best('ours'), best('mujoco')
+            if level < reference['uncertainty']:
+                verdict = 'undecided'
+            elif ours is None and peer is None:
+                verdict = 'undecided'
+            elif not any(r['family'] == 'mujoco' for r in records):
+                verdict = 'no peer'
+            elif peer is None:
+                verdict = 'peer not reached'  # ours reaches it; MuJoCo at no step tried
+            elif ours is None:
+                verdict = 'fails'
+            else:
+                verdict = ('holds' if ours['cpu_per_sim_second']
+                           <= 0.5 * peer['cpu_per_sim_second'] else 'fails')
+            rows.append({'case': case, 'level': level, 'ours': ours, 'mujoco': peer,
+                         'verdict': verdict})
+    return rows
