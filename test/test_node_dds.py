@@ -520,19 +520,36 @@ def test_an_unknown_integrator_is_rejected_with_the_valid_names(sim):
 
 
 def test_real_time_factor_changes_the_tick_rate_at_run_time(sim):
-    """Set to 3 at run time: three times the messages per wall-clock second; then back."""
+    """
+    Set to 3 at run time: the tick schedule runs three times as fast; then back.
+
+    What the node controls is its schedule: deadlines every (1/rate)/3 s, a late tick
+    caught up at once, one later than _MAX_LAG (0.5 s) dropped and counted as missed.  So
+    over any span, ticks taken plus ticks missed are 3 x rate per wall-clock second, on a
+    loaded machine too (where how many it manages to take is the machine's, not the node's:
+    107 of 300 per second beside two busy loops and a benchmark on 2 cores).  Both counts
+    come from the node's /diagnostics, one report per ~1 s window: over 5 windows the
+    catch-up still owed at the end is at most 0.5 s of 5, 10 %; 15 % accepted.
+    """
     try:
         assert sim.set_parameter('real_time_factor', 3.0).successful
         sim.wait_for(lambda: 'real_time_factor is now 3' in sim.process.output(), 5.0,
                      'the change')
-        # The rate over the arrivals of 3 s worth of messages, however long they take to
-        # come: the tick keeps its deadlines on average (a late tick is caught up).
-        start = time.monotonic()
-        count = int(3 * 3.0 * RATE)
-        sim.wait_for_messages('angular_momentum', count, since=start)
-        arrivals = [t for t, _ in sim.received('angular_momentum') if t > start][:count]
-        measured = (len(arrivals) - 1) / (arrivals[-1] - arrivals[0])
-        assert abs(measured / (3.0 * RATE) - 1.0) <= 0.1, measured
+        changed = time.monotonic()
+        # The first report's window began before the change: windows 2..7 are all at 3x.
+        reports = sim.wait_for_messages('/diagnostics', 7, since=changed,
+                                        timeout=DISCOVERY_TIMEOUT)[1:]
+        windows = []
+        for message in reports:
+            status = next(s for s in message.status
+                          if s.hardware_id == f'{sim.namespace}/{NODE_NAME}')
+            windows.append((stamp_of(message), {kv.key: kv.value for kv in status.values}))
+        assert {values['real-time factor'] for _, values in windows} == {'3'}
+        scheduled, span = 0.0, windows[-1][0] - windows[0][0]
+        for (before, _), (after, values) in zip(windows, windows[1:]):
+            scheduled += float(values['achieved rate [Hz]']) * (after - before) + int(
+                values['missed ticks'])
+        assert abs(scheduled / span / (3.0 * RATE) - 1.0) <= 0.15, (scheduled, span, windows)
     finally:
         assert sim.set_parameter('real_time_factor', 1.0).successful
     assert not sim.set_parameter('real_time_factor', 0.0).successful  # out of range

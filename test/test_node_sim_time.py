@@ -151,7 +151,8 @@ def test_a_node_on_sim_time_still_ticks(tmp_path, publish_clock):
         stamps = [nanoseconds(m.header.stamp) for m in client.messages('pose', since)]
         if publish_clock:
             assert_nominal_spacing(stamps, round(1e9 / rate), 'pose stamps')
-            assert len(client.messages('clock', since)) >= 0.5 * rate
+            # Best effort: waited for, not counted within a window.
+            client.wait_for_messages('clock', int(0.5 * rate), since=since)
         else:
             assert set(stamps) == {0}
             assert not client.messages('clock')
