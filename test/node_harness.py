@@ -222,6 +222,33 @@ class Client:
                       f'{count} messages on {topic}')
         return self.messages(topic, since)
 
+    def diagnostics_values(self, message):
+        """Return {key: value} of our node's status in a /diagnostics message."""
+        status = next(s for s in message.status
+                      if s.hardware_id == f'{self.namespace}/{NODE_NAME}')
+        return {kv.key: kv.value for kv in status.values}
+
+    def scheduled_rate(self, since, windows=6):
+        """
+        Return (ticks taken + ticks missed) per wall-clock second over `windows` reports.
+
+        The node's tick keeps deadlines (a late tick caught up at once, one later than
+        0.5 s dropped and counted as missed), so this is rate x real_time_factor however
+        starved the machine is; how many ticks it manages to take is the machine's.  Each
+        /diagnostics report covers the ~1 s since the one before: ticks = achieved rate x
+        its window, the windows measured by the reports' arrivals here.  The first report
+        after `since` is the window's start (its own window began before `since`).
+        """
+        self.wait_for_messages('/diagnostics', windows + 1, since=since)
+        reports = [(arrival, message) for arrival, message in self.received('/diagnostics')
+                   if arrival > since][:windows + 1]
+        ticks = 0.0
+        for (before, _), (after, message) in zip(reports, reports[1:]):
+            values = self.diagnostics_values(message)
+            ticks += float(values['achieved rate [Hz]']) * (after - before) + int(
+                values['missed ticks'])
+        return ticks / (reports[-1][0] - reports[0][0])
+
     def wait_until_connected(self, timeout=DISCOVERY_TIMEOUT, inputs=True):
         """
         Wait until the node publishes to us and its inputs and services are matched.
