@@ -38,11 +38,10 @@ force; its RK4 then sees the midpoint value in all four stages).
 from dataclasses import asdict
 from dataclasses import dataclass
 import math
-import statistics
-import time
 
 import numpy as np
 
+from .measure import _timing as measured_timing
 from .peer_mujoco import mujoco_available
 from .peer_mujoco import MUJOCO_INTEGRATORS
 from .reference import rotation_angle
@@ -60,7 +59,6 @@ FORCED_CASE_NAMES = ('heavy_top', 'bike_wheel', 'offaxis_pivot', 'van_zon_sinuso
 REFERENCE_RTOL = 1e-13
 CHECK_RTOL = 1e-12
 LEVELS = tuple(10.0 ** -k for k in range(2, 11))
-MIN_SAMPLE_CPU = 2e-3
 
 _OFFAXIS = {
     'name': 'offaxis_pivot', 'description': 'non-diagonal body on a pivot off its axes',
@@ -346,21 +344,12 @@ class ForcedRecord:
 
 
 def _measure(run, steps, reference, config):
-    run.advance(steps)
+    """Return (error at the horizon, CPU s of `steps` steps): measure.py's timing."""
+    run.advance(steps)  # the accuracy run, also the warm-up (no compilation timed)
     rotation = run.rotation()
     error = math.inf if rotation is None else rotation_angle(rotation, reference)
-    samples, spent = [], 0.0
-    while len(samples) < config.repeats and not (samples and spent > config.time_budget):
-        elapsed, runs = 0.0, 0
-        while runs == 0 or elapsed < MIN_SAMPLE_CPU:
-            run.reset()
-            started = time.process_time()
-            run.advance(steps)
-            elapsed += time.process_time() - started
-            runs += 1
-        samples.append(elapsed / runs)
-        spent += elapsed
-    return error, statistics.median(samples)
+    cpu, _ = measured_timing(run, steps, config.repeats, config.time_budget)
+    return error, cpu
 
 
 def _dts(case, config):
