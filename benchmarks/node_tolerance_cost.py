@@ -90,8 +90,16 @@ def measure_scene(scene, rate, window, log_dir):
             probe.close()
         for node in nodes.values():
             node.send_signal(2)
-        for node in nodes.values():
-            node.wait(30.0)
+        for kind, node in nodes.items():
+            try:
+                node.wait(60.0)
+            except subprocess.TimeoutExpired:
+                # Seen once at load 5 (the measurement was taken; the exit was late): say
+                # so, and do not leave the process behind.
+                print(f'{scene}: the {kind} node did not end within 60 s of SIGINT; killed '
+                      f'(log: {log_dir}/cost_{scene}_{kind}.log)', file=sys.stderr, flush=True)
+                node.kill()
+                node.wait()
     return {'scene': scene, 'rate': rate, 'ratio': cpu['controlled'] / cpu['fixed'],
             **{f'{kind}_{key}': value for kind, values in figures.items()
                for key, value in values.items()}}

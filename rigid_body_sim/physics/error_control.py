@@ -60,10 +60,11 @@ The decision (:func:`next_substeps`):
 - otherwise n stays.  After any change r <= SAFETY x tolerance, a factor 2 below the
   threshold of the next increase: n cannot alternate tick to tick on a smooth trajectory.
 
-Amortised: an estimate is made every few ticks, so that its extra steps cost at most
-OVERHEAD of the substeps taken (one in 16 ticks at n = 1, every tick from n = 16), at least
-once per MAX_TURN rad the body turns, and at once after anything changes (the wrench, the
-state, the integrator, the tolerance or the lower bound: :func:`changed`).
+Amortised: an estimate is made every few ticks, so that its work (its extra steps and
+ESTIMATE_WORK) costs at most OVERHEAD of the substeps taken (one in 64 ticks at n = 1, one
+in 16 at n = 3, every tick from n = 48), at least once per MAX_TURN rad the body turns, and
+at once after anything changes (the wrench, the state, the integrator, the tolerance or the
+lower bound: :func:`changed`).  The ticks between two estimates are one call of the run.
 
 The state of the controller lives in one float array (see :func:`new_control`), which the
 compiled kernels update in place; :func:`controlled_ticks` is compiled into a wrapper per
@@ -81,7 +82,7 @@ __all__ = ['new_control', 'controlled_ticks', 'next_substeps', 'step_difference'
            'set_tolerance', 'set_order', 'set_bounds', 'set_torque_free', 'changed', 'statistics',
            'reset_statistics', 'turning_points',
            'SAFETY', 'HOLD', 'DECREASE_FRACTION', 'OVERHEAD', 'MAX_TURN', 'MAX_SUBSTEPS',
-           'ORBIT_EVERY']
+           'ORBIT_EVERY', 'ESTIMATE_WORK']
 
 _jit = functools.partial(numba.njit, cache=True, nogil=True)
 
@@ -101,12 +102,18 @@ DECREASE_FRACTION = 0.75
 """n goes down only to at most this fraction of itself: few, large changes."""
 OVERHEAD = 1.0 / 16.0
 """Most of the substeps' cost spent on estimates (one extra step per estimate, two at n=1)."""
+ESTIMATE_WORK = 2.0
+"""An estimate's work besides its extra steps, in steps: its two more calls of the
+integrator's run (~40 ns each against ~65 ns for a compiled Buss step), the difference and
+the decision.  Counted with the extra steps against OVERHEAD."""
 MAX_TURN = 1.0
 """Longest turn of the body (rad) between two estimates: the error rate follows the state."""
 MAX_SUBSTEPS = 100_000
 """Most substeps per tick: below the round-off floor a tolerance cannot be met."""
-ORBIT_EVERY = 8
-"""Estimates between two estimates on the polhode's turning points (and after any change)."""
+ORBIT_EVERY = 64
+"""Estimates between two estimates on the polhode's turning points (and after any change
+or a new substep count).  Torque-free, the polhode and so its error constant are fixed: the
+estimate is renewed only because it is taken at the step in use."""
 # Retakes of one tick after a rejection (the second has the count the first one measured).
 _RETAKES = 2
 
@@ -336,7 +343,7 @@ def _turn_rate(state, body):
 @_jit
 def _ticks_between_estimates(substeps, tick, turn_rate):
     """Return the ticks to take without an estimate after one (see OVERHEAD, MAX_TURN)."""
-    extra = 1.0 if substeps >= 2 else 2.0
+    extra = (1.0 if substeps >= 2 else 2.0) + ESTIMATE_WORK
     by_cost = math.ceil(extra / (OVERHEAD * substeps)) - 1.0
     turn = tick * turn_rate
     by_turn = math.floor(MAX_TURN / turn) - 1.0 if turn > 0.0 else by_cost
@@ -344,14 +351,14 @@ def _ticks_between_estimates(substeps, tick, turn_rate):
 
 
 @_jit
-def _record(control, substeps, steps):
-    """Note a tick of `substeps` substeps that took `steps` integrator steps."""
+def _record(control, substeps, steps, ticks=1):
+    """Note `ticks` ticks of `substeps` substeps each that took `steps` integrator steps."""
     control[LAST] = substeps
     control[LOWEST] = min(control[LOWEST], substeps)
     control[HIGHEST] = max(control[HIGHEST], substeps)
     control[STEPS] += steps
-    control[TAKEN] += substeps
-    control[TICKS] += 1.0
+    control[TAKEN] += substeps * ticks
+    control[TICKS] += ticks
 
 
 # Inlined into each integrator's wrapper (numba IR inlining): a call with `run` as an argument
@@ -378,16 +385,23 @@ def controlled_ticks(run, state, wrench, body, method, damping, tick, ticks, con
     companion = state.copy()
     virtual = state.copy()
     free = np.zeros((6, 3))
-    for _ in range(ticks):
+    done = 0
+    while done < ticks:
         n = int(max(control[SUBSTEPS], control[MIN_SUBSTEPS]))
         if control[COUNTDOWN] > 0.0:
-            control[COUNTDOWN] -= 1.0
+            # The ticks up to the next estimate are steps of one h in a row: one call takes
+            # them (a call per tick cost more than the step itself at a few substeps).
+            # The readable path asks one tick at a time, so its clock stays the tick's.
+            merged = int(min(control[COUNTDOWN], ticks - done))
+            control[COUNTDOWN] -= merged
             clock[0] = 0.0
-            run(state, wrench, body, method, damping, tick / n, n)
-            taken += n
-            control[SINCE] += tick
-            _record(control, n, n)
+            run(state, wrench, body, method, damping, tick / n, n * merged)
+            taken += n * merged
+            control[SINCE] += tick * merged
+            _record(control, n, n * merged, merged)
+            done += merged
             continue
+        done += 1
         start[:] = state
         steps = 0
         if control[TORQUE_FREE] != 0.0 and control[ORBIT_COUNTDOWN] <= 0.0:
@@ -449,6 +463,9 @@ def controlled_ticks(run, state, wrench, body, method, damping, tick, ticks, con
             control[HIGHEST_RATE] = rate
         _record(control, n, steps)
         taken += steps
+        if following != n:
+            # The turning points' constant was taken at the old step: take it anew.
+            control[ORBIT_COUNTDOWN] = 0.0
         control[SUBSTEPS] = following
         control[COUNTDOWN] = _ticks_between_estimates(following, tick, _turn_rate(state, body))
     return taken
