@@ -24,6 +24,7 @@ load: both see the same machine.  Usage::
 import argparse
 import os
 from pathlib import Path
+import shutil
 import statistics
 import subprocess
 import sys
@@ -98,6 +99,10 @@ def measure_scene(scene, rate, window, log_dir):
                 # so, and do not leave the process behind.
                 print(f'{scene}: the {kind} node did not end within 60 s of SIGINT; killed '
                       f'(log: {log_dir}/cost_{scene}_{kind}.log)', file=sys.stderr, flush=True)
+                spy = shutil.which('py-spy') or os.environ.get('PY_SPY')
+                if spy:
+                    # Where it is stuck, for the report (py-spy is not a dependency).
+                    subprocess.run([spy, 'dump', '--native', '--pid', str(node.pid)])
                 node.kill()
                 node.wait()
     return {'scene': scene, 'rate': rate, 'ratio': cpu['controlled'] / cpu['fixed'],

@@ -284,3 +284,41 @@ def test_colcon_built_executable_starts_and_publishes(colcon_install, tmp_path):
         assert poses[-1].header.frame_id == 'world'
 
     run_with_client(node, check)
+
+
+def test_a_signal_whose_keyboard_interrupt_was_lost_still_ends_the_spin():
+    """
+    The spin loop ends on a noted signal even if its KeyboardInterrupt never reached it.
+
+    A node once stayed up 60 s after SIGINT (benchmarks/node_tolerance_cost.py, 1 stop in
+    ~20): the exception can be raised where rclpy or a finaliser swallows it.  Simulated
+    here by noting a signal without raising; the spin must return within its stop latency,
+    so the join's bound is a failure bound, not a pass window.
+    """
+    import threading
+
+    import rclpy
+    from rigid_body_sim.ros import node as node_module
+    from rigid_body_sim.ros import start_up
+
+    context_was_ok = rclpy.ok()
+    if not context_was_ok:
+        rclpy.init()
+    plain = rclpy.create_node('lost_interrupt', namespace=unique_namespace())
+    returned = threading.Event()
+
+    def spin():
+        node_module._spin_until_signalled(plain)
+        returned.set()
+
+    start_up._received.append(signal.SIGINT)
+    try:
+        thread = threading.Thread(target=spin, daemon=True)
+        thread.start()
+        assert returned.wait(60.0), 'the spin went on after a noted signal'
+        assert plain not in rclpy.get_global_executor().get_nodes()
+    finally:
+        start_up._received.remove(signal.SIGINT)
+        plain.destroy_node()
+        if not context_was_ok:
+            rclpy.try_shutdown()

@@ -91,6 +91,7 @@ from .qos import CLOCK_QOS
 from .qos import DIAGNOSTICS_QOS
 from .qos import INPUT_QOS
 from .qos import STATE_QOS
+from .start_up import signalled
 from .start_up import signals_deferred
 from .start_up import start_up_phase
 from ..physics import unresolved_rotation
@@ -782,7 +783,10 @@ def _spin_until_signalled(node):
             raise
         return
     try:
-        while executor.context.ok():
+        # signalled() too: a signal's KeyboardInterrupt can be raised where rclpy or a
+        # finaliser swallows it, and the loop would then spin on (a node stayed up 60 s
+        # after SIGINT, once in ~20 stops of benchmarks/node_tolerance_cost.py).
+        while executor.context.ok() and not signalled():
             executor.spin_once(timeout_sec=_STOP_LATENCY)
     finally:
         executor.remove_node(node)
