@@ -21,6 +21,7 @@ a signal then takes its default action, as for any Python executable.
 import sys
 
 from .start_up import install_signal_handlers
+from .start_up import only_note_signals
 from .start_up import raise_on_signals
 from .start_up import signalled
 from .start_up import start_up_phase
@@ -42,18 +43,24 @@ def _asks_for_help(arguments):
 def main(args=None):
     """Run the node (see :func:`rigid_body_sim.ros.node.main`); return the exit code."""
     try:
-        # A signal noted since the handlers were set (during this module's import) ends
-        # the start-up here; from now on one raises KeyboardInterrupt, caught below.
-        raise_on_signals()
-        if signalled():
-            return 0
-        if _asks_for_help(sys.argv if args is None else args):
-            from .node_help import help_text
-            print(help_text())
-            return 0
-        start_up_phase('imports')
-        from .node import main as run_node
-        return run_node(args)
+        try:
+            # A signal noted since the handlers were set (during this module's import) ends
+            # the start-up here; from now on one raises KeyboardInterrupt, caught below.
+            raise_on_signals()
+            if signalled():
+                return 0
+            if _asks_for_help(sys.argv if args is None else args):
+                from .node_help import help_text
+                print(help_text())
+                return 0
+            start_up_phase('imports')
+            from .node import main as run_node
+            return run_node(args)
+        finally:
+            # Python runs a signal's handler when it gets to it, which can be after the
+            # node has stopped (rclpy acts on the signal first, in its own thread): from
+            # here a late one is only noted, so it cannot escape past this function.
+            only_note_signals()
     except BaseException:
         # The signal's KeyboardInterrupt, or what an import made of it: a clean stop.
         if signalled():

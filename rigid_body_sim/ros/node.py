@@ -63,6 +63,7 @@ from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.callback_groups import CallbackGroup
 from rclpy.clock import ClockType
+from rclpy.exceptions import NotInitializedException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.serialization import serialize_message
@@ -91,6 +92,7 @@ from .qos import CLOCK_QOS
 from .qos import DIAGNOSTICS_QOS
 from .qos import INPUT_QOS
 from .qos import STATE_QOS
+from .start_up import only_note_signals
 from .start_up import signalled
 from .start_up import signals_deferred
 from .start_up import start_up_phase
@@ -792,6 +794,19 @@ def _spin_until_signalled(node):
         executor.remove_node(node)
 
 
+def _only_note_signals():
+    # From here a signal is only noted: rclpy acts on one in its own thread (the spin loop
+    # ends), and Python may run our handler later, inside the shutdown below, where its
+    # KeyboardInterrupt would cut the stop, the summary and rclpy's shutdown short.  The
+    # handler can still run as this call begins: then it is caught, and the call repeated.
+    while True:
+        try:
+            only_note_signals()
+            return
+        except KeyboardInterrupt:
+            continue
+
+
 def main(args=None):
     """
     Run the node until SIGINT or SIGTERM; return the exit code.
@@ -817,15 +832,20 @@ def main(args=None):
         start_up_phase('spin')
         _spin_until_signalled(node)
     except ConfigurationError:
-        code = 1
+        # One that the context's shutdown under a half-built node caused is a stop.
+        code = 1 if rclpy.ok() else 0
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except RuntimeError:
-        # A SIGTERM during start-up shuts the context down under the node being built
-        # (rclpy's RCLError: "context is invalid"): a clean stop, not a failure.
+    except (RuntimeError, NotInitializedException):
+        # A signal during start-up shuts the context down under the node being built
+        # (rclpy's RCLError "context is invalid", or NotInitializedException "cannot create
+        # node" from Node.__init__): a clean stop, not a failure.  rclpy shuts the context
+        # down from its own signal thread, which can come before Python runs our handler,
+        # so the context says it, not signalled() (1 fresh-clone run in 8 saw that).
         if rclpy.ok():
             raise
     finally:
+        _only_note_signals()
         if node is not None:
             node.stop()
             if node.tick_error is not None:

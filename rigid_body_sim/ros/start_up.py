@@ -15,8 +15,8 @@ import os
 import signal
 import sys
 
-__all__ = ['install_signal_handlers', 'raise_on_signals', 'signals_deferred', 'signalled',
-           'start_up_phase']
+__all__ = ['install_signal_handlers', 'only_note_signals', 'raise_on_signals',
+           'signals_deferred', 'signalled', 'start_up_phase']
 
 _TRACE = os.environ.get('RIGID_BODY_SIM_TRACE_START_UP') == '1'
 # The signals that arrived: an exception that follows one is its consequence.
@@ -41,6 +41,11 @@ def install_signal_handlers():
 def raise_on_signals():
     """From now on a signal raises KeyboardInterrupt (call it inside a try that catches it)."""
     _raising.append(True)
+
+
+def only_note_signals():
+    """From now on a signal is only noted again (the end: nothing left to interrupt)."""
+    _raising.clear()
 
 
 @contextlib.contextmanager
