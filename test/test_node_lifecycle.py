@@ -349,3 +349,35 @@ def test_a_context_shut_down_under_the_node_being_built_is_a_clean_stop():
     output = result.stdout + result.stderr
     assert result.returncode == 0, output
     assert 'Traceback' not in output and 'Error' not in output, output
+
+
+def test_a_signal_between_the_executors_guard_conditions_leaves_no_message():
+    """
+    The context shut down in the middle of the executor's set-up: no "Exception ignored".
+
+    Seen in a fresh-clone run (SIGTERM as spinning began): rclpy's half-built
+    SignalHandlerGuardCondition printed an AttributeError from its __del__.  Reproduced
+    without a signal: the context is shut down just before that guard condition is built.
+    """
+    script = (
+        'import gc\n'
+        'import sys\n'
+        'import rclpy\n'
+        'from rclpy.signals import SignalHandlerGuardCondition\n'
+        'from rigid_body_sim.ros import node\n'
+        'sys.unraisablehook = node._quiet_half_built_executor\n'
+        'built = SignalHandlerGuardCondition.__init__\n'
+        'def shut_down_first(self, *args, **kwargs):\n'
+        '    rclpy.get_default_context().shutdown()\n'
+        '    built(self, *args, **kwargs)\n'
+        'SignalHandlerGuardCondition.__init__ = shut_down_first\n'
+        'rclpy.init()\n'
+        'plain = rclpy.create_node("half_built")\n'
+        'node._spin_until_signalled(plain)\n'
+        'gc.collect()\n'
+        'print("returned")\n')
+    result = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True,
+                            cwd=PACKAGE_ROOT, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == 'returned', result.stdout + result.stderr
+    assert result.stderr == '', result.stderr

@@ -749,13 +749,19 @@ def _relative(value, reference):
     return f'{(value - reference) / abs(reference):+.3e}'
 
 
+# Attributes that rclpy's constructors set only once the context proved valid, and whose
+# __del__ reads them: Executor._sigint_gc, and GuardCondition's handle (the executor's
+# SignalHandlerGuardCondition).
+_SET_ONCE_BUILT = ('_sigint_gc', '_GuardCondition__gc')
+
+
 def _quiet_half_built_executor(unraisable):
-    # rclpy's Executor.__del__ reads self._sigint_gc, which __init__ sets only once the
-    # context proved valid: an executor whose construction met a context that a signal had
-    # just shut down prints "Exception ignored ... AttributeError" when collected.  That
-    # one message, and no other, is dropped.
+    # An executor whose construction met a context that a signal had just shut down (the
+    # signal during the executor's set-up, between its guard conditions) prints "Exception
+    # ignored ... AttributeError" from a half-built object's __del__ when it is collected.
+    # Those messages, and no other, are dropped.
     error = unraisable.exc_value
-    if isinstance(error, AttributeError) and '_sigint_gc' in str(error):
+    if isinstance(error, AttributeError) and any(name in str(error) for name in _SET_ONCE_BUILT):
         return
     _PREVIOUS_UNRAISABLE_HOOK(unraisable)
 
