@@ -324,6 +324,12 @@ def test_a_signal_whose_keyboard_interrupt_was_lost_still_ends_the_spin():
             rclpy.try_shutdown()
 
 
+def _run_python(script):
+    """Run `script` in a fresh interpreter (this test's ROS domain); return the result."""
+    return subprocess.run([sys.executable, '-c', script], capture_output=True, text=True,
+                          cwd=PACKAGE_ROOT, timeout=120)
+
+
 def test_a_context_shut_down_under_the_node_being_built_is_a_clean_stop():
     """
     A signal's context shutdown may come before Python runs our handler: still exit 0.
@@ -344,8 +350,7 @@ def test_a_context_shut_down_under_the_node_being_built_is_a_clean_stop():
         '    built(self, *args, **kwargs)\n'
         'node.RigidBodyNode.__init__ = shut_down_first\n'
         'sys.exit(node.main([]))\n')
-    result = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True,
-                            cwd=PACKAGE_ROOT, timeout=120)
+    result = _run_python(script)
     output = result.stdout + result.stderr
     assert result.returncode == 0, output
     assert 'Traceback' not in output and 'Error' not in output, output
@@ -376,8 +381,7 @@ def test_a_signal_between_the_executors_guard_conditions_leaves_no_message():
         'node._spin_until_signalled(plain)\n'
         'gc.collect()\n'
         'print("returned")\n')
-    result = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True,
-                            cwd=PACKAGE_ROOT, timeout=120)
+    result = _run_python(script)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == 'returned', result.stdout + result.stderr
     assert result.stderr == '', result.stderr

@@ -169,24 +169,6 @@ def _cross(a, b):
 
 
 @_jit
-def _turn_right(q, v):
-    """Set q <- q * exp(v) in place: turn by the body-frame rotation vector v (rad)."""
-    angle = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-    if angle < 1e-4:
-        s = 0.5 - angle * angle / 48.0
-    else:
-        s = math.sin(0.5 * angle) / angle
-    bx, by, bz, bw = s * v[0], s * v[1], s * v[2], math.cos(0.5 * angle)
-    ax, ay, az, aw = q[0], q[1], q[2], q[3]
-    x = aw * bx + ax * bw + ay * bz - az * by
-    y = aw * by - ax * bz + ay * bw + az * bx
-    z = aw * bz + ax * by - ay * bx + az * bw
-    w = aw * bw - ax * bx - ay * by - az * bz
-    norm = math.sqrt(x * x + y * y + z * z + w * w)
-    q[0], q[1], q[2], q[3] = x / norm, y / norm, z / norm, w / norm
-
-
-@_jit
 def _is_nonzero(v):
     return v[0] != 0.0 or v[1] != 0.0 or v[2] != 0.0
 
@@ -310,22 +292,10 @@ def _first_order_run(state, wrench, body, method, damping, dt, steps):
         elif translates:
             position += dt * linear_momentum / mass
             moved += 1
-        _turn_right(quaternion, dt * omega_body)
+        _turn_right_by(quaternion, dt * omega_body[0], dt * omega_body[1], dt * omega_body[2])
         if damping > 0.0:
             dissipate(state, body, damping, 0.5 * dt)
     return moved
-
-
-@_jit
-def _body_vector(q, v):
-    """Return R^T v as a 3-tuple (world -> body frame), R the matrix of the unit quaternion q."""
-    x, y, z, w = q[0], q[1], q[2], q[3]
-    return ((1.0 - 2.0 * (y * y + z * z)) * v[0] + 2.0 * (x * y + z * w) * v[1]
-            + 2.0 * (x * z - y * w) * v[2],
-            2.0 * (x * y - z * w) * v[0] + (1.0 - 2.0 * (x * x + z * z)) * v[1]
-            + 2.0 * (y * z + x * w) * v[2],
-            2.0 * (x * z + y * w) * v[0] + 2.0 * (y * z - x * w) * v[1]
-            + (1.0 - 2.0 * (x * x + y * y)) * v[2])
 
 
 @_jit
@@ -386,7 +356,7 @@ def _buss_run(state, wrench, body, method, damping, dt, steps):
             dissipate(state, body, damping, half)
         if pushed:
             kick(quaternion, linear_momentum, angular_momentum, wrench, half)
-        momentum_body = _body_vector(quaternion, angular_momentum)
+        momentum_body = _rotated_back(quaternion, angular_momentum)
         omega_body = _inverse_inertia_times(body, momentum_body)
         gyroscopic = _crossed(omega_body, momentum_body)
         alpha_body = _inverse_inertia_times(body, (-gyroscopic[0], -gyroscopic[1], -gyroscopic[2]))
@@ -460,8 +430,8 @@ def _rk4_derivative(q, momentum_body, linear_momentum, inertia_body_inverse, wre
 
 @_jit
 def _rotated_back(q, v):
-    """Return R^T v as a 3-tuple, R the rotation matrix of the unit quaternion q (a tuple)."""
-    x, y, z, w = q
+    """Return R^T v as a 3-tuple, R the matrix of the unit quaternion q (a tuple or an array)."""
+    x, y, z, w = q[0], q[1], q[2], q[3]
     return ((1.0 - 2.0 * (y * y + z * z)) * v[0] + 2.0 * (x * y + z * w) * v[1]
             + 2.0 * (x * z - y * w) * v[2],
             2.0 * (x * y - z * w) * v[0] + (1.0 - 2.0 * (x * x + z * z)) * v[1]
