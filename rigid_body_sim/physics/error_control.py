@@ -104,7 +104,7 @@ OVERHEAD = 1.0 / 16.0
 """Most of the substeps' cost spent on estimates (one extra step per estimate, two at n=1)."""
 ESTIMATE_WORK = 2.0
 """An estimate's work besides its extra steps, in steps: its two more calls of the
-integrator's run (~40 ns each against ~65 ns for a compiled Buss step), the difference and
+integrator's run (~40 ns each, about a compiled Buss step's 50 ns), the difference and
 the decision.  Counted with the extra steps against OVERHEAD."""
 MAX_TURN = 1.0
 """Longest turn of the body (rad) between two estimates: the error rate follows the state."""

@@ -132,40 +132,54 @@ class CompiledIntegrator:
 
 
 @_jit
-def _matrix(q):
+def _rotated_back(q, v):
+    """Return R^T v as a 3-tuple, R the matrix of the unit quaternion q (a tuple or an array)."""
     x, y, z, w = q[0], q[1], q[2], q[3]
-    m = np.empty((3, 3))
-    m[0, 0] = 1.0 - 2.0 * (y * y + z * z)
-    m[0, 1] = 2.0 * (x * y - z * w)
-    m[0, 2] = 2.0 * (x * z + y * w)
-    m[1, 0] = 2.0 * (x * y + z * w)
-    m[1, 1] = 1.0 - 2.0 * (x * x + z * z)
-    m[1, 2] = 2.0 * (y * z - x * w)
-    m[2, 0] = 2.0 * (x * z - y * w)
-    m[2, 1] = 2.0 * (y * z + x * w)
-    m[2, 2] = 1.0 - 2.0 * (x * x + y * y)
-    return m
+    return ((1.0 - 2.0 * (y * y + z * z)) * v[0] + 2.0 * (x * y + z * w) * v[1]
+            + 2.0 * (x * z - y * w) * v[2],
+            2.0 * (x * y - z * w) * v[0] + (1.0 - 2.0 * (x * x + z * z)) * v[1]
+            + 2.0 * (y * z + x * w) * v[2],
+            2.0 * (x * z + y * w) * v[0] + 2.0 * (y * z - x * w) * v[1]
+            + (1.0 - 2.0 * (x * x + y * y)) * v[2])
 
 
 @_jit
-def _mul(m, v):
-    return np.array([m[0, 0] * v[0] + m[0, 1] * v[1] + m[0, 2] * v[2],
-                     m[1, 0] * v[0] + m[1, 1] * v[1] + m[1, 2] * v[2],
-                     m[2, 0] * v[0] + m[2, 1] * v[1] + m[2, 2] * v[2]])
+def _inverse_inertia_times(body, v):
+    """Return I_b^-1 v as a 3-tuple, I_b^-1 row-major in the packed body's first nine."""
+    return (body[0] * v[0] + body[1] * v[1] + body[2] * v[2],
+            body[3] * v[0] + body[4] * v[1] + body[5] * v[2],
+            body[6] * v[0] + body[7] * v[1] + body[8] * v[2])
 
 
 @_jit
-def _mul_transposed(m, v):
-    return np.array([m[0, 0] * v[0] + m[1, 0] * v[1] + m[2, 0] * v[2],
-                     m[0, 1] * v[0] + m[1, 1] * v[1] + m[2, 1] * v[2],
-                     m[0, 2] * v[0] + m[1, 2] * v[1] + m[2, 2] * v[2]])
+def _crossed(a, b):
+    """Return a x b as a 3-tuple."""
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
 @_jit
-def _cross(a, b):
-    return np.array([a[1] * b[2] - a[2] * b[1],
-                     a[2] * b[0] - a[0] * b[2],
-                     a[0] * b[1] - a[1] * b[0]])
+def _turn_right_by(q, vx, vy, vz):
+    """Set q <- q * exp(v) in place, v = (vx, vy, vz) a body-frame rotation vector (rad)."""
+    square = vx * vx + vy * vy + vz * vz
+    if square < 1e-4:
+        # |v| < 0.01 rad (a substep of a split tick): the Taylor series of sin(|v|/2) / |v|
+        # and cos(|v|/2) in place of sqrt, sin and cos; the first terms left out,
+        # |v|^6 / 322560 and |v|^8 / 10321920, are below 1e-17 and 1e-23 there, under half
+        # an ulp of 0.5 and 1.
+        s = 0.5 + square * (-1.0 / 48.0 + square / 3840.0)
+        c = 1.0 + square * (-0.125 + square * (1.0 / 384.0 - square / 46080.0))
+    else:
+        angle = math.sqrt(square)
+        s = math.sin(0.5 * angle) / angle
+        c = math.cos(0.5 * angle)
+    bx, by, bz, bw = s * vx, s * vy, s * vz, c
+    ax, ay, az, aw = q[0], q[1], q[2], q[3]
+    x = aw * bx + ax * bw + ay * bz - az * by
+    y = aw * by - ax * bz + ay * bw + az * bx
+    z = aw * bz + ax * by - ay * bx + az * bw
+    w = aw * bw - ax * bx - ay * by - az * bz
+    norm = math.sqrt(x * x + y * y + z * z + w * w)
+    q[0], q[1], q[2], q[3] = x / norm, y / norm, z / norm, w / norm
 
 
 @_jit
@@ -267,7 +281,6 @@ def nonzero_momentum(state):
 def _first_order_run(state, wrench, body, method, damping, dt, steps):
     quaternion, position = state[0:4], state[4:7]
     linear_momentum, angular_momentum = state[7:10], state[10:13]
-    inertia_body_inverse = body[0:9].reshape((3, 3))
     mass = body[BODY_MASS]
     pushed, forced = pushes(wrench)
     # Unforced, p is constant: a body at rest stays where it is without any arithmetic.
@@ -276,8 +289,7 @@ def _first_order_run(state, wrench, body, method, damping, dt, steps):
     for _ in range(steps):
         if damping > 0.0:
             dissipate(state, body, damping, 0.5 * dt)
-        m = _matrix(quaternion)
-        omega_body = _mul(inertia_body_inverse, _mul_transposed(m, angular_momentum))
+        omega_body = _inverse_inertia_times(body, _rotated_back(quaternion, angular_momentum))
         if pushed:
             # The wrench at the start of the step, held over it (seed.first_order).
             force, torque = wrench_at(quaternion, wrench)
@@ -296,45 +308,6 @@ def _first_order_run(state, wrench, body, method, damping, dt, steps):
         if damping > 0.0:
             dissipate(state, body, damping, 0.5 * dt)
     return moved
-
-
-@_jit
-def _inverse_inertia_times(body, v):
-    """Return I_b^-1 v as a 3-tuple, I_b^-1 row-major in the packed body's first nine."""
-    return (body[0] * v[0] + body[1] * v[1] + body[2] * v[2],
-            body[3] * v[0] + body[4] * v[1] + body[5] * v[2],
-            body[6] * v[0] + body[7] * v[1] + body[8] * v[2])
-
-
-@_jit
-def _crossed(a, b):
-    """Return a x b as a 3-tuple."""
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
-@_jit
-def _turn_right_by(q, vx, vy, vz):
-    """Set q <- q * exp(v) in place, v = (vx, vy, vz) a body-frame rotation vector (rad)."""
-    square = vx * vx + vy * vy + vz * vz
-    if square < 1e-4:
-        # |v| < 0.01 rad (a substep of a split tick): the Taylor series of sin(|v|/2) / |v|
-        # and cos(|v|/2) in place of sqrt, sin and cos; the first terms left out,
-        # |v|^6 / 322560 and |v|^8 / 10321920, are below 1e-17 and 1e-23 there, under half
-        # an ulp of 0.5 and 1.
-        s = 0.5 + square * (-1.0 / 48.0 + square / 3840.0)
-        c = 1.0 + square * (-0.125 + square * (1.0 / 384.0 - square / 46080.0))
-    else:
-        angle = math.sqrt(square)
-        s = math.sin(0.5 * angle) / angle
-        c = math.cos(0.5 * angle)
-    bx, by, bz, bw = s * vx, s * vy, s * vz, c
-    ax, ay, az, aw = q[0], q[1], q[2], q[3]
-    x = aw * bx + ax * bw + ay * bz - az * by
-    y = aw * by - ax * bz + ay * bw + az * bx
-    z = aw * bz + ax * by - ay * bx + az * bw
-    w = aw * bw - ax * bx - ay * by - az * bz
-    norm = math.sqrt(x * x + y * y + z * z + w * w)
-    q[0], q[1], q[2], q[3] = x / norm, y / norm, z / norm, w / norm
 
 
 @_jit
@@ -426,18 +399,6 @@ def _rk4_derivative(q, momentum_body, linear_momentum, inertia_body_inverse, wre
         t0, t1, t2 = _rotated_back(unit, torque)
         d0, d1, d2 = d0 + t0, d1 + t1, d2 + t2
     return dq, (d0, d1, d2), force
-
-
-@_jit
-def _rotated_back(q, v):
-    """Return R^T v as a 3-tuple, R the matrix of the unit quaternion q (a tuple or an array)."""
-    x, y, z, w = q[0], q[1], q[2], q[3]
-    return ((1.0 - 2.0 * (y * y + z * z)) * v[0] + 2.0 * (x * y + z * w) * v[1]
-            + 2.0 * (x * z - y * w) * v[2],
-            2.0 * (x * y - z * w) * v[0] + (1.0 - 2.0 * (x * x + z * z)) * v[1]
-            + 2.0 * (y * z + x * w) * v[2],
-            2.0 * (x * z + y * w) * v[0] + 2.0 * (y * z - x * w) * v[1]
-            + (1.0 - 2.0 * (x * x + y * y)) * v[2])
 
 
 @_jit
