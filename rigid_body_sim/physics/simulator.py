@@ -11,6 +11,7 @@ import math
 import numpy as np
 
 from . import error_control
+from .effects.registry import Effect
 from .integrators import get_integrator
 from .kernels.layout import body_values
 from .kernels.layout import STATE_SIZE
@@ -132,6 +133,12 @@ class Simulator:
         for effect in self._effects:
             if getattr(effect, 'compiled_wrench', None) is not None:
                 wrenches.append(effect)
+            elif callable(getattr(effect, 'wrench', None)) and not isinstance(effect, Effect):
+                raise ValueError(
+                    f'effect {type(effect).__name__} has a Python wrench() but no '
+                    'compiled_wrench: write the wrench as a compiled term (decorate it with '
+                    'rigid_body_sim.physics.kernels.model.wrench_term, give its parameters '
+                    'with wrench_parameters(body); see physics/effects/registry.py)')
             if getattr(effect, 'compiled_flow', None) is not None:
                 flows.append(effect)
             if getattr(effect, 'constrain', None) is not None:

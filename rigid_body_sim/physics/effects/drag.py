@@ -63,6 +63,8 @@ class Drag(Effect):
     momentum_dependent = True
     reads_state = True
     compiled_wrench = staticmethod(fluid_resistance)
+    example = {'linear': 0.2, 'quadratic': 0.05, 'rotational_linear': 0.01,
+               'rotational_quadratic': 0.002}
 
     def __init__(self, linear=0.0, quadratic=0.0, rotational_linear=0.0,
                  rotational_quadratic=0.0):

@@ -34,6 +34,7 @@ class Gravity(Effect):
 
     exerts_torque = False
     compiled_wrench = staticmethod(weight)
+    example = {}
 
     def __init__(self, acceleration=STANDARD_ACCELERATION):
         self.acceleration = check_vector(acceleration, 'acceleration', 'm/s^2')

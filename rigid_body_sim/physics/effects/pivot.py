@@ -98,6 +98,8 @@ class Pivot(Effect):
 
     """
 
+    example = {'point': [0.02, -0.01, -0.05], 'anchor': [0.0, 0.0, 1.0]}
+
     def __init__(self, point, anchor=(0.0, 0.0, 0.0)):
         self.point = check_vector(point, 'point', 'm')
         self.anchor = check_vector(anchor, 'anchor', 'm')

@@ -22,7 +22,9 @@ once, as compiled code (kernels/model.py), so that every integrator runs it comp
   :class:`rigid_body_sim.physics.effects.pivot.PivotConstraint` for what the Simulator uses;
 - ``potential_energy(body, state)``: its potential energy in J, added by Simulator.energy();
 - ``accepts_external_wrench = True``: the body may be pushed from outside (the node's
-  torque and wrench topics write the Simulator's held wrench).
+  torque and wrench topics write the Simulator's held wrench);
+- ``example``: a dict of typical parameters (required): the tests run every effect, built
+  from it, under every integrator, so a new effect is covered without editing them.
 
 The base class :class:`Effect` gives every effect its Python face from the compiled one:
 ``wrench(body, state, time) -> (force, torque)`` and ``flow(body, state, dt) -> State``.
@@ -137,6 +139,7 @@ class Effect:
     accepts_external_wrench = False
     compiled_wrench = None
     compiled_flow = None
+    example = None
 
     def wrench_parameters(self, body):
         """Return the parameters (1-D float array) of the compiled wrench on `body`."""

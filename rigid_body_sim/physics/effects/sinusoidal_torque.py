@@ -39,6 +39,7 @@ class SinusoidalTorque(Effect):
     """
 
     compiled_wrench = staticmethod(oscillating_torque)
+    example = {'amplitude': [0.1, -0.2, 0.3], 'frequency': 0.5, 'phase': 0.2}
 
     def __init__(self, amplitude, frequency, phase=0.0):
         self.amplitude = check_vector(amplitude, 'amplitude', 'N m')

@@ -21,10 +21,8 @@ import functools
 import hashlib
 import os
 from pathlib import Path
-import warnings
 
 import numba
-from numba.core.errors import NumbaExperimentalFeatureWarning
 
 __all__ = ['kernel', 'helper', 'inline', 'ensure_fresh_cache', 'source_fingerprint',
            'PHYSICS_ROOT']
@@ -34,10 +32,6 @@ PHYSICS_ROOT = Path(__file__).resolve().parent.parent
 
 _FINGERPRINT_FILE = '__pycache__/kernel-sources.sha256'
 
-# The kernels call the effects through numba's first-class function types, a feature numba
-# still labels experimental (stable since numba 0.49; the suite tests every path through it).
-warnings.filterwarnings('ignore', category=NumbaExperimentalFeatureWarning,
-                        module=r'numba\..*')
 
 kernel = functools.partial(numba.njit, cache=True, nogil=True)
 """Decorator of an entry point called from Python: compiled on first use, cached to disk."""

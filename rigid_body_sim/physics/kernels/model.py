@@ -29,9 +29,11 @@ one (benchmarks/effect_cost.py measures what each effect adds to a step).
 
 import collections
 import functools
+import warnings
 
 import numba
 from numba import types
+from numba.core.errors import NumbaExperimentalFeatureWarning
 from numba.experimental import structref
 import numpy as np
 
@@ -163,6 +165,40 @@ def _new_model(body, held, terms, term_count, term_parameters, term_offsets,
                  np.zeros(STATE_SIZE))
 
 
+@kernel
+def _body(model):
+    return model.body
+
+
+@kernel
+def _term_count(model):
+    return model.term_count
+
+
+@kernel
+def _term_parameters(model):
+    return model.term_parameters
+
+
+@kernel
+def _flow_count(model):
+    return model.flow_count
+
+
+@kernel
+def _constrained(model):
+    return model.constrained
+
+
+# What Python reads of a Model (numba gives a proxy no attribute of its own).
+Model.body = property(_body, doc='The packed body integrated (27,).')
+Model.term_count = property(_term_count, doc='The number of wrench terms.')
+Model.term_parameters = property(_term_parameters,
+                                 doc='The terms\' parameters, concatenated (shared).')
+Model.flow_count = property(_flow_count, doc='The number of flows.')
+Model.constrained = property(_constrained, doc='True under a constraint.')
+
+
 @inline
 def unpacked(model):
     """Return the :class:`Forcing` of a Model (its fields as values)."""
@@ -208,12 +244,16 @@ def new_model(body, held, terms=(), flows=(), constraint=None, momentum_dependen
         expand, transmit, constraint_parameters = no_expand, no_transmit, np.zeros(0)
     else:
         expand, transmit, constraint_parameters = constraint
-    return _new_model(np.ascontiguousarray(body, dtype=float), held, term_functions,
-                      term_count, term_parameters, term_offsets, bool(momentum_dependent),
-                      flow_functions, flow_count, flow_parameters, flow_offsets,
-                      constraint is not None, bool(needs_physical and constraint is not None),
-                      expand, transmit,
-                      np.ascontiguousarray(constraint_parameters, dtype=float))
+    with warnings.catch_warnings():
+        # numba labels first-class functions experimental (stable since 0.49; tested here),
+        # and says so whenever it types a tuple of them: here, once per model.
+        warnings.simplefilter('ignore', NumbaExperimentalFeatureWarning)
+        return _new_model(np.ascontiguousarray(body, dtype=float), held, term_functions,
+                          term_count, term_parameters, term_offsets, bool(momentum_dependent),
+                          flow_functions, flow_count, flow_parameters, flow_offsets,
+                          constraint is not None, bool(needs_physical and constraint is not None),
+                          expand, transmit,
+                          np.ascontiguousarray(constraint_parameters, dtype=float))
 
 
 @inline
