@@ -25,11 +25,11 @@ import time
 
 import numpy as np
 
+from rigid_body_sim.physics import effects
 from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import RigidBody
 from rigid_body_sim.physics import Simulator
 from rigid_body_sim.physics import State
-from rigid_body_sim.physics import effects
 
 DT = 1e-3
 
@@ -39,8 +39,8 @@ def _effects(name):
     if name == 'free':
         return (), None
     if name == 'external_wrench':
-        return (effects.ExternalWrench(),), dict(force=(0.1, 0.0, 0.0),
-                                                torque=(0.0, 0.01, 0.02), frame='body')
+        return (effects.ExternalWrench(),), {'force': (0.1, 0.0, 0.0),
+                                             'torque': (0.0, 0.01, 0.02), 'frame': 'body'}
     if name == 'gravity':
         return (effects.Gravity(),), None
     if name == 'pivot':
@@ -94,7 +94,8 @@ def main():
     parser.add_argument('--integrators', nargs='*', default=None, metavar='NAME',
                         help='integrators to time (default: all registered)')
     parser.add_argument('--effects', nargs='*', default=None, metavar='NAME',
-                        help=f'cases to time besides free (default: all of {", ".join(CASES[1:])})')
+                        help=f'cases to time besides free (default: all of '
+                             f'{", ".join(CASES[1:])})')
     parser.add_argument('--json', default=None, metavar='PATH', help='also write JSON here')
     args = parser.parse_args()
     integrators = args.integrators or sorted(INTEGRATORS)
@@ -114,8 +115,8 @@ def main():
                for case in cases}
         table[integrator] = row
         free = row['free']
-        cells = [f'{row[case]:.3f}' if case == 'free' else f'{row[case]:.3f} ({row[case] / free:.2f}x)'
-                 for case in cases]
+        cells = [f'{row[case]:.3f}' if case == 'free'
+                 else f'{row[case]:.3f} ({row[case] / free:.2f}x)' for case in cases]
         print(f'{integrator:<12}' + ''.join(f'{cell:>19}' for cell in cells), flush=True)
     if args.json:
         with open(args.json, 'w', encoding='utf-8') as stream:

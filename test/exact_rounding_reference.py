@@ -85,7 +85,7 @@ def rounded_step(frame, quaternion, increment, angular_momentum):
     rounded = tuple(c / (1 << shift) for c in end)
     correction = (0.0, 0.0, 0.0, 0.0)
     if frame.kind != SPHERICAL:
-        m = rotate_back(rounded, momentum)
+        m = rotate_back(rounded, tuple(momentum))
         p = [axes[k] * m[0] + axes[3 + k] * m[1] + axes[6 + k] * m[2] for k in range(3)]
         o = [p[k] / moments[k] for k in range(3)]
         k1, k2, k3 = cross(tuple(p), tuple(o))

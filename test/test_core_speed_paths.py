@@ -70,8 +70,8 @@ STAGES = {name: _stages(name) for name in COMPILED_NAMES}
 def test_the_stage_counts_are_the_methods():
     # Kicks at both ends for the split methods (five stages for splitting4), rk4's four
     # derivatives, first_order's one sample.
-    assert {name: STAGES[name] for name in ('first_order', 'buss', 'rk4', 'splitting',
-                                             'splitting4', 'exact')} == {
+    names = ('first_order', 'buss', 'rk4', 'splitting', 'splitting4', 'exact')
+    assert {name: STAGES[name] for name in names} == {
         'first_order': 1, 'buss': 2, 'rk4': 4, 'splitting': 2, 'splitting4': 10, 'exact': 2}
 
 

@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 from reference import random_rotation
 from reference import rotation_angle_between
-from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import RigidBody
 from rigid_body_sim.physics import Simulator
 from rigid_body_sim.physics import State

@@ -21,6 +21,7 @@ import decimal
 from fractions import Fraction
 import math
 
+import exact_rounding_reference as oracle
 import numpy as np
 import pytest
 from reference import random_rotation
@@ -31,6 +32,7 @@ from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import RigidBody
 from rigid_body_sim.physics import Simulator
 from rigid_body_sim.physics import State
+from rigid_body_sim.physics.effects.registry import Effect
 from rigid_body_sim.physics.elliptic import carlson_rf
 from rigid_body_sim.physics.elliptic import carlson_rf_compiled
 from rigid_body_sim.physics.elliptic import carlson_rj
@@ -39,16 +41,14 @@ from rigid_body_sim.physics.elliptic import jacobi_elliptic
 from rigid_body_sim.physics.elliptic import jacobi_elliptic_compiled
 from rigid_body_sim.physics.integrators import exact as exact_module
 from rigid_body_sim.physics.integrators.exact import exact_free_flow
+from rigid_body_sim.physics.kernels.algebra import rotate
+from rigid_body_sim.physics.kernels.algebra import rotate_back
+from rigid_body_sim.physics.kernels.model import wrench_term
 from rigid_body_sim.physics.principal_frame import ASYMMETRIC
 from rigid_body_sim.physics.principal_frame import principal_frame
 from rigid_body_sim.physics.principal_frame import SPHERICAL
 from rigid_body_sim.physics.rotations import quaternion_from_rotation_vector
 from rigid_body_sim.physics.rotations import quaternion_multiply
-from rigid_body_sim.physics.effects.registry import Effect
-from rigid_body_sim.physics.kernels.algebra import rotate
-from rigid_body_sim.physics.kernels.algebra import rotate_back
-from rigid_body_sim.physics.kernels.model import wrench_term
-import exact_rounding_reference as oracle
 from scipy.special import ellipj
 import taylor_reference
 from taylor_reference import angle_to_reference

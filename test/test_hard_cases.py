@@ -25,8 +25,6 @@ diverges once the nutation itself turns more than 2.83 rad per step, its stabili
 import math
 
 import numpy as np
-from rigid_body_sim.physics.effects.registry import Effect
-from rigid_body_sim.physics.kernels.model import wrench_term
 import pytest
 from reference import body_rates_symmetric_top
 from reference import first_order_energy_gain_rate
@@ -39,6 +37,8 @@ from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import RigidBody
 from rigid_body_sim.physics import Simulator
 from rigid_body_sim.physics import State
+from rigid_body_sim.physics.effects.registry import Effect
+from rigid_body_sim.physics.kernels.model import wrench_term
 
 EPS = np.finfo(float).eps
 ORDERS = {'first_order': 1, 'buss': 2, 'buss_plain': 2, 'rk4': 4}

@@ -613,8 +613,8 @@ def test_a_new_effect_is_listed_loaded_and_documented_without_other_edits(anchor
 
 
 @pytest.mark.parametrize('integrator', sorted(INTEGRATORS))
-def test_a_new_effect_runs_compiled_under_every_integrator_at_its_order(anchor_spring,
-                                                                       integrator, tmp_path):
+def test_a_new_effect_runs_compiled_under_every_integrator_at_its_order(
+        anchor_spring, integrator, tmp_path):
     # x(t) = cos(sqrt(k/m) t) from x = 1 m at rest: halving the step divides the error by
     # ~2^order (kicks around the drift are second order at most; rk4 takes the stages).
     text = MINE + 'initial: {position: [1, 0, 0]}\neffects: [anchor_spring: {stiffness: 4e+0}]\n'

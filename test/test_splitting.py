@@ -19,13 +19,13 @@ from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import RigidBody
 from rigid_body_sim.physics import Simulator
 from rigid_body_sim.physics import State
-from rigid_body_sim.physics.integrators.exact import exact_free_flow
 from rigid_body_sim.physics.integrators import splitting as splitting_module
-from rigid_body_sim.physics.kernels.layout import body_values
-from rigid_body_sim.physics.kernels.model import new_model
+from rigid_body_sim.physics.integrators.exact import exact_free_flow
 from rigid_body_sim.physics.integrators.splitting import STRANG_AXES
 from rigid_body_sim.physics.integrators.splitting import SUZUKI_AXES
 from rigid_body_sim.physics.integrators.splitting import SUZUKI_COEFFICIENTS
+from rigid_body_sim.physics.kernels.layout import body_values
+from rigid_body_sim.physics.kernels.model import new_model
 
 EPS = np.finfo(float).eps
 # Nominal order and coarse step count over 1 s (the fine run takes twice as many): in the

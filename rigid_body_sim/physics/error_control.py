@@ -433,5 +433,6 @@ def controlled_ticks(run, state, model, method, tick, ticks, time, control):
             # The turning points' constant was taken at the old step: take it anew.
             control[ORBIT_COUNTDOWN] = 0.0
         control[SUBSTEPS] = following
-        control[COUNTDOWN] = _ticks_between_estimates(following, tick, _turn_rate(state, model.body))
+        control[COUNTDOWN] = _ticks_between_estimates(following, tick,
+                                                      _turn_rate(state, model.body))
     return taken

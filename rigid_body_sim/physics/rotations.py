@@ -14,6 +14,7 @@ import numpy as np
 
 from .kernels import algebra
 
+
 __all__ = [
     'cross',
     'skew',
@@ -25,6 +26,7 @@ __all__ = [
     'check_rotation_matrix',
     'check_quaternion',
 ]
+
 
 def cross(a, b):
     """Return the cross product a x b of two 3-vectors (an array)."""

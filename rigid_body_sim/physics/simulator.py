@@ -103,6 +103,7 @@ class Simulator:
     :attr:`state` is read (step() and run() return it), so a step costs one kernel call and
     one State.  The body, the held wrench and the effects are one compiled
     :class:`~.kernels.model.Model`, built once; the held wrench is written into it in place.
+
     """
 
     def __init__(self, body, state, integrator='buss', effects=(), fast=True, tolerance=None,
@@ -486,7 +487,7 @@ class Simulator:
         return self.state
 
     def _plan(self):
-        """Tell the error controller that the configuration changed, and whether it is torque-free."""
+        """Tell the error controller the configuration changed, and if it is torque-free."""
         held = self._held
         torque_free = not (self._flows or np.any(held[HELD_TORQUE_WORLD])
                            or np.any(held[HELD_TORQUE_BODY])

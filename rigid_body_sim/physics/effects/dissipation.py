@@ -66,9 +66,11 @@ def relax(state, parameters, duration):
     inverse = parameters[1:10]
     q = (state[0], state[1], state[2], state[3])
     m = rotate_back(q, (lx, ly, lz))
-    ux, uy, uz = cross(m, inverse_inertia_times(inverse, m))
-    half = 0.5 * duration * eps
-    drift = cross(m, (ux, uy, uz))
+    # The rates scaled by eps first: m x (m x Omega) alone can overflow for a huge body.
+    turning = cross(m, inverse_inertia_times(inverse, m))
+    u = (eps * turning[0], eps * turning[1], eps * turning[2])
+    drift = cross(m, u)
+    half = 0.5 * duration
     middle = (m[0] + half * drift[0], m[1] + half * drift[1], m[2] + half * drift[2])
     ux, uy, uz = cross(middle, inverse_inertia_times(inverse, middle))
     whole = duration * eps

@@ -1,7 +1,5 @@
 """gravity: a uniform gravitational field, a constant force m g through the COM."""
 
-import numpy as np
-
 from .registry import check_vector
 from .registry import Effect
 from .registry import register_effect

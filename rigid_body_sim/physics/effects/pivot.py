@@ -51,8 +51,8 @@ def expand(integrated, parameters, physical):
     q = (integrated[0], integrated[1], integrated[2], integrated[3])
     angular_momentum = (integrated[10], integrated[11], integrated[12])
     conjugated = (-q[0], -q[1], -q[2], q[3])
-    omega = rotate(q, inverse_inertia_times(parameters[0:9], rotate(conjugated,
-                                                                     angular_momentum)))
+    omega = rotate(q, inverse_inertia_times(parameters[0:9],
+                                            rotate(conjugated, angular_momentum)))
     r = rotate(q, (parameters[9], parameters[10], parameters[11]))
     mass = parameters[15]
     turning = cross(omega, r)

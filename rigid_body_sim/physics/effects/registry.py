@@ -125,8 +125,9 @@ def _effect_class(name):
 
 class Effect:
     """
-    Base of the effects: the defaults of the protocol, the Python faces of the compiled
-    wrench and flow, and a readable repr.
+    Base of the effects: the protocol's defaults, Python faces of the compiled code, a repr.
+
+    The faces: :meth:`wrench` and :meth:`flow` call the compiled wrench and flow.
 
     Subclasses keep each constructor argument as an attribute of the same name, so that the
     repr shows the parameters in force.

@@ -25,7 +25,6 @@ from .readable import rotate_by_world_vector
 from .readable import world_inertia_inverse
 from .registry import register_integrator
 from ..error_control import controlled_ticks
-from ..kernels import helper
 from ..kernels import inline
 from ..kernels import kernel
 from ..kernels.algebra import cross

@@ -18,7 +18,6 @@ from .readable import rotate_by_world_vector
 from .readable import world_inertia_inverse
 from .registry import register_integrator
 from ..error_control import controlled_ticks
-from ..kernels import helper
 from ..kernels import inline
 from ..kernels import kernel
 from ..kernels.algebra import rotate_back
@@ -38,8 +37,8 @@ __all__ = ['first_order']
 def step(state, forcing, method, dt, time, pushed, translates):
     """Take the first-order step on a packed state in place (no method constants)."""
     mass = forcing.body[BODY_MASS]
-    omega_body = inverse_inertia_times(forcing.body, rotate_back(quaternion_of(state),
-                                                               angular_momentum_of(state)))
+    omega_body = inverse_inertia_times(
+        forcing.body, rotate_back(quaternion_of(state), angular_momentum_of(state)))
     if pushed:
         wrench = integrated_wrench(state, time, forcing)
         if translates:

@@ -27,8 +27,6 @@ The readable step (numpy, as a textbook writes it) and the compiled step (scalar
 side; both end the step with :func:`world_momentum_change`, written once.
 """
 
-import math
-
 import numpy as np
 
 from .registry import register_integrator

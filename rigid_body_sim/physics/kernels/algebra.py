@@ -24,7 +24,7 @@ round-off; it replaces a sqrt, a sin and a cos in the small turns of split ticks
 
 @helper
 def quaternion_product(a, b):
-    """Return the Hamilton product a * b of quaternions (x, y, z, w)."""
+    """Return the Hamilton product of two quaternions (x, y, z, w): first times second."""
     ax, ay, az, aw = a[0], a[1], a[2], a[3]
     bx, by, bz, bw = b[0], b[1], b[2], b[3]
     return (aw * bx + ax * bw + ay * bz - az * by,
@@ -35,7 +35,7 @@ def quaternion_product(a, b):
 
 @helper
 def conjugate(q):
-    """Return the conjugate (-x, -y, -z, w): the inverse rotation of a unit quaternion."""
+    """Return the inverse rotation of a unit quaternion, (-x, -y, -z, w)."""
     return (-q[0], -q[1], -q[2], q[3])
 
 

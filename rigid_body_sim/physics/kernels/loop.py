@@ -11,7 +11,8 @@ integrator's constants; `pushed` says that a wrench may act (some term, or a hel
 that is not zero), `translates` that the position moves (pushed, or p is not zero);
 ``forcing.carry`` holds what a step hands to the next (zero at the start of each call).
 The step and everything it calls on the forcing are inlined (kernels.inline): one function,
-in which the compiler keeps the forcing in registers.  Its kernel is then two lines (see integrators/buss.py):
+in which the compiler keeps the forcing in registers.  Its kernel is then two lines (see
+integrators/buss.py):
 
     run(state, model, method, dt, steps, time)          = run_steps(step, ...)
     controlled(state, model, method, tick, ticks, time, control)

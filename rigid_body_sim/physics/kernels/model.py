@@ -37,14 +37,14 @@ from numba.core.errors import NumbaExperimentalFeatureWarning
 from numba.experimental import structref
 import numpy as np
 
-from . import helper
 from . import inline
 from . import kernel
 from .algebra import rotate
 from .borrow import borrowed
 from .layout import STATE_SIZE
 
-__all__ = ['Model', 'Forcing', 'MODEL_TYPE', 'new_model', 'unpacked', 'applied_wrench_of', 'wrench_term', 'flow_function', 'expand_function',
+__all__ = ['Model', 'Forcing', 'MODEL_TYPE', 'new_model', 'unpacked', 'applied_wrench_of',
+           'wrench_term', 'flow_function', 'expand_function',
            'transmit_function', 'MAX_TERMS', 'MAX_FLOWS', 'HELD_FORCE_WORLD',
            'HELD_TORQUE_WORLD', 'HELD_FORCE_BODY', 'HELD_TORQUE_BODY', 'integrated_wrench',
            'applied_wrench', 'impulse', 'kick', 'apply_flows', 'held_is_zero', 'no_term',
@@ -194,7 +194,7 @@ def _constrained(model):
 Model.body = property(_body, doc='The packed body integrated (27,).')
 Model.term_count = property(_term_count, doc='The number of wrench terms.')
 Model.term_parameters = property(_term_parameters,
-                                 doc='The terms\' parameters, concatenated (shared).')
+                                 doc="The terms' parameters, concatenated (shared).")
 Model.flow_count = property(_flow_count, doc='The number of flows.')
 Model.constrained = property(_constrained, doc='True under a constraint.')
 
