@@ -31,7 +31,10 @@ the panel says.
   along gravity (the weight's torque about the pivot is horizontal), all of it without
   gravity; and for a body symmetric about an axis e3 through the pivot (a Lagrange top,
   a wheel on its axle) L . e3 = I3 omega3, as the torque r x m g is normal to e3.
-- Drag: none.
+- Drag, a torque oscillating in time: none.
+
+Each effect's class declares what it conserves (``conserves``, ``keeps_pivot_invariants``:
+physics/effects/registry.py), so a new effect needs no case here.
 
 Each drift is relative to a physical scale: the energy's to the initial kinetic energy
 (the potential's zero is arbitrary), a momentum's to the initial |L| (a component may start
@@ -54,6 +57,7 @@ import numpy as np
 from rosbags.rosbag2 import Reader
 
 from .bag_writer import typestore
+from ..physics.effects import EFFECTS
 
 __all__ = [
     'BagMotion',
@@ -298,25 +302,36 @@ def conserved_quantities(motion):
         return ('Drift of $T_{rot}$ and $|L|$ (conserved if torque-free about the COM; the '
                 'bag does not name the effects)', [rotational, magnitude])
     names = {effect['effect'] for effect in effects}
-    if 'drag' in names or ('pivot' in names and 'dissipation' in names):
-        for quantity in (rotational, magnitude):
-            quantity.conserved = False
-        return (f'$T_{{rot}}$ and $|L|$: not conserved here ({", ".join(sorted(names))})',
-                [rotational, magnitude])
+    # What each effect conserves, as its class declares it (physics/effects/registry.py); an
+    # effect this version does not know conserves nothing.
+    classes = {name: EFFECTS.get(name) for name in names}
     if 'pivot' in names:
         pivot = _effect(effects, 'pivot')
-        if motion.mass is None or 'anchor' not in pivot:
-            for quantity in (rotational, magnitude):
-                quantity.conserved = False
-            return ('$T_{rot}$ and $|L|$: not conserved here (the pivot torques the body; the '
-                    'bag lacks its parameters)', [rotational, magnitude])
-        return _pivot_quantities(motion, pivot, _effect(effects, 'gravity'))
-    if 'dissipation' in names:
-        rotational.conserved = False
-        return ('$|L|$ is conserved; internal dissipation drains $T_{rot}$',
+        kept = all(cls is not None and cls.keeps_pivot_invariants
+                   for name, cls in classes.items() if name != 'pivot')
+        if kept and motion.mass is not None and 'anchor' in pivot:
+            return _pivot_quantities(motion, pivot, _effect(effects, 'gravity'))
+        for quantity in (rotational, magnitude):
+            quantity.conserved = False
+        reason = (', '.join(sorted(names)) if not kept
+                  else 'the pivot torques the body; the bag lacks its parameters')
+        return (f'$T_{{rot}}$ and $|L|$: not conserved here ({reason})',
+                [rotational, magnitude])
+    conserved = {'angular_momentum', 'rotational_energy'}
+    for cls in classes.values():
+        conserved &= set(() if cls is None else cls.conserves)
+    rotational.conserved = 'rotational_energy' in conserved
+    magnitude.conserved = 'angular_momentum' in conserved
+    if rotational.conserved and magnitude.conserved:
+        return 'Conserved without torque about the COM: drift of $T_{rot}$ and $|L|$', \
+            [rotational, magnitude]
+    if magnitude.conserved:
+        changing = sorted(name for name, cls in classes.items()
+                          if cls is None or 'rotational_energy' not in cls.conserves)
+        return (f'$|L|$ is conserved; {", ".join(changing)} changes $T_{{rot}}$',
                 [magnitude, rotational])
-    return 'Conserved without torque about the COM: drift of $T_{rot}$ and $|L|$', \
-        [rotational, magnitude]
+    return (f'$T_{{rot}}$ and $|L|$: not conserved here ({", ".join(sorted(names))})',
+            [rotational, magnitude])
 
 
 def _pivot_quantities(motion, pivot, gravity):

@@ -31,6 +31,9 @@ class Gravity(Effect):
     """
 
     exerts_torque = False
+    # It acts at the COM: T_rot and L about the COM; about a pivot, E with its potential.
+    conserves = ('angular_momentum', 'rotational_energy')
+    keeps_pivot_invariants = True
     compiled_wrench = staticmethod(weight)
     example = {}
 

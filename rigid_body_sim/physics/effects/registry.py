@@ -21,6 +21,10 @@ once, as compiled code (kernels/model.py), so that every integrator runs it comp
 - ``constrain(body) -> constraint``: a holonomic constraint (a pivot); see
   :class:`rigid_body_sim.physics.effects.pivot.PivotConstraint` for what the Simulator uses;
 - ``potential_energy(body, state)``: its potential energy in J, added by Simulator.energy();
+- ``conserves``: which of 'angular_momentum' (|L| about the COM) and 'rotational_energy'
+  (T_rot) the effect leaves constant (default: neither), and ``keeps_pivot_invariants``:
+  under a pivot it keeps the pivot's (total energy, L about the pivot along gravity): the
+  plots show as conserved only what every effect of a scene conserves;
 - ``accepts_external_wrench = True``: the body may be pushed from outside (the node's
   torque and wrench topics write the Simulator's held wrench);
 - ``example``: a dict of typical parameters (required): the tests run every effect, built
@@ -141,6 +145,8 @@ class Effect:
     compiled_wrench = None
     compiled_flow = None
     example = None
+    conserves = ()
+    keeps_pivot_invariants = False
 
     def wrench_parameters(self, body):
         """Return the parameters (1-D float array) of the compiled wrench on `body`."""
