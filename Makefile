@@ -18,6 +18,8 @@ $(STAMP): requirements.txt setup.py setup.cfg package.xml
 	$(BIN)/python -m pip install --upgrade pip
 	$(BIN)/python -m pip install -r requirements.txt
 	$(BIN)/python -m pip install --no-deps -e .
+	@echo 'Compiling the numba kernels once, so that no run waits for them (about 1-2 min):'
+	$(BIN)/rigid-body-sim compile
 	touch $@
 
 run: $(STAMP)
@@ -35,9 +37,9 @@ run: $(STAMP)
 
 test: export ROS_AUTOMATIC_DISCOVERY_RANGE = LOCALHOST
 test: $(STAMP)
-	@# The numba kernels first (cached; ~40 s on a fresh clone, under 2 s after), so that
-	@# no test's node spends its start-up compiling them.
-	$(BIN)/rigid-body-sim compile
+	@# The numba kernels (compiled by the set-up; a changed source is compiled again here),
+	@# so that no test's node spends its start-up compiling them.
+	$(BIN)/rigid-body-sim compile --quiet
 	$(BIN)/python -m pytest test -q -n 2 --dist loadgroup $(PYTEST_ARGS)
 
 clean:

@@ -25,7 +25,7 @@ from pathlib import Path
 import numba
 
 __all__ = ['kernel', 'helper', 'inline', 'ensure_fresh_cache', 'source_fingerprint',
-           'PHYSICS_ROOT']
+           'PHYSICS_ROOT', 'FINGERPRINT', 'compiled_marker']
 
 PHYSICS_ROOT = Path(__file__).resolve().parent.parent
 """The directory of the physics core, whose sources the kernels are compiled from."""
@@ -56,8 +56,8 @@ def source_fingerprint(root=PHYSICS_ROOT):
 
 
 def cached_kernel_files(root=PHYSICS_ROOT):
-    """Return numba's cache files (index and data) of the physics core."""
-    return [path for pattern in ('*.nbi', '*.nbc')
+    """Return numba's cache files (index and data) of the physics core, and the markers."""
+    return [path for pattern in ('*.nbi', '*.nbc', 'compiled/*')
             for path in root.rglob(f'__pycache__/{pattern}')]
 
 
@@ -70,7 +70,7 @@ def ensure_fresh_cache(root=PHYSICS_ROOT):
     alone, its kernels being those its installer compiled.
     """
     fingerprint_path = root / _FINGERPRINT_FILE
-    fingerprint = source_fingerprint(root)
+    fingerprint = FINGERPRINT if root == PHYSICS_ROOT else source_fingerprint(root)
     try:
         if fingerprint_path.read_text().strip() == fingerprint:
             return 0
@@ -92,5 +92,13 @@ def ensure_fresh_cache(root=PHYSICS_ROOT):
         pass
     return deleted
 
+
+def compiled_marker(name, root=PHYSICS_ROOT):
+    """Return the path of the marker that says `name`'s kernels are compiled for FINGERPRINT."""
+    return root / '__pycache__' / 'compiled' / f'{name}.{FINGERPRINT[:16]}'
+
+
+FINGERPRINT = source_fingerprint()
+"""The fingerprint of the physics core's sources this process compiles and loads."""
 
 ensure_fresh_cache()
