@@ -241,8 +241,8 @@ def _kernel_error(method, body, state, duration, steps):
     values = np.concatenate(state._fields())
     model = new_model(body_values(body.inertia, body.inertia_inverse, body.mass),
                       np.zeros((4, 3)))
-    splitting_module.run(values, model, np.array(method, dtype=float), duration / steps,
-                         steps, 0.0)
+    splitting_module.run(values, model, splitting_module._method(method[:3], method[3:]),
+                         duration / steps, steps, 0.0)
     return rotation_angle_between(State._from_values(values).rotation,
                                   exact_free_flow(body, state, duration).rotation)
 

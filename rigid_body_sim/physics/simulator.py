@@ -163,7 +163,7 @@ class Simulator:
                 constraint.expand_function, constraint.transmit_function,
                 constraint.parameters),
             momentum_dependent=any(effect.momentum_dependent for effect in wrenches),
-            needs_physical=any(effect.reads_state for effect in wrenches))
+            reads_state=any(effect.reads_state for effect in wrenches))
 
     # -- configuration
 

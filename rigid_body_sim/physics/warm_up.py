@@ -17,8 +17,8 @@ import time
 import numpy as np
 
 from .body import RigidBody
-from .effects import EFFECTS
 from .effects import create_effect
+from .effects import EFFECTS
 from .imu import Imu
 from .imu import ImuModel
 from .integrators import INTEGRATORS

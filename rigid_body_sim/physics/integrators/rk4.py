@@ -129,10 +129,14 @@ def rk4(body, state, time, dt, wrench):
 
 
 @helper
-def _stage(y, k, h):
-    """Return the tuple y + h k (4 or 3 entries)."""
-    if len(y) == 4:
-        return (y[0] + h * k[0], y[1] + h * k[1], y[2] + h * k[2], y[3] + h * k[3])
+def _stage4(y, k, h):
+    """Return the 4-tuple y + h k."""
+    return (y[0] + h * k[0], y[1] + h * k[1], y[2] + h * k[2], y[3] + h * k[3])
+
+
+@helper
+def _stage3(y, k, h):
+    """Return the 3-tuple y + h k."""
     return (y[0] + h * k[0], y[1] + h * k[1], y[2] + h * k[2])
 
 
@@ -154,8 +158,8 @@ def _derivatives(q, momentum_body, position, linear_momentum, time, forcing, pus
         unit = normalised(q)
         stage = forcing.stage
         stage[0], stage[1], stage[2], stage[3] = unit
-        if forcing.term_count > 0:
-            # The effects may read all of the stage's state, not just its orientation.
+        if forcing.reads_state:
+            # The effects read all of the stage's state, not just its orientation.
             stage[4], stage[5], stage[6] = position
             stage[7], stage[8], stage[9] = linear_momentum
             stage[10], stage[11], stage[12] = rotate(unit, momentum_body)
@@ -177,15 +181,15 @@ def step(state, forcing, method, dt, time, pushed, translates):
     x0 = (state[4], state[5], state[6])
     p0 = (state[7], state[8], state[9])
     dq1, dm1, f1 = _derivatives(q0, m0, x0, p0, time, forcing, pushed)
-    p1 = _stage(p0, f1, half)
-    dq2, dm2, f2 = _derivatives(_stage(q0, dq1, half), _stage(m0, dm1, half),
-                                _stage(x0, p0, half / mass), p1, time + half, forcing, pushed)
-    p2 = _stage(p0, f2, half)
-    dq3, dm3, f3 = _derivatives(_stage(q0, dq2, half), _stage(m0, dm2, half),
-                                _stage(x0, p1, half / mass), p2, time + half, forcing, pushed)
-    p3 = _stage(p0, f3, dt)
-    dq4, dm4, f4 = _derivatives(_stage(q0, dq3, dt), _stage(m0, dm3, dt),
-                                _stage(x0, p2, dt / mass), p3, time + dt, forcing, pushed)
+    p1 = _stage3(p0, f1, half)
+    dq2, dm2, f2 = _derivatives(_stage4(q0, dq1, half), _stage3(m0, dm1, half),
+                                _stage3(x0, p0, half / mass), p1, time + half, forcing, pushed)
+    p2 = _stage3(p0, f2, half)
+    dq3, dm3, f3 = _derivatives(_stage4(q0, dq2, half), _stage3(m0, dm2, half),
+                                _stage3(x0, p1, half / mass), p2, time + half, forcing, pushed)
+    p3 = _stage3(p0, f3, dt)
+    dq4, dm4, f4 = _derivatives(_stage4(q0, dq3, dt), _stage3(m0, dm3, dt),
+                                _stage3(x0, p2, dt / mass), p3, time + dt, forcing, pushed)
     dq = (sixth * (dq1[0] + 2.0 * dq2[0] + 2.0 * dq3[0] + dq4[0]),
           sixth * (dq1[1] + 2.0 * dq2[1] + 2.0 * dq3[1] + dq4[1]),
           sixth * (dq1[2] + 2.0 * dq2[2] + 2.0 * dq3[2] + dq4[2]),
@@ -193,9 +197,9 @@ def step(state, forcing, method, dt, time, pushed, translates):
     dm = (sixth * (dm1[0] + 2.0 * dm2[0] + 2.0 * dm3[0] + dm4[0]),
           sixth * (dm1[1] + 2.0 * dm2[1] + 2.0 * dm3[1] + dm4[1]),
           sixth * (dm1[2] + 2.0 * dm2[2] + 2.0 * dm3[2] + dm4[2]))
-    state[0], state[1], state[2], state[3] = normalised(_stage(q0, dq, 1.0))
+    state[0], state[1], state[2], state[3] = normalised(_stage4(q0, dq, 1.0))
     # L1 = L0 + R0 (dm + (R(d) - 1) m1) from increments (world_momentum_change).
-    change = rotate(q0, world_momentum_change(q0, dq, _stage(m0, dm, 1.0), dm))
+    change = rotate(q0, world_momentum_change(q0, dq, _stage3(m0, dm, 1.0), dm))
     for i in range(3):
         state[10 + i] += change[i]
     if translates:

@@ -68,6 +68,8 @@ STRANG_AXES = (0, 1, 2)
 SUZUKI_AXES = (0, 2, 1)
 _SUZUKI_P = 1.0 / (4.0 - 4.0 ** (1.0 / 3.0))
 SUZUKI_COEFFICIENTS = (_SUZUKI_P, _SUZUKI_P, 1.0 - 4.0 * _SUZUKI_P, _SUZUKI_P, _SUZUKI_P)
+# The length of the method constants: three axes, a count, up to six stages.
+_METHOD_SIZE = 10
 
 
 @helper
@@ -154,7 +156,10 @@ def _compensated_add(total, addend, compensation):
 @inline
 def step(state, forcing, method, dt, time, pushed, translates):
     """
-    Take the splitting step on a packed state in place; method = (outer, inner, central, c...).
+    Take the splitting step on a packed state in place.
+
+    method = (outer, inner, central axis, number of stages n, c_1 .. c_n, zeros up to
+    :data:`_METHOD_SIZE`): one length for both methods, so one compiled kernel.
 
     Each stage c is kick(c h/2), free flow(c h), kick(c h/2).  Round-off: a step's kicks
     (two per stage, five stages for splitting4, one of them negative) and the COM's
@@ -170,6 +175,7 @@ def step(state, forcing, method, dt, time, pushed, translates):
     frame = (body[BODY_FRAME], body[BODY_FRAME + 1], body[BODY_FRAME + 2],
              body[BODY_FRAME + 3])
     axes = (int(method[0]), int(method[1]), int(method[2]))
+    stages = int(method[3])
     q = (state[0], state[1], state[2], state[3])
     x0 = (state[4], state[5], state[6])
     p0 = (state[7], state[8], state[9])
@@ -180,7 +186,7 @@ def step(state, forcing, method, dt, time, pushed, translates):
     p, angular = p0, l0
     stage_start = time
     stage_state = forcing.stage
-    for index in range(3, method.size):
+    for index in range(4, 4 + stages):
         stage = method[index] * dt
         for kick_number in range(2):
             if kick_number == 1:
@@ -191,8 +197,8 @@ def step(state, forcing, method, dt, time, pushed, translates):
                           dx[2] + stage * p[2] / mass)
             if pushed:
                 stage_state[0], stage_state[1], stage_state[2], stage_state[3] = q
-                if forcing.term_count > 0:
-                    # The effects may read the stage's whole state.
+                if forcing.reads_state:
+                    # The effects read the stage's whole state.
                     for i in range(3):
                         stage_state[4 + i] = x0[i] + dx[i]
                         stage_state[7 + i] = p[i]
@@ -227,15 +233,21 @@ def controlled(state, model, method, tick, ticks, time, control):
     return controlled_ticks(run, state, model, method, tick, ticks, time, control)
 
 
+def _method(axes, coefficients):
+    """Return the method constants of a composition of Strang steps (see :func:`step`)."""
+    constants = tuple(axes) + (len(coefficients),) + tuple(coefficients)
+    return tuple(float(value) for value in constants) + (0.0,) * (_METHOD_SIZE - len(constants))
+
+
 @register_integrator('splitting', order=2, run=run, controlled=controlled,
-                     method=STRANG_AXES + (1.0,))
+                     method=_method(STRANG_AXES, (1.0,)))
 def splitting(body, state, time, dt, wrench):
     """Strang splitting 1(h/2) 2(h/2) 3(h) 2(h/2) 1(h/2) of the free body; kicks for wrenches."""
     return kick_drift_kick(body, state, time, dt, wrench, splitting_free_flow)
 
 
 @register_integrator('splitting4', order=4, run=run, controlled=controlled,
-                     method=SUZUKI_AXES + SUZUKI_COEFFICIENTS)
+                     method=_method(SUZUKI_AXES, SUZUKI_COEFFICIENTS))
 def splitting4(body, state, time, dt, wrench):
     """
     Suzuki's fourth-order composition of the kicked symmetric splitting step.

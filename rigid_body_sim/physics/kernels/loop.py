@@ -24,7 +24,6 @@ numba compiles each once, for the one type of a Model, and caches it.
 from . import inline
 from .borrow import borrowed
 from .model import apply_flows
-from .model import held_is_zero
 from .model import unpacked
 
 __all__ = ['run_steps']
@@ -42,16 +41,26 @@ def run_steps(step, state, model, method, dt, steps, time):
     """
     forcing = unpacked(model)
     state = borrowed(state)
-    pushed = forcing.term_count > 0 or not held_is_zero(forcing.held)
+    pushed = forcing.term_count > 0 or forcing.holding
     translates = pushed or state[7] != 0.0 or state[8] != 0.0 or state[9] != 0.0
     flowing = forcing.flow_count > 0
     half = 0.5 * dt
     # The low bits a step hands the next (splitting's Kahan sums): each call starts afresh.
     forcing.carry[:] = 0.0
-    for k in range(steps):
-        if flowing:
-            apply_flows(state, forcing, half, False)
-        step(state, forcing, method, dt, time + k * dt, pushed, translates)
-        if flowing:
-            apply_flows(state, forcing, half, True)
+    # Two copies of the loop, in which `pushed` is a constant: the torque-free one carries no
+    # kick code at all (its registers are the step's alone: 2 ns of Buss's 47 ns step).
+    if pushed:
+        for k in range(steps):
+            if flowing:
+                apply_flows(state, forcing, half, False)
+            step(state, forcing, method, dt, time + k * dt, True, translates)
+            if flowing:
+                apply_flows(state, forcing, half, True)
+    else:
+        for k in range(steps):
+            if flowing:
+                apply_flows(state, forcing, half, False)
+            step(state, forcing, method, dt, time + k * dt, False, translates)
+            if flowing:
+                apply_flows(state, forcing, half, True)
     return steps

@@ -138,6 +138,7 @@ _FIELDS = (('body', _vector), ('held', types.float64[:, ::1]),
            ('flows', types.UniTuple(_FLOW, MAX_FLOWS)), ('flow_count', types.int64),
            ('flow_parameters', _vector), ('flow_offsets', types.int64[::1]),
            ('constrained', types.boolean), ('needs_physical', types.boolean),
+           ('reads_state', types.boolean),
            ('expand', types.FunctionType(EXPAND_SIGNATURE)),
            ('transmit', types.FunctionType(TRANSMIT_SIGNATURE)),
            ('constraint_parameters', _vector),
@@ -147,20 +148,23 @@ structref.define_proxy(Model, ModelType, list(_NAMES))
 MODEL_TYPE = ModelType(list(_FIELDS))
 """numba's type of every Model: one type, so each kernel compiles once."""
 
-Forcing = collections.namedtuple('Forcing', _NAMES)
+# The Forcing adds what a call finds: whether the held wrench is not zero.
+Forcing = collections.namedtuple('Forcing', _NAMES + ('holding',))
 Forcing.__doc__ = """A Model's fields as one tuple of local values, unpacked once per kernel call.
 
 Reading a field of the Model in the hot loop costs a load through its reference each time
 (and a function pointer's ~10 ns); the kernels pass this tuple down instead (all inlined)."""
 
 
-@kernel(MODEL_TYPE(*(kind for name, kind in _FIELDS[:16])))
+@kernel(MODEL_TYPE(*(kind for name, kind in _FIELDS[:17])))
 def _new_model(body, held, terms, term_count, term_parameters, term_offsets,
                momentum_dependent, flows, flow_count, flow_parameters, flow_offsets,
-               constrained, needs_physical, expand, transmit, constraint_parameters):
+               constrained, needs_physical, reads_state, expand, transmit,
+               constraint_parameters):
     return Model(body, held, terms, term_count, term_parameters, term_offsets,
                  momentum_dependent, flows, flow_count, flow_parameters, flow_offsets,
-                 constrained, needs_physical, expand, transmit, constraint_parameters,
+                 constrained, needs_physical, reads_state, expand, transmit,
+                 constraint_parameters,
                  np.zeros(STATE_SIZE), np.zeros(STATE_SIZE), np.zeros(STATE_SIZE),
                  np.zeros(STATE_SIZE))
 
@@ -207,9 +211,10 @@ def unpacked(model):
                    borrowed(model.term_offsets), model.momentum_dependent, model.flows,
                    model.flow_count, borrowed(model.flow_parameters),
                    borrowed(model.flow_offsets), model.constrained, model.needs_physical,
-                   model.expand, model.transmit, borrowed(model.constraint_parameters),
-                   borrowed(model.physical), borrowed(model.stage), borrowed(model.midpoint),
-                   borrowed(model.carry))
+                   model.reads_state, model.expand, model.transmit,
+                   borrowed(model.constraint_parameters), borrowed(model.physical),
+                   borrowed(model.stage), borrowed(model.midpoint), borrowed(model.carry),
+                   not held_is_zero(model.held))
 
 
 def _packed(functions, parameters, limit, filler, kind):
@@ -224,7 +229,7 @@ def _packed(functions, parameters, limit, filler, kind):
 
 
 def new_model(body, held, terms=(), flows=(), constraint=None, momentum_dependent=False,
-              needs_physical=False):
+              reads_state=False):
     """
     Return a :class:`Model`.
 
@@ -232,9 +237,10 @@ def new_model(body, held, terms=(), flows=(), constraint=None, momentum_dependen
     the held wrench (rows HELD_*), shared: written in place, it acts at the next call;
     terms, flows : sequences of (compiled function, parameters array); constraint : None or
     (expand, transmit, parameters); momentum_dependent : some term depends on p or L (the
-    kicks then take the midpoint rule, keeping their order); needs_physical : under the
-    constraint, some term reads more of the state than the orientation (the physical state
-    is then expanded for it; the orientation is the same in both).
+    kicks then take the midpoint rule, keeping their order); reads_state : some term reads
+    more of the state than the orientation (the methods then give it their stages' whole
+    state, and under the constraint the physical state is expanded for it; the
+    orientation is the same in both).
     """
     term_functions, term_count, term_parameters, term_offsets = _packed(
         [f for f, _ in terms], [p for _, p in terms], MAX_TERMS, no_term, 'wrench terms')
@@ -251,8 +257,8 @@ def new_model(body, held, terms=(), flows=(), constraint=None, momentum_dependen
         return _new_model(np.ascontiguousarray(body, dtype=float), held, term_functions,
                           term_count, term_parameters, term_offsets, bool(momentum_dependent),
                           flow_functions, flow_count, flow_parameters, flow_offsets,
-                          constraint is not None, bool(needs_physical and constraint is not None),
-                          expand, transmit,
+                          constraint is not None, bool(reads_state and constraint is not None),
+                          bool(reads_state), expand, transmit,
                           np.ascontiguousarray(constraint_parameters, dtype=float))
 
 
@@ -285,7 +291,10 @@ def applied_wrench(physical, time, forcing):
 
     A constraint's reaction is not in it.  The IMU's accelerations start from it.
     """
-    wrench = _held_wrench((physical[0], physical[1], physical[2], physical[3]), forcing.held)
+    wrench = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    if forcing.holding:
+        wrench = _held_wrench((physical[0], physical[1], physical[2], physical[3]),
+                              forcing.held)
     terms, offsets, parameters = forcing.terms, forcing.term_offsets, forcing.term_parameters
     for i in range(forcing.term_count):
         term = terms[i](physical, time, parameters[offsets[i]:offsets[i + 1]])
