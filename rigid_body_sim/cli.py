@@ -22,6 +22,7 @@ TOOLS = {
     'plot': 'plot',
     'animate': 'animate',
     'compile': 'compile',
+    'watch': 'watch',
 }
 
 _EPILOG = """\
