@@ -7,7 +7,6 @@ every number is fixed; the window for real, under Xvfb, by the pixels of a scree
 """
 
 import os
-from pathlib import Path
 import shutil
 import signal
 import subprocess
@@ -163,7 +162,7 @@ def _fields(block):
 
 @pytest.fixture(scope='module')
 def node(tmp_path_factory):
-    """The default scene at 100 Hz in a namespace of its own, and a client."""
+    """Start the default scene at 100 Hz in a namespace of its own; yield a client."""
     isolate_ros_environment()
     namespace = unique_namespace()
     process = NodeProcess(tmp_path_factory.mktemp('watch') / 'node.log', namespace=namespace,

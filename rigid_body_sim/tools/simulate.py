@@ -105,7 +105,7 @@ def remove_bag(path):
     storage = ('.mcap', '.db3', '.db3-journal', '.db3-wal', '.db3-shm')
     if not path.is_dir():
         raise ValueError(f'{path} exists and is not a bag directory; not replaced')
-    files = [entry for entry in path.iterdir()]
+    files = list(path.iterdir())
     is_bag = (path / 'metadata.yaml').is_file() and all(
         entry.is_file() for entry in files) or (files and all(
             entry.is_file() and entry.name.endswith(storage) for entry in files))

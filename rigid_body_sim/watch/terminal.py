@@ -46,14 +46,15 @@ def render_lines(snapshot):
         lines.append('  waiting for its state (odom, angular_momentum)')
         return lines
     time = latest.time
-    lines.append('  time          ' + ('(known at the first report)' if time is None
-                                     else f'{time:.6f} s simulated'))
+    lines.append('  time          ' + (
+        '(known at the first report)' if time is None else f'{time:.6f} s simulated'))
     lines.append('  omega body    ' + '  '.join(
         format_number(component) for component in latest.angular_velocity_body) + ' rad/s')
-    lines.append(f'  |L|           {format_number(latest.momentum_magnitude, signed=False)} kg m^2/s')
+    magnitude = format_number(latest.momentum_magnitude, signed=False)
+    lines.append(f'  |L|           {magnitude} kg m^2/s')
     if snapshot.diagnostics:
         lines.append(f'  energy drift  {value("energy_drift")} (total energy, since the last '
-                     'input; the node\'s report)')
+                     "input; the node's report)")
     axis = snapshot.flip_axis
     flipped = '' if axis is None else f' (sign changes of Omega_{_AXES[axis]})'
     lines.append(f'  flips         {snapshot.flips}{flipped}')

@@ -224,7 +224,7 @@ class WatchWindow:
         else:
             self.energy_line.set_data([], [])
             self.momentum_line.set_data([], [])
-            title = ('Drift of the total energy, from the node\'s reports\n(effects '
+            title = ("Drift of the total energy, from the node's reports\n(effects "
                      f'{snapshot.value("effects")}: $T_{{rot}}$, $|L|$ not conserved)')
         if self.reports and not torque_free:
             # Only where no drift is computed here: the report counts from the node's last
@@ -266,9 +266,9 @@ class WatchWindow:
         if latest is not None:
             now = 'not yet known' if latest.time is None else f'{latest.time:.3f} s'
             omega = ' '.join(format_number(w, 6) for w in latest.angular_velocity_body)
+            magnitude = format_number(latest.momentum_magnitude, signed=False)
             lines.append(f'simulated time {now}   omega body [{omega}] rad/s   '
-                         f'|L| {format_number(latest.momentum_magnitude, signed=False)} kg m^2/s   '
-                         f'flips {snapshot.flips}')
+                         f'|L| {magnitude} kg m^2/s   flips {snapshot.flips}')
         if snapshot.diagnostics:
             tolerance = value('tolerance')
             control = 'fixed step' if tolerance == 'off' else f'tolerance {tolerance} rad/s'
@@ -286,7 +286,7 @@ class WatchWindow:
                          f'{value("momentum_drift")}); node report of t = '
                          f'{value("simulated_time")} s')
         else:
-            lines.append('waiting for the node\'s first /diagnostics report (once a second)')
+            lines.append("waiting for the node's first /diagnostics report (once a second)")
         return '\n'.join(lines)
 
 
