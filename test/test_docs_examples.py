@@ -12,9 +12,9 @@ says why and is checked as far as it can be:
   venv has none), run where it is (only their ``--help`` side is safe: they talk to a node);
 - ``make run`` / ``make test``: the node until Ctrl-C, and this very suite: not run;
 - a ROS 2 workspace (``colcon build`` in ~/ros2_ws): test_colcon_build.py builds it;
-- ``rigid-body-sim bench`` without ``--quick`` (21.6 min) and ``record`` (until Ctrl-C, needs
-  a node): their arguments are parsed by the real parser (an option that no longer exists
-  fails), not run.
+- ``rigid-body-sim bench`` without ``--quick`` (21.6 min), ``record`` and ``watch`` (until
+  Ctrl-C, with a node): their arguments are parsed by the real parser (an option that no
+  longer exists fails), not run; their ``--help`` runs.
 
 Also here: the help texts and lists the pages promise (every integrator on
 docs/physics_api.md, imu in ``rigid_body_node --help``, the README's figures as
@@ -40,6 +40,7 @@ _BLOCK = re.compile(r'```(sh|python)\n(.*?)```', re.S)
 _PARSED_ONLY = {
     'bench': 'the full benchmark takes 21.6 min on 2 cores (--quick runs in test_bench.py)',
     'record': 'records a running node until Ctrl-C (test_recorder.py runs it)',
+    'watch': 'shows a running node until Ctrl-C (test_watch.py runs it)',
 }
 
 
@@ -83,7 +84,8 @@ def _reason_not_run(command):
         return 'sets up a ROS 2 workspace (test_colcon_build.py builds the package)', False
     if program.endswith('rigid-body-sim') and len(words) > 1:
         tool = words[1]
-        if tool in _PARSED_ONLY and not (tool == 'bench' and '--quick' in words):
+        if tool in _PARSED_ONLY and not (tool == 'bench' and '--quick' in words) \
+                and '--help' not in words:
             return _PARSED_ONLY[tool], True
     return None, False
 

@@ -459,7 +459,8 @@ def _title(motion, shape):
     parts = [f'scene {scene}' if scene else motion.name]
     if integrator:
         parts.append(integrator)
-    return ', '.join(parts) + f' ({shape.origin}; viewed from the COM)'
+    # What the body is drawn as is in the legend (its shape, or a stand-in).
+    return ', '.join(parts) + ', viewed from the COM'
 
 
 def _gif_bytes(images, fps):
