@@ -261,8 +261,9 @@ def _start_xvfb():
     if xvfb is None:
         pytest.skip('Xvfb is not installed (apt install xvfb; .ci/run installs it)')
     read, write = os.pipe()
+    # -s 0: no screen saver blanking the screen under the test.
     process = subprocess.Popen([xvfb, '-displayfd', str(write), '-screen', '0', '1400x900x24',
-                                '-nolisten', 'tcp'], pass_fds=(write,),
+                                '-nolisten', 'tcp', '-s', '0'], pass_fds=(write,),
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     os.close(write)
     # Xvfb writes the display number once it accepts clients: the event to wait for.

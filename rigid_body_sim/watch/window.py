@@ -108,7 +108,8 @@ class WatchWindow:
                                                  label=f'$\\Omega_{name}$')[0]
                             for colour, name in zip(_AXIS_COLOURS, 'xyz')]
         self.omega_axes.set(title='Body angular velocity', ylabel='$\\Omega$ [rad/s]')
-        self.omega_axes.legend(loc='upper left', bbox_to_anchor=(1.01, 1.0), fontsize='small')
+        # Legends in one row in headroom above the data (see _autoscale_y): never on a curve.
+        self.omega_axes.legend(loc='upper left', ncols=3, fontsize='small')
         self.omega_axes.tick_params(labelbottom=False)
         self.energy_line, = self.drift_axes.plot([], [], color='tab:orange', linewidth=1.2,
                                                  label='$T_{rot}$ drift')
@@ -117,9 +118,9 @@ class WatchWindow:
                                                    label='$|L|$ drift')
         self.report_line, = self.drift_axes.plot([], [], color='black', marker='o',
                                                  linestyle='none', markersize=4,
-                                                 label='energy drift,\nnode report')
+                                                 label='energy,\nnode report')
         self.drift_axes.set(xlabel='simulated time [s]', ylabel='relative drift')
-        self.drift_axes.legend(loc='upper left', bbox_to_anchor=(1.01, 1.0), fontsize='small')
+        self.legend_torque_free = None
         self.reports = []
         for axes in (self.omega_axes, self.drift_axes):
             axes.grid(True, alpha=0.3)
@@ -226,6 +227,13 @@ class WatchWindow:
             self.momentum_line.set_data([], [])
             title = ("Drift of the total energy, from the node's reports\n(effects "
                      f'{snapshot.value("effects")}: $T_{{rot}}$, $|L|$ not conserved)')
+        if self.legend_torque_free != torque_free:
+            # The legend names what is drawn: the drifts computed here, or the reports.
+            self.legend_torque_free = torque_free
+            handles = [self.energy_line, self.momentum_line] if torque_free else \
+                [self.report_line]
+            self.drift_axes.legend(handles=handles, loc='upper left', fontsize='small',
+                                   ncols=len(handles))
         if self.reports and not torque_free:
             # Only where no drift is computed here: the report counts from the node's last
             # input, not from the chart's start, and the two would disagree by an offset.
@@ -291,11 +299,13 @@ class WatchWindow:
 
 
 def _autoscale_y(axes, values):
+    """Fit the y range to the values, with a fifth of the height free on top for the legend."""
     values = np.asarray(values, dtype=float)
     values = values[np.isfinite(values)]
     if not values.size:
         return
     low, high = float(values.min()), float(values.max())
     span = high - low
-    margin = 0.08 * span if span > 0.0 else max(abs(high) * 0.1, 1e-12)
-    axes.set_ylim(low - margin, high + margin)
+    margin = 0.06 * span if span > 0.0 else max(abs(high) * 0.1, 1e-12)
+    low, high = low - margin, high + margin
+    axes.set_ylim(low, high + 0.25 * (high - low))
