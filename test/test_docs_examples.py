@@ -158,7 +158,7 @@ def test_the_readme_quotes_the_benchmark_page_figures():
     # Ranges the README gives as "within A-Bx of MuJoCo RK4's error" must be the page's.
     readme = (ROOT / 'README.md').read_text()
     benchmark = (ROOT / 'docs' / 'benchmark.md').read_text()
-    ranges = re.findall(r'within (\d+(?:\.\d+)?-\d+(?:\.\d+)?x) of MuJoCo', readme)
+    ranges = re.findall(r'within (\d+(?:\.\d+)?-\d+(?:\.\d+)?x) of\s+MuJoCo', readme)
     assert ranges, 'the README no longer quotes the rk4 range'
     for figure in ranges:
         assert figure in benchmark, f'README says {figure}; docs/benchmark.md does not'
@@ -176,3 +176,38 @@ def test_scene_theory_runs_and_every_check_holds():
                             capture_output=True, text=True, timeout=600, cwd=ROOT)
     assert result.returncode == 0, result.stdout[-2000:] + result.stderr
     assert result.stdout.rstrip().endswith(' 0 failing')
+
+
+# -- the traps a newcomer met (issue 23)
+
+
+def test_a_quick_bench_refuses_to_overwrite_a_full_runs_results(tmp_path, capsys):
+    from rigid_body_sim.cli import main
+    # The committed full run's results, in a copy (a failing guard must not overwrite them).
+    shutil.copy(ROOT / 'docs' / 'benchmark' / 'results.json', tmp_path / 'results.json')
+    assert main(['bench', '--quick', '--no-mujoco', '--out', str(tmp_path)]) == 2
+    error = capsys.readouterr().err
+    assert 'holds the results of a full run' in error and error.count('\n') == 1
+
+
+def test_simulate_overwrite_replaces_a_bag_and_never_another_directory(tmp_path, capsys):
+    from rigid_body_sim.cli import main
+    bag = tmp_path / 'runs' / 'flip'
+    arguments = ['simulate', '--duration', '0.05', '--quiet', '--bag', str(bag)]
+    assert main(arguments) == 0
+    assert main(arguments) == 2 and '--overwrite' in capsys.readouterr().err
+    assert main(arguments + ['--overwrite']) == 0
+    other = tmp_path / 'notes'
+    other.mkdir()
+    (other / 'keep.txt').write_text('mine')
+    arguments[-1] = str(other)
+    assert main(arguments + ['--overwrite']) == 2
+    assert (other / 'keep.txt').read_text() == 'mine'
+
+
+def test_scenes_prints_round_off_as_zero(capsys):
+    from rigid_body_sim.cli import main
+    assert main(['scenes', 'heavy_top']) == 0
+    out = capsys.readouterr().out
+    omega = next(line for line in out.splitlines() if 'omega body' in line)
+    assert 'e-' not in omega and '150' in omega, omega
