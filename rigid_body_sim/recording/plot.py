@@ -646,7 +646,7 @@ def plot_motion(motion, out):
 def _time_label(motion):
     """Return the time axis's label: simulated time, and how it was told, or wall time."""
     if motion.timed_by_reports:
-        return 'simulated time [s] (live bag: timed by the node\'s /diagnostics reports)'
+        return "simulated time [s] (live bag: timed by the node's /diagnostics reports)"
     if motion.time_is_simulated:
         return 'simulated time [s]'
     spacing = motion.stamp_spacing
@@ -872,7 +872,7 @@ def _com_panel(figure, cell, motion, time_label):
 
     axes = figure.add_subplot(cells[1])
     height = position[:, 2]
-    line = _draw_series(axes, time, height, 'tab:blue', 'z')
+    _draw_series(axes, time, height, 'tab:blue', 'z')
     apex = apex_index(motion)
     if apex is not None:
         # A throw's apex: where the vertical velocity changes sign.
