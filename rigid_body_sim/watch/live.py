@@ -22,6 +22,8 @@ import threading
 
 import numpy as np
 
+from ..physics import matrix_from_quaternion
+
 __all__ = ['LiveState', 'Tick', 'DIAGNOSTICS_KEYS', 'format_number']
 
 # The /diagnostics keys the view reads (the node's own names, docs/node.md).
@@ -112,11 +114,7 @@ class Tick:
     @property
     def rotational_energy(self):
         """Return T_rot = 1/2 Omega . (R^T L) in J (needs no inertia)."""
-        x, y, z, w = self.quaternion / np.linalg.norm(self.quaternion)
-        rotation = np.array([
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+        rotation = matrix_from_quaternion(self.quaternion / np.linalg.norm(self.quaternion))
         return 0.5 * float(self.angular_velocity_body @ (rotation.T @ self.angular_momentum))
 
     @property
