@@ -21,9 +21,10 @@ from .kernels.model import HELD_FORCE_WORLD
 from .kernels.model import HELD_TORQUE_BODY
 from .kernels.model import HELD_TORQUE_WORLD
 from .kernels.model import new_model
+from .stability import stiffness_problem
 from .state import State
 
-__all__ = ['Simulator', 'unresolved_rotation', 'RESOLVED_ROTATION']
+__all__ = ['Simulator', 'DivergedError', 'unresolved_rotation', 'RESOLVED_ROTATION']
 
 RESOLVED_ROTATION = 0.5
 """The largest rotation (rad) per integrator step that the steps resolve: beyond it every
@@ -41,6 +42,19 @@ _PROGRESS_CHUNK = 20000
 # What takes the steps (Simulator.path).
 COMPILED = 'compiled'  # the integrator's kernel, every effect compiled (kernels/model.py)
 READABLE = 'readable'  # the readable step functions and the effects' Python faces
+
+
+class DivergedError(ValueError):
+    """
+    The state turned non-finite in a step: the Simulator kept the last finite state.
+
+    ``time`` is the simulated time of that state (s); the message says what acted (the
+    integrator, the step, the effects and the held wrench) and what to change.
+    """
+
+    def __init__(self, message, time):
+        super().__init__(message)
+        self.time = time
 
 
 def _checked_vector(value, name):
@@ -124,6 +138,10 @@ class Simulator:
         self._values = np.zeros(STATE_SIZE)
         self.state = state
         self._fast = bool(fast)
+        # The last finite packed state (restored if a step turns the state non-finite), and
+        # the configuration whose steps were last checked against the stiff effects.
+        self._checkpoint = np.zeros(STATE_SIZE)
+        self._checked = None
         self.integrator = integrator
         self.substeps = substeps
         self.tolerance = tolerance
@@ -248,6 +266,7 @@ class Simulator:
             raise ValueError(f'substeps must be a whole number >= 1; got {substeps!r}')
         self._substeps = int(substeps)
         error_control.set_bounds(self._control, self._substeps)
+        self._control_floor = self._substeps
 
     def substep_statistics(self, reset=False):
         """
@@ -428,6 +447,8 @@ class Simulator:
         # A finite positive float needs no conversion (the node passes one every tick).
         if dt.__class__ is not float or not 0.0 < dt < math.inf:
             dt = _checked_positive(dt, 'dt')
+        if self._checked != (dt, self._substeps, self._integrator, self._tolerance):
+            self._check_stiffness(dt)
         if self._tolerance is not None:
             self._controlled(dt, 1)
         elif self._substeps == 1:
@@ -462,6 +483,7 @@ class Simulator:
         if abs(steps * dt - duration) > 1e-9 * dt:
             steps = int(math.floor(ratio))
         remainder = duration - steps * dt
+        self._check_stiffness(dt)
         done = 0
         controlled = self._tolerance is not None
         per_step = 1 if controlled else self._substeps
@@ -498,15 +520,64 @@ class Simulator:
         error_control.set_torque_free(self._control, torque_free)
         error_control.changed(self._control)
 
+    def _check_stiffness(self, dt):
+        """
+        Refuse a fixed step too long for a stiff effect; under error control, bound it.
+
+        See :mod:`.stability`: an explicit step of a linear decay faster than the method
+        follows grows without bound.  Under error control the controller's lower bound on
+        the substeps is raised to what keeps the steps stable (the `substeps` set stays).
+        """
+        self._checked = (dt, self._substeps, self._integrator, self._tolerance)
+        problem = stiffness_problem(self, dt)
+        if problem is not None and (self._tolerance is None or not math.isfinite(problem[0])):
+            raise ValueError(problem[1])
+        floor = self._substeps if problem is None else max(self._substeps, int(problem[0]))
+        if self._tolerance is not None and floor != self._control_floor:
+            error_control.set_bounds(self._control, floor)
+            self._control_floor = floor
+
+    def _guarded(self, advance, duration):
+        """Run `advance()`; if it left a non-finite state, restore the last and raise."""
+        values = self._values
+        np.copyto(self._checkpoint, values)
+        advance()
+        self._integrated = self._state = None
+        if not np.isfinite(values).all():
+            np.copyto(values, self._checkpoint)
+            raise DivergedError(self._divergence(duration), self._time)
+        self._add_time(duration)
+
+    def _divergence(self, duration):
+        """Return the one-line message of a state that turned non-finite."""
+        acting = [repr(effect) for effect in self._effects
+                  if getattr(effect, 'compiled_wrench', None) is not None
+                  or getattr(effect, 'compiled_flow', None) is not None]
+        if np.any(self._held):
+            acting.append('the held wrench ' + ', '.join(
+                f'{name} {self._held[row].tolist()}' for row, name in enumerate(
+                    ('force_world', 'torque_world', 'force_body', 'torque_body'))
+                if np.any(self._held[row])))
+        control = (f'error control at {self._tolerance:g} rad/s' if self._tolerance
+                   else f'{self._substeps} substep(s) per step')
+        return (f'the state turned non-finite between t = {self._time:.9g} s and '
+                f'{self._time + duration:.9g} s under {self.integrator} ({control}) with '
+                f'{"; ".join(acting) or "no effect"}; kept the last finite state, at '
+                f't = {self._time:.9g} s: a shorter step (rate, substeps) or smaller '
+                'coefficients or inputs keep it finite')
+
     def _advance(self, steps, dt, duration=None):
         """Take `steps` steps of dt s; the clock moves by `duration` (default steps x dt)."""
         if self._fast:
             integrator = self._integrator
-            integrator.run(self._values, self._model, integrator.method, dt, steps, self._time)
+
+            def advance():
+                integrator.run(self._values, self._model, integrator.method, dt, steps,
+                               self._time)
         else:
-            self._readable_run(self._values, self._model, None, dt, steps, self._time)
-        self._integrated = self._state = None
-        self._add_time(steps * dt if duration is None else duration)
+            def advance():
+                self._readable_run(self._values, self._model, None, dt, steps, self._time)
+        self._guarded(advance, steps * dt if duration is None else duration)
 
     def _controlled(self, tick, ticks):
         """
@@ -517,14 +588,15 @@ class Simulator:
         """
         integrator = self._integrator
         if self._fast:
-            integrator.controlled(self._values, self._model, integrator.method, tick, ticks,
-                                  self._time, self._control)
+            def advance():
+                integrator.controlled(self._values, self._model, integrator.method, tick,
+                                      ticks, self._time, self._control)
         else:
-            error_control.controlled_ticks.py_func(
-                self._readable_run, self._values, self._model, None, tick, ticks,
-                self._time, self._control)
-        self._integrated = self._state = None
-        self._add_time(ticks * tick)
+            def advance():
+                error_control.controlled_ticks.py_func(
+                    self._readable_run, self._values, self._model, None, tick, ticks,
+                    self._time, self._control)
+        self._guarded(advance, ticks * tick)
 
     def _readable_run(self, values, model, method, dt, steps, time):
         """

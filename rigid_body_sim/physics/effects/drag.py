@@ -79,6 +79,21 @@ class Drag(Effect):
         if not (translational or self.exerts_torque):
             raise ValueError('drag: every coefficient is zero; give one, or drop the effect')
 
+    def stiffness(self, body):
+        """
+        Return (the fastest linear decay rate in 1/s, what it is) on `body`.
+
+        c1 / m for the translation, k1 / I1 about the axis of least inertia for the
+        rotation: the rates of dp/dt = -c1 p / m and dL/dt = -k1 omega.  The quadratic parts
+        damp at c2 |v| / m and k2 |omega| / I1, which grow with the speed: not counted.
+        """
+        rotational = self.rotational_linear / float(body.principal_moments[0])
+        translational = self.linear / body.mass
+        if rotational >= translational:
+            return rotational, (f'rotational_linear {self.rotational_linear:g} N m s over the '
+                                f'least moment {float(body.principal_moments[0]):.4g} kg m^2')
+        return translational, f'linear {self.linear:g} N s/m over the mass {body.mass:.4g} kg'
+
     def wrench_parameters(self, body):
         """Return c1, c2, k1, k2, 1/m and I_b^-1 (row-major) of `body`."""
         return np.concatenate([[self.linear, self.quadratic, self.rotational_linear,

@@ -28,7 +28,7 @@ one (benchmarks/effect_cost.py measures what each effect adds to a step).
 """
 
 import collections
-import functools
+import os
 import warnings
 
 import numba
@@ -66,27 +66,35 @@ FLOW_SIGNATURE = types.none(_vector, _vector, types.float64)
 EXPAND_SIGNATURE = types.none(_vector, _vector, _vector)
 TRANSMIT_SIGNATURE = _wrench(_vector, _wrench, _vector)
 
-_signed = functools.partial(numba.njit, cache=True, nogil=True)
+def _signed(signature, function):
+    """
+    Compile `function` for `signature` now, cached beside its file.
+
+    A function with no file (``python -c``, a notebook cell) cannot be cached: it is
+    compiled in every process instead, a fraction of a second for an effect's wrench.
+    """
+    cache = os.path.isfile(function.__code__.co_filename)
+    return numba.njit(signature, cache=cache, nogil=True)(function)
 
 
 def wrench_term(function):
     """Compile `function` as a wrench term: ``(state, time, parameters) -> 6-tuple``."""
-    return _signed(TERM_SIGNATURE)(function)
+    return _signed(TERM_SIGNATURE, function)
 
 
 def flow_function(function):
     """Compile `function` as a flow: ``(state, parameters, duration) -> None``, in place."""
-    return _signed(FLOW_SIGNATURE)(function)
+    return _signed(FLOW_SIGNATURE, function)
 
 
 def expand_function(function):
     """Compile `function` as a constraint's ``expand(integrated, parameters, physical)``."""
-    return _signed(EXPAND_SIGNATURE)(function)
+    return _signed(EXPAND_SIGNATURE, function)
 
 
 def transmit_function(function):
     """Compile `function` as a constraint's ``transmit(state, wrench, parameters)``."""
-    return _signed(TRANSMIT_SIGNATURE)(function)
+    return _signed(TRANSMIT_SIGNATURE, function)
 
 
 @wrench_term
