@@ -51,7 +51,10 @@ __all__ = [
     'DEFAULT_SCENE',
     'DEFAULT_TOLERANCE',
     'Drawing',
+    'RATE_RANGE',
     'Scene',
+    'SUBSTEPS_RANGE',
+    'TOLERANCE_RANGE',
     'find_scene',
     'load_scene',
     'parse_scene',
@@ -65,7 +68,12 @@ DEFAULT_SCENE = 'default'
 DEFAULT_INTEGRATOR = 'buss'
 DEFAULT_RATE = 100.0
 RATE_RANGE = (0.1, 10000.0)
-"""The tick rates (Hz) a scene and the node take."""
+"""The tick rates (Hz) a scene, the node and the command line take."""
+TOLERANCE_RANGE = (0.0, 1.0)
+"""The error control (rad per simulated s; 0: off) a scene, the node and the command line
+take."""
+SUBSTEPS_RANGE = (1, 100000)
+"""The integrator steps per tick the node and the command line take."""
 DEFAULT_TOLERANCE = 1e-7
 """Error control (rad per simulated s) of a scene file without ``tolerance:``: the largest
 that keeps every built-in scene within 1e-3 rad over 60 s (the T-handle and the tennis racket
@@ -538,8 +546,9 @@ class _SceneReader:
                                      f'{rate:g}')
         tolerance = self.number(mapping.get('tolerance', DEFAULT_TOLERANCE), 'tolerance',
                                 'rad/s')
-        if not 0.0 <= tolerance <= 1.0:
-            raise self.error('tolerance', f'must be 0 (off) to 1 rad/s, got {tolerance:g}')
+        if not TOLERANCE_RANGE[0] <= tolerance <= TOLERANCE_RANGE[1]:
+            raise self.error('tolerance', f'must be {TOLERANCE_RANGE[0]:g} (off) to '
+                                          f'{TOLERANCE_RANGE[1]:g} rad/s, got {tolerance:g}')
         drawing = self.drawing(mapping.get('draw', {}), body, body_shape, mapping['body'])
         imu = self.imu(mapping.get('imu', {}))
         return Scene(name=name, description=description, body=body, state=state,

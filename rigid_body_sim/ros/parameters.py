@@ -46,6 +46,8 @@ from ..physics.imu import ImuModel
 from ..scenes import DEFAULT_SCENE
 from ..scenes import RATE_RANGE
 from ..scenes import SHAPES
+from ..scenes import SUBSTEPS_RANGE
+from ..scenes import TOLERANCE_RANGE
 
 __all__ = [
     'PARAMETERS',
@@ -116,14 +118,14 @@ PARAMETERS = (
     _spec('substeps', int, 1,
           'Integrator steps per tick (step = 1 / (rate * substeps) s); with a tolerance, the '
           'least number of substeps.',
-          read_only=False, value_range=(1, 100000)),
+          read_only=False, value_range=SUBSTEPS_RANGE),
     _spec('tolerance', float, SCENE_VALUE,
           "Error control in rad per simulated second; default: the scene's.  Each tick is "
           'split into as many equal substeps (at least substeps) as keep the orientation '
           'error the integrator adds per simulated second at or below it (a step-doubling '
           "estimate with the integrator's order); 0: off, substeps fixed steps per tick.  May "
           'change at run time; the state stays continuous.',
-          read_only=False, value_range=(0.0, 1.0)),
+          read_only=False, value_range=TOLERANCE_RANGE),
     _spec('real_time_factor', float, 1.0,
           'Simulated seconds per wall-clock second: the ticks come every '
           '(1/rate)/real_time_factor s of wall-clock time, each still advancing the '
