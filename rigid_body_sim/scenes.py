@@ -26,12 +26,14 @@ set (they win over the scene's values, and are validated the same way), then
 import copy
 from dataclasses import dataclass
 from dataclasses import field
+import functools
 from pathlib import Path
 import re
 
 import numpy as np
 import yaml
 
+from .messages import one_line
 from .paths import scenes_dir
 from .physics import INTEGRATORS
 from .physics import RigidBody
@@ -111,6 +113,27 @@ _FLOAT_TAG = 'tag:yaml.org,2002:float'
 _YAML12_INT = re.compile(r'^(?:[-+]?[0-9]+|0o[0-7]+|0x[0-9a-fA-F]+)$')
 _YAML12_FLOAT = re.compile(r'^(?:[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?'
                            r'|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$')
+
+
+def _one_line_errors(function):
+    """
+    Make every ValueError of `function` one short line of printable text.
+
+    A scene's messages quote what the file holds: a 5,000-digit number, a megabyte key, a
+    name with terminal escapes.  They are cut and escaped here, once for every message
+    (:func:`rigid_body_sim.messages.one_line`).
+    """
+    @functools.wraps(function)
+    def checked(*args, **kwargs):
+        try:
+            return function(*args, **kwargs)
+        except ValueError as error:
+            message = str(error)
+            shown = one_line(message)
+            if shown == message:
+                raise
+            raise ValueError(shown) from None
+    return checked
 
 
 @dataclass(frozen=True)
@@ -324,6 +347,7 @@ def scene_names():
     return sorted(path.stem for path in Path(scenes_dir()).glob('*.yaml'))
 
 
+@_one_line_errors
 def find_scene(name_or_path):
     """
     Return the file of a scene given by built-in name or by path.
@@ -336,11 +360,14 @@ def find_scene(name_or_path):
         raise ValueError(f'scene: empty name; built-in scenes: {", ".join(scene_names())}')
     if '/' in text or text.endswith(('.yaml', '.yml')):
         path = Path(text).expanduser()
-        if path.is_dir():
-            raise ValueError(f'scene {text!r} is a directory; give the path of a .yaml file '
-                             'in it')
-        if not path.is_file():
-            raise ValueError(f'scene file {text!r} does not exist')
+        try:
+            if path.is_dir():
+                raise ValueError(f'scene {text!r} is a directory; give the path of a .yaml '
+                                 'file in it')
+            if not path.is_file():
+                raise ValueError(f'scene file {text!r} does not exist')
+        except OSError as error:  # a name too long for the file system
+            raise ValueError(f'scene file {text!r}: {error.strerror}') from None
         return path
     path = Path(scenes_dir()) / f'{text}.yaml'
     if not path.is_file():
@@ -349,6 +376,7 @@ def find_scene(name_or_path):
     return path
 
 
+@_one_line_errors
 def load_scene(name_or_path=DEFAULT_SCENE):
     """
     Read, validate and return a scene, by built-in name or by path.
@@ -374,6 +402,7 @@ def load_scene(name_or_path=DEFAULT_SCENE):
     return parse_scene(data, source)
 
 
+@_one_line_errors
 def read_scene_yaml(stream, source='<scene>'):
     """
     Return the data of a scene file's YAML (a str or a text stream), as the loader reads it.
@@ -492,6 +521,7 @@ def _one_line(error):
     return ' '.join(str(error).split())
 
 
+@_one_line_errors
 def parse_scene(data, source='<scene>'):
     """
     Validate a scene's mapping (as from YAML) and return the :class:`Scene`.
@@ -512,13 +542,9 @@ class _SceneReader:
         self.source = source
 
     def error(self, path, problem):
+        # Escaped and cut to one line by parse_scene (_one_line_errors).
         prefix = f'{self.source}: {path}: ' if path else f'{self.source}: '
-        message = prefix + problem
-        if not message.isprintable():
-            # A key with a newline or a control character in it: shown escaped, so the
-            # error stays one line.
-            message = ''.join(c if c.isprintable() else repr(c)[1:-1] for c in message)
-        return ValueError(message)
+        return ValueError(prefix + problem)
 
     def read(self, data):
         mapping = self.mapping(data, '', _TOP_KEYS)

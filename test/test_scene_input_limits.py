@@ -1,0 +1,57 @@
+"""
+Scene input is bounded: size, nesting, number of values, length of numbers and strings.
+
+Whatever a scene file (or a ``-p`` value of the node) holds, loading it ends soon and a
+refusal is one line of printable text of bounded length that names the file and the key or
+line: never a traceback (OverflowError, RecursionError), never a megabyte echoed back,
+never a control character reaching the terminal.
+"""
+
+import pytest
+from rigid_body_sim import cli
+from rigid_body_sim.messages import MESSAGE_LIMIT
+from rigid_body_sim.scenes import load_scene
+
+MINE = ('name: mine\n'
+        'description: a box\n'
+        'body:\n'
+        '  mass: 2.0\n'
+        '  shape: box\n'
+        '  size: [0.3, 0.2, 0.1]\n')
+
+
+def _write(tmp_path, text):
+    path = tmp_path / 'mine.yaml'
+    path.write_text(text, encoding='utf-8')
+    return str(path)
+
+
+def _refusal(path):
+    with pytest.raises(ValueError) as caught:
+        load_scene(path)
+    message = str(caught.value)
+    assert message.startswith(f'{path}: '), message
+    assert message.isprintable() and len(message) <= MESSAGE_LIMIT, message[:1000]
+    return message
+
+
+@pytest.mark.parametrize('old, new', [
+    ('mass: 2.0', 'mass: ' + 'a' * 5000),  # the string echoed: 5 KB
+    ('mass: 2.0', 'mass: "' + '1' * 5000 + '"'),
+    ('mass: 2.0', 'mass: !!float ' + 'x' * 5000),
+    ('mass: 2.0', 'mass: !!int ' + '1.' * 5000),
+    ('mass: 2.0', 'mass: 2.0\n  ? ' + 'k' * 5000 + '\n  : 1'),  # an unknown key
+    ('mass: 2.0', 'mass: 2.0\n  ? ' + 'k' * 5000 + '\n  : 1\n  ? ' + 'k' * 5000 + '\n  : 2'),
+    ('shape: box', 'shape: ' + 'b' * 5000),
+    ('description: a box', 'description: a box\nintegrator: ' + 'i' * 5000),
+    ('description: a box', 'description: a box\neffects: [' + 'e' * 5000 + ']'),
+    ('description: a box', 'description: a box\nintegrator: [' + '"\\e", ' * 2000 + '1]'),
+])
+def test_a_message_echoing_a_long_value_is_cut_to_one_short_line(tmp_path, old, new):
+    _refusal(_write(tmp_path, MINE.replace(old, new)))
+
+
+def test_a_long_scene_path_is_cut_in_the_message(capsys):
+    assert cli.main(['scenes', '/nowhere/' + 'p' * 5000 + '.yaml']) == 2
+    error = capsys.readouterr().err
+    assert error.count('\n') == 1 and len(error) <= MESSAGE_LIMIT + 40, error[:1000]
