@@ -29,6 +29,7 @@ from dataclasses import field
 import functools
 from pathlib import Path
 import re
+import sys
 
 import numpy as np
 import yaml
@@ -408,12 +409,14 @@ def read_scene_yaml(stream, source='<scene>'):
     Return the data of a scene file's YAML (a str or a text stream), as the loader reads it.
 
     Stricter than ``yaml.safe_load``: a key given twice in one mapping is an error (safe_load
-    keeps the last one silently), and numbers follow YAML 1.2 (``1e-3`` is a float).
+    keeps the last one silently), numbers follow YAML 1.2 (``1e-3`` is a float), and an
+    integer beyond a float's range (+-1.8e308) is an error.
 
     Raises
     ------
     ValueError
-        ``<source>: not valid YAML: ...``, or ``<source>: <key path>: duplicate key ...``.
+        ``<source>: not valid YAML: ...``, ``<source>: <key path>: duplicate key ...`` or
+        ``<source>: <key path>: an integer of 400 digits (base 10) is beyond ...``.
 
     """
     try:
@@ -426,7 +429,7 @@ def read_scene_yaml(stream, source='<scene>'):
     try:
         if node is None:
             return None
-        _reject_duplicate_keys(loader, node, source)
+        _check_nodes(loader, node, source)
         try:
             return loader.construct_document(node)
         except (yaml.YAMLError, ValueError, TypeError, OverflowError) as error:
@@ -449,10 +452,9 @@ class _SceneYamlLoader(yaml.SafeLoader):
     def construct_yaml12_int(self, node):
         """Return a YAML 1.2 integer: decimal (leading zeros too), 0o octal or 0x hex."""
         text = self.construct_scalar(node)
-        sign, digits = (-1, text[1:]) if text[:1] == '-' else (1, text.lstrip('+'))
-        base = {'0o': 8, '0x': 16}.get(digits[:2], 10)
         try:
-            return sign * int(digits[2:] if base != 10 else digits, base)
+            sign, base, digits = _integer_parts(text)
+            return sign * int(digits, base)
         except ValueError:
             raise yaml.constructor.ConstructorError(
                 None, None, f'{text!r} is not an integer', node.start_mark) from None
@@ -474,19 +476,29 @@ _SceneYamlLoader.add_constructor(_INT_TAG, _SceneYamlLoader.construct_yaml12_int
 _SceneYamlLoader.add_constructor(_FLOAT_TAG, _SceneYamlLoader.construct_yaml12_float)
 
 
-def _reject_duplicate_keys(loader, root, source):
-    """Raise ValueError ``<source>: <key path>: duplicate key ...`` for a key given twice."""
+def _check_nodes(loader, root, source):
+    """
+    Raise ValueError ``<source>: <key path>: ...`` for a key given twice or a huge integer.
+
+    Both are found on the composed nodes, before any value is built: a mapping keeps the
+    last of two equal keys silently, and an integer beyond a float's range (or beyond the
+    4300 digits Python converts) would end as an OverflowError without the key path.
+    """
     pending, seen = [(root, '')], set()
     while pending:
         node, path = pending.pop()
         if id(node) in seen:  # an alias: already checked where its anchor is
             continue
         seen.add(id(node))
-        if isinstance(node, yaml.SequenceNode):
+        if isinstance(node, yaml.ScalarNode):
+            _check_integer(node, path, source)
+        elif isinstance(node, yaml.SequenceNode):
             pending.extend((item, f'{path}[{index}]') for index, item in enumerate(node.value))
         elif isinstance(node, yaml.MappingNode):
             marks = {}
             for key_node, value_node in node.value:
+                if isinstance(key_node, yaml.ScalarNode):
+                    _check_integer(key_node, path, source)
                 key = _mapping_key(loader, key_node)
                 key_path = _join(path, str(key))
                 if key is not None:
@@ -496,6 +508,35 @@ def _reject_duplicate_keys(loader, root, source):
                                          'give each key once')
                     marks[key] = key_node.start_mark
                 pending.append((value_node, key_path))
+
+
+def _check_integer(node, path, source):
+    """Raise ValueError if `node` is an integer no float holds (beyond +-1.8e308)."""
+    if node.tag != _INT_TAG or not _YAML12_INT.match(node.value):
+        return
+    _, base, digits = _integer_parts(node.value)
+    # More than 309 digits is beyond a float in every base here; a shorter number is
+    # converted exactly to tell.
+    if len(digits) <= 309 and int(digits, base) <= sys.float_info.max:
+        return
+    where = f'{path}: ' if path else ''
+    raise ValueError(f'{source}: {where}an integer of {len(digits)} digits (base {base}) is '
+                     f'beyond the range of a float (+-{sys.float_info.max:.3g})')
+
+
+def _integer_parts(text):
+    """
+    Return (sign, base, digits) of a YAML 1.2 integer's text; ValueError if it has no digits.
+
+    The digits come without leading zeros: Python converts at most 4300 digits, and
+    00...01 is 1 however many zeros it has.
+    """
+    sign, digits = (-1, text[1:]) if text[:1] == '-' else (1, text.lstrip('+'))
+    base = {'0o': 8, '0x': 16}.get(digits[:2], 10)
+    digits = digits[2:] if base != 10 else digits
+    if not digits:
+        raise ValueError(f'{text!r} has no digits')
+    return sign, base, digits.lstrip('0') or '0'
 
 
 def _mapping_key(loader, key_node):

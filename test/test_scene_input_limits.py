@@ -11,6 +11,7 @@ import pytest
 from rigid_body_sim import cli
 from rigid_body_sim.messages import MESSAGE_LIMIT
 from rigid_body_sim.scenes import load_scene
+from rigid_body_sim.scenes import read_scene_yaml
 
 MINE = ('name: mine\n'
         'description: a box\n'
@@ -18,6 +19,7 @@ MINE = ('name: mine\n'
         '  mass: 2.0\n'
         '  shape: box\n'
         '  size: [0.3, 0.2, 0.1]\n')
+HUGE = '9' * 400  # an integer beyond a float's range (1.8e308)
 
 
 def _write(tmp_path, text):
@@ -33,6 +35,33 @@ def _refusal(path):
     assert message.startswith(f'{path}: '), message
     assert message.isprintable() and len(message) <= MESSAGE_LIMIT, message[:1000]
     return message
+
+
+@pytest.mark.parametrize('old, new, key', [
+    ('mass: 2.0', f'mass: {HUGE}', 'body.mass'),
+    ('mass: 2.0', f'mass: -{HUGE}', 'body.mass'),
+    ('size: [0.3, 0.2, 0.1]', f'size: [0.3, {HUGE}, 0.1]', 'body.size[1]'),
+    ('size: [0.3, 0.2, 0.1]', f'size: [0.3, 0.2, 0x{"f" * 300}]', 'body.size[2]'),
+    ('mass: 2.0', 'mass: 1' + '0' * 5000, 'body.mass'),  # beyond int()'s 4300 digits
+])
+def test_an_integer_beyond_a_float_is_refused_in_one_line_naming_its_key(
+        tmp_path, old, new, key):
+    message = _refusal(_write(tmp_path, MINE.replace(old, new)))
+    assert f': {key}: ' in message and 'beyond' in message, message
+
+
+@pytest.mark.parametrize('key', ['rate', 'tolerance'])
+def test_an_integer_beyond_a_float_is_refused_for_rate_and_tolerance(tmp_path, key):
+    message = _refusal(_write(tmp_path, MINE + f'{key}: {HUGE}\n'))
+    assert f': {key}: ' in message, message
+
+
+def test_a_long_integer_within_a_float_loads(tmp_path):
+    # 300 digits: 1e299, a float; and leading zeros do not count.
+    scene = load_scene(_write(tmp_path, MINE.replace('mass: 2.0', 'mass: 0000' + '0' * 5000
+                                                     + '2')))
+    assert scene.body.mass == 2.0
+    assert read_scene_yaml('a: 1' + '0' * 299)['a'] == 10 ** 299
 
 
 @pytest.mark.parametrize('old, new', [
