@@ -27,6 +27,7 @@ import copy
 from dataclasses import dataclass
 from dataclasses import field
 import functools
+import io
 from pathlib import Path
 import re
 import sys
@@ -54,6 +55,9 @@ __all__ = [
     'DEFAULT_SCENE',
     'DEFAULT_TOLERANCE',
     'Drawing',
+    'MAX_SCENE_DEPTH',
+    'MAX_SCENE_SIZE',
+    'MAX_SCENE_VALUES',
     'RATE_RANGE',
     'Scene',
     'SUBSTEPS_RANGE',
@@ -81,6 +85,15 @@ DEFAULT_TOLERANCE = 1e-7
 """Error control (rad per simulated s) of a scene file without ``tolerance:``: the largest
 that keeps every built-in scene within 1e-3 rad over 60 s (the T-handle and the tennis racket
 need it); the built-in scenes set their own, the largest each allows (docs/scenes.md)."""
+MAX_SCENE_SIZE = 256 * 1024
+"""The most characters of a scene file.  The built-in scenes have under 5,000; PyYAML reads
+about 0.5 MB/s, so this bounds a load to half a second."""
+MAX_SCENE_DEPTH = 20
+"""The deepest nesting of a scene's YAML (a scene needs 5: effects, an effect, its parameters,
+a vector)."""
+MAX_SCENE_VALUES = 10000
+"""The most values (YAML nodes: mappings, lists, keys and scalars) in a scene; an alias counts
+as the values it repeats.  The built-in scenes have 33 to 53."""
 DEFAULT_COLOR = (0.8, 0.5, 0.2, 1.0)
 SHAPES = ('box', 'cylinder', 'sphere', 'ellipsoid')
 
@@ -412,13 +425,29 @@ def read_scene_yaml(stream, source='<scene>'):
     keeps the last one silently), numbers follow YAML 1.2 (``1e-3`` is a float), and an
     integer beyond a float's range (+-1.8e308) is an error.
 
+    Its work is bounded: a text of more than MAX_SCENE_SIZE characters, more than
+    MAX_SCENE_DEPTH levels of nesting or more than MAX_SCENE_VALUES values (an alias counted
+    as the values it repeats) is refused as soon as it is seen.
+
     Raises
     ------
     ValueError
-        ``<source>: not valid YAML: ...``, ``<source>: <key path>: duplicate key ...`` or
-        ``<source>: <key path>: an integer of 400 digits (base 10) is beyond ...``.
+        ``<source>: not valid YAML: ...``, ``<source>: <key path>: duplicate key ...``,
+        ``<source>: <key path>: an integer of 400 digits (base 10) is beyond ...``, or
+        ``<source>: line 3: more than 20 levels of nesting ...``.
 
     """
+    if isinstance(stream, str):
+        text = stream
+    else:
+        # One character more than the limit tells a file that is too large, however large.
+        text = stream.read(MAX_SCENE_SIZE + 1)
+        # Named as the stream, so that YAML's messages still say 'in "x.yaml", line 3'.
+        name, stream = getattr(stream, 'name', '<file>'), io.StringIO(text)
+        stream.name = name
+    if len(text) > MAX_SCENE_SIZE:
+        raise ValueError(f'{source}: more than {MAX_SCENE_SIZE} characters, the most a scene '
+                         f'file may have ({MAX_SCENE_SIZE // 1024} KiB)')
     try:
         # The reader checks the text's characters as it is built (a control character is a
         # ReaderError here).
@@ -426,6 +455,8 @@ def read_scene_yaml(stream, source='<scene>'):
         node = loader.get_single_node()
     except yaml.YAMLError as error:
         raise ValueError(f'{source}: not valid YAML: {_one_line(error)}') from None
+    except _TooLarge as error:
+        raise ValueError(f'{source}: line {error.mark.line + 1}: {error}') from None
     try:
         if node is None:
             return None
@@ -440,8 +471,54 @@ def read_scene_yaml(stream, source='<scene>'):
         loader.dispose()
 
 
+class _TooLarge(ValueError):
+    """A scene's YAML nested too deep or with too many values; `mark` says where."""
+
+    def __init__(self, problem, mark):
+        super().__init__(problem)
+        self.mark = mark
+
+
 class _SceneYamlLoader(yaml.SafeLoader):
-    """SafeLoader with YAML 1.2 numbers (see _YAML12_INT, _YAML12_FLOAT)."""
+    """
+    SafeLoader with YAML 1.2 numbers (see _YAML12_INT, _YAML12_FLOAT) and bounded nesting.
+
+    The composer counts the depth and the values as it builds nodes, and stops at
+    MAX_SCENE_DEPTH or MAX_SCENE_VALUES: PyYAML's composer and constructor recurse once per
+    level (3,000 levels were a RecursionError), and each value costs ~25 us and ~1 KB (a
+    list of a million took 55 s and 920 MB).
+    """
+
+    def __init__(self, stream):
+        super().__init__(stream)
+        self._depth = 0
+        self._values = 0
+        # id(node) -> the values it holds, itself included: what an alias to it repeats.
+        self._sizes = {}
+
+    def compose_node(self, parent, index):
+        """Compose one node, counting it (an alias: the values it repeats) and its depth."""
+        event = self.peek_event()
+        if isinstance(event, yaml.AliasEvent):
+            node = super().compose_node(parent, index)
+            self._count(self._sizes.get(id(node), 1), event.start_mark)
+            return node
+        if self._depth >= MAX_SCENE_DEPTH:
+            raise _TooLarge(f'more than {MAX_SCENE_DEPTH} levels of nesting; a scene needs 5',
+                            event.start_mark)
+        self._depth += 1
+        first = self._values
+        self._count(1, event.start_mark)
+        node = super().compose_node(parent, index)
+        self._depth -= 1
+        self._sizes[id(node)] = self._values - first
+        return node
+
+    def _count(self, values, mark):
+        self._values += values
+        if self._values > MAX_SCENE_VALUES:
+            raise _TooLarge(f'more than {MAX_SCENE_VALUES} values (an alias counts as the '
+                            'values it repeats); a built-in scene has 33 to 53', mark)
 
     # PyYAML's 1.1 int and float resolvers are dropped (not shadowed): the first that
     # matches a plain scalar decides its type, and 1.1's would read 010 as 8.

@@ -11,6 +11,9 @@ import pytest
 from rigid_body_sim import cli
 from rigid_body_sim.messages import MESSAGE_LIMIT
 from rigid_body_sim.scenes import load_scene
+from rigid_body_sim.scenes import MAX_SCENE_DEPTH
+from rigid_body_sim.scenes import MAX_SCENE_SIZE
+from rigid_body_sim.scenes import MAX_SCENE_VALUES
 from rigid_body_sim.scenes import read_scene_yaml
 
 MINE = ('name: mine\n'
@@ -62,6 +65,41 @@ def test_a_long_integer_within_a_float_loads(tmp_path):
                                                      + '2')))
     assert scene.body.mass == 2.0
     assert read_scene_yaml('a: 1' + '0' * 299)['a'] == 10 ** 299
+
+
+@pytest.mark.parametrize('body', [
+    '[' * 3000 + ']' * 3000,
+    '[' * 100000,
+    '{a: ' * 3000 + '1' + '}' * 3000,
+    ''.join(f'\n{"  " * level}a:' for level in range(1, 300)) + ' 1',
+])
+def test_nesting_of_any_depth_is_refused_in_one_line(tmp_path, body):
+    message = _refusal(_write(tmp_path, MINE.replace('body:\n', f'body: {body}\nx:\n')))
+    assert f'more than {MAX_SCENE_DEPTH} levels' in message, message
+
+
+def test_a_scene_file_larger_than_the_limit_is_refused_naming_it(tmp_path):
+    # A valid scene with a long comment: loaded whole before, at any size.
+    text = MINE + '#' + 'x' * MAX_SCENE_SIZE + '\n'
+    message = _refusal(_write(tmp_path, text))
+    assert f'more than {MAX_SCENE_SIZE} characters' in message, message
+    with pytest.raises(ValueError, match=f'^text: more than {MAX_SCENE_SIZE} characters'):
+        read_scene_yaml(text, 'text')
+    assert load_scene(_write(tmp_path, MINE + '#' * (MAX_SCENE_SIZE - len(MINE) - 1) + '\n'))
+
+
+@pytest.mark.parametrize('extra', [
+    # 20,000 values in one list
+    'draw: {size: [' + '0, ' * 20000 + '0]}\n',
+    # An alias bomb: ten aliases of ten aliases of ... ten values, echoed by the message
+    # refusing the integrator (10 million values: a 30 MB message).
+    'integrator: [&a0 [0, 0, 0, 0, 0, 0, 0, 0, 0, 0], ' + ', '.join(
+        f'&a{level} [' + ', '.join([f'*a{level - 1}'] * 10) + ']' for level in range(1, 7))
+    + ']\n',
+])
+def test_more_values_than_the_limit_are_refused_in_one_line(tmp_path, extra):
+    message = _refusal(_write(tmp_path, MINE + extra))
+    assert f'more than {MAX_SCENE_VALUES} values' in message, message
 
 
 @pytest.mark.parametrize('old, new', [
