@@ -94,6 +94,10 @@ a vector)."""
 MAX_SCENE_VALUES = 10000
 """The most values (YAML nodes: mappings, lists, keys and scalars) in a scene; an alias counts
 as the values it repeats.  The built-in scenes have 33 to 53."""
+MAX_NAME_LENGTH = 100
+MAX_DESCRIPTION_LENGTH = 300
+"""The longest name and description (characters): they are shown on one line (the built-in
+scenes' are under 20 and 100), and a name starts the default bag directory's name."""
 DEFAULT_COLOR = (0.8, 0.5, 0.2, 1.0)
 SHAPES = ('box', 'cylinder', 'sphere', 'ellipsoid')
 
@@ -670,8 +674,8 @@ class _SceneReader:
         for key in ('name', 'description', 'body'):
             if key not in mapping or mapping[key] is None:
                 raise self.error(key, 'missing; the scene requires it')
-        name = self.text(mapping['name'], 'name')
-        description = self.text(mapping['description'], 'description')
+        name = self.text(mapping['name'], 'name', MAX_NAME_LENGTH)
+        description = self.text(mapping['description'], 'description', MAX_DESCRIPTION_LENGTH)
         body, body_shape = self.body(mapping['body'])
         effects = self.effects(mapping.get('effects', []))
         pivot = next((e for e in effects if getattr(e, 'effect_name', None) == 'pivot'), None)
@@ -732,12 +736,23 @@ class _SceneReader:
                 raise self.error(_join(path, key), f'missing; {where} requires it')
         return value
 
-    def text(self, value, path):
+    def text(self, value, path, limit):
+        """Return one line of printable text of at most `limit` characters (no control ones)."""
         if not isinstance(value, str) or not value.strip():
             raise self.error(path, f'expected a non-empty string, got {describe_value(value)}')
-        if '\n' in value.strip():
+        value = value.strip()
+        if '\n' in value:
             raise self.error(path, 'expected one line')
-        return value.strip()
+        if len(value) > limit:
+            raise self.error(path, f'{len(value)} characters; give at most {limit} characters')
+        # A name and a description reach terminals and logs: an escape sequence in them
+        # (written "\e[31m" in YAML) would act there.
+        for index, character in enumerate(value):
+            if not character.isprintable():
+                shown = f'{repr(character)[1:-1]} (U+{ord(character):04X})'
+                raise self.error(path, f'contains {shown} at character {index + 1}, which is not '
+                                       'printable; give one line of printable text')
+        return value
 
     def number(self, value, path, unit='', positive=False):
         try:

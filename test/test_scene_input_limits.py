@@ -102,6 +102,34 @@ def test_more_values_than_the_limit_are_refused_in_one_line(tmp_path, extra):
     assert f'more than {MAX_SCENE_VALUES} values' in message, message
 
 
+@pytest.mark.parametrize('key, value', [
+    ('name', r'"evil \e[31mred\e[0m"'),
+    ('description', r'"bell \x07 here"'),
+    ('description', r'"tab\there"'),
+    ('name', r'"line\u2028separator"'),
+    ('description', r'"next\x85line"'),
+    ('name', r'"null\0byte"'),
+])
+def test_control_characters_in_name_or_description_are_refused_shown_escaped(
+        tmp_path, capsys, key, value):
+    old = 'name: mine' if key == 'name' else 'description: a box'
+    path = _write(tmp_path, MINE.replace(old, f'{key}: {value}'))
+    message = _refusal(path)
+    assert f': {key}: ' in message and 'not printable' in message, message
+    assert cli.main(['scenes', path]) == 2
+    captured = capsys.readouterr()
+    shown = captured.out + captured.err
+    assert shown.endswith('\n') and shown[:-1].isprintable(), shown
+
+
+@pytest.mark.parametrize('key, limit', [('name', 100), ('description', 300)])
+def test_a_name_or_description_longer_than_its_limit_is_refused(tmp_path, key, limit):
+    old = 'name: mine' if key == 'name' else 'description: a box'
+    message = _refusal(_write(tmp_path, MINE.replace(old, f'{key}: {"x" * (limit + 1)}')))
+    assert f': {key}: ' in message and f'at most {limit} characters' in message, message
+    assert load_scene(_write(tmp_path, MINE.replace(old, f'{key}: {"x" * limit}')))
+
+
 @pytest.mark.parametrize('old, new', [
     ('mass: 2.0', 'mass: ' + 'a' * 5000),  # the string echoed: 5 KB
     ('mass: 2.0', 'mass: "' + '1' * 5000 + '"'),
