@@ -6,9 +6,14 @@ terminal control sequences; a message that quotes it must neither flood the term
 log nor let an escape sequence through.  :func:`one_line` escapes what is not printable
 (as Python's repr does: a newline becomes backslash n, ESC backslash x1b) and cuts a long
 text in its middle, keeping the beginning (the file and the key) and the end (what to do).
+
+:func:`one_line_errors` does it for every ValueError of a function: a public function that
+reads outside input wears it once, and every message it raises is then such a line.
 """
 
-__all__ = ['MESSAGE_LIMIT', 'one_line']
+import functools
+
+__all__ = ['MESSAGE_LIMIT', 'one_line', 'one_line_errors']
 
 MESSAGE_LIMIT = 500
 """The most characters :func:`one_line` returns: room for every message the project writes
@@ -43,3 +48,22 @@ def _escaped(text):
     if text.isprintable():
         return text
     return ''.join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
+def one_line_errors(function):
+    """
+    Return `function` with every ValueError it raises made :func:`one_line`.
+
+    An error that already is such a line is raised as it is (its type and traceback kept).
+    """
+    @functools.wraps(function)
+    def checked(*args, **kwargs):
+        try:
+            return function(*args, **kwargs)
+        except ValueError as error:
+            message = str(error)
+            shown = one_line(message)
+            if shown == message:
+                raise
+            raise ValueError(shown) from None
+    return checked

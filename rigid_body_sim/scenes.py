@@ -26,7 +26,6 @@ set (they win over the scene's values, and are validated the same way), then
 import copy
 from dataclasses import dataclass
 from dataclasses import field
-import functools
 import io
 from pathlib import Path
 import re
@@ -35,7 +34,7 @@ import sys
 import numpy as np
 import yaml
 
-from .messages import one_line
+from .messages import one_line_errors
 from .paths import scenes_dir
 from .physics import INTEGRATORS
 from .physics import RigidBody
@@ -131,27 +130,6 @@ _FLOAT_TAG = 'tag:yaml.org,2002:float'
 _YAML12_INT = re.compile(r'^(?:[-+]?[0-9]+|0o[0-7]+|0x[0-9a-fA-F]+)$')
 _YAML12_FLOAT = re.compile(r'^(?:[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?'
                            r'|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$')
-
-
-def _one_line_errors(function):
-    """
-    Make every ValueError of `function` one short line of printable text.
-
-    A scene's messages quote what the file holds: a 5,000-digit number, a megabyte key, a
-    name with terminal escapes.  They are cut and escaped here, once for every message
-    (:func:`rigid_body_sim.messages.one_line`).
-    """
-    @functools.wraps(function)
-    def checked(*args, **kwargs):
-        try:
-            return function(*args, **kwargs)
-        except ValueError as error:
-            message = str(error)
-            shown = one_line(message)
-            if shown == message:
-                raise
-            raise ValueError(shown) from None
-    return checked
 
 
 @dataclass(frozen=True)
@@ -365,7 +343,7 @@ def scene_names():
     return sorted(path.stem for path in Path(scenes_dir()).glob('*.yaml'))
 
 
-@_one_line_errors
+@one_line_errors
 def find_scene(name_or_path):
     """
     Return the file of a scene given by built-in name or by path.
@@ -376,25 +354,27 @@ def find_scene(name_or_path):
     text = str(name_or_path)
     if not text:
         raise ValueError(f'scene: empty name; built-in scenes: {", ".join(scene_names())}')
-    if '/' in text or text.endswith(('.yaml', '.yml')):
-        path = Path(text).expanduser()
-        try:
-            if path.is_dir():
-                raise ValueError(f'scene {text!r} is a directory; give the path of a .yaml '
-                                 'file in it')
-            if not path.is_file():
-                raise ValueError(f'scene file {text!r} does not exist')
-        except OSError as error:  # a name too long for the file system
-            raise ValueError(f'scene file {text!r}: {error.strerror}') from None
+    given_path = '/' in text or text.endswith(('.yaml', '.yml'))
+    path = Path(text).expanduser() if given_path else Path(scenes_dir()) / f'{text}.yaml'
+    try:
+        is_dir, is_file = path.is_dir(), path.is_file()
+    except (OSError, ValueError) as error:  # a name too long, a null character
+        raise ValueError(f'scene {text!r}: {getattr(error, "strerror", None) or error}') \
+            from None
+    if given_path:
+        if is_dir:
+            raise ValueError(f'scene {text!r} is a directory; give the path of a .yaml file '
+                             'in it')
+        if not is_file:
+            raise ValueError(f'scene file {text!r} does not exist')
         return path
-    path = Path(scenes_dir()) / f'{text}.yaml'
-    if not path.is_file():
+    if not is_file:
         raise ValueError(f'unknown scene {text!r}; built-in scenes: {", ".join(scene_names())}'
                          ' (or give a path to a .yaml file)')
     return path
 
 
-@_one_line_errors
+@one_line_errors
 def load_scene(name_or_path=DEFAULT_SCENE):
     """
     Read, validate and return a scene, by built-in name or by path.
@@ -420,7 +400,7 @@ def load_scene(name_or_path=DEFAULT_SCENE):
     return parse_scene(data, source)
 
 
-@_one_line_errors
+@one_line_errors
 def read_scene_yaml(stream, source='<scene>'):
     """
     Return the data of a scene file's YAML (a str or a text stream), as the loader reads it.
@@ -643,7 +623,7 @@ def _one_line(error):
     return ' '.join(str(error).split())
 
 
-@_one_line_errors
+@one_line_errors
 def parse_scene(data, source='<scene>'):
     """
     Validate a scene's mapping (as from YAML) and return the :class:`Scene`.
@@ -664,7 +644,7 @@ class _SceneReader:
         self.source = source
 
     def error(self, path, problem):
-        # Escaped and cut to one line by parse_scene (_one_line_errors).
+        # Escaped and cut to one line by parse_scene (one_line_errors).
         prefix = f'{self.source}: {path}: ' if path else f'{self.source}: '
         return ValueError(prefix + problem)
 
@@ -896,8 +876,18 @@ class _SceneReader:
         rotation = None
         if 'orientation' in initial:
             rotation = self.orientation(initial['orientation'])
-        # A finite but huge angular velocity can overflow L = R I omega or the energy
-        # 1/2 omega . L: refused naming the key, without numpy's warnings.
+        # A finite but huge velocity can overflow p = m v or the energy |p|^2 / 2m, and an
+        # angular velocity L = R I omega or 1/2 omega . L: refused naming the key, without
+        # numpy's warnings.  The velocity first, so that its overflow is not blamed on the
+        # angular velocity.
+        if 'velocity' in vectors:
+            with np.errstate(over='ignore', invalid='ignore'):
+                momentum = body.mass * vectors['velocity']
+                energy = 0.5 * (momentum @ momentum) / body.mass
+            if not (np.isfinite(energy) and np.all(np.isfinite(momentum))):
+                raise self.error('initial.velocity', f'gives a linear momentum of '
+                                                     f'{momentum.tolist()} kg m/s and a kinetic '
+                                                     f'energy of {energy:g} J: not finite')
         given = next((f'initial.{key}' for key in ('angular_velocity_body',
                                                    'angular_velocity_world') if key in vectors),
                      'initial')

@@ -10,6 +10,7 @@ never a control character reaching the terminal.
 import pytest
 from rigid_body_sim import cli
 from rigid_body_sim.messages import MESSAGE_LIMIT
+from rigid_body_sim.ros.parameters import scene_from_parameters
 from rigid_body_sim.scenes import load_scene
 from rigid_body_sim.scenes import MAX_SCENE_DEPTH
 from rigid_body_sim.scenes import MAX_SCENE_SIZE
@@ -150,3 +151,46 @@ def test_a_long_scene_path_is_cut_in_the_message(capsys):
     assert cli.main(['scenes', '/nowhere/' + 'p' * 5000 + '.yaml']) == 2
     error = capsys.readouterr().err
     assert error.count('\n') == 1 and len(error) <= MESSAGE_LIMIT + 40, error[:1000]
+
+
+@pytest.mark.parametrize('name, value', [
+    ('initial.velocity', [1e308, 0.0, 0.0]),
+    ('initial.angular_velocity_body', [1e200, 0.0, 0.0]),
+])
+def test_a_parameter_that_overflows_the_state_is_refused_naming_itself(name, value):
+    # The default scene gives angular_velocity_body: a velocity of 1e308 m/s was refused
+    # naming initial.angular_velocity_body.
+    scene = load_scene('default')
+    with pytest.raises(ValueError) as caught:
+        scene_from_parameters(scene, {name: value})
+    assert f'(overrides): {name}: ' in str(caught.value), str(caught.value)
+
+
+def test_a_velocity_that_overflows_the_momentum_is_refused_naming_it(tmp_path):
+    # 2 kg at 1e308 m/s: p = m v is inf already (the energy overflowed for 1 kg).
+    message = _refusal(_write(tmp_path, MINE + 'initial:\n  velocity: [1e308, 0, 0]\n'
+                              '  angular_velocity_body: [0, 0, 1]\n'))
+    assert ': initial.velocity: ' in message, message
+
+
+@pytest.mark.parametrize('name, value', [
+    ('body.inertia', [1.0] * 20000),  # its count and values were echoed: 100 KB
+    ('body.shape', 's' * 20000),
+    ('initial.orientation', [0.5] * 20000),
+])
+def test_a_long_parameter_value_is_cut_in_the_message(name, value):
+    with pytest.raises(ValueError) as caught:
+        scene_from_parameters(load_scene('default'), {name: value})
+    message = str(caught.value)
+    assert message.startswith(f"parameter '{name}'"), message[:200]
+    assert message.isprintable() and len(message) <= MESSAGE_LIMIT, message[:1000]
+
+
+@pytest.mark.parametrize('name', ['n' * 5000, 'null\0character'])
+def test_a_scene_name_the_file_system_refuses_is_one_line_naming_it(name):
+    # A built-in name too long for a file name was an OSError traceback in the node.
+    with pytest.raises(ValueError) as caught:
+        load_scene(name)
+    message = str(caught.value)
+    assert message.startswith(("scene 'nnn", "unknown scene 'null\\x00")), message
+    assert message.isprintable() and len(message) <= MESSAGE_LIMIT, message[:1000]

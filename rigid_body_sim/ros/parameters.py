@@ -40,6 +40,7 @@ from rclpy.exceptions import InvalidParameterValueException
 from rclpy.exceptions import ParameterUninitializedException
 from rclpy.parameter import Parameter
 
+from ..messages import one_line_errors
 from ..physics import get_integrator
 from ..physics import INTEGRATORS
 from ..physics.imu import ImuModel
@@ -245,6 +246,8 @@ def parameter_descriptor(spec):
     return descriptor
 
 
+# A -p value can be a megabyte string or list: echoed cut, on one line.
+@one_line_errors
 def declare_scene_parameter(node):
     """
     Declare the parameter ``scene`` on `node` and return its value.
@@ -259,6 +262,7 @@ def declare_scene_parameter(node):
     return node.get_parameter('scene').value
 
 
+@one_line_errors
 def declare_parameters(node, scene):
     """
     Declare every parameter of :data:`PARAMETERS` not yet declared on `node`.
@@ -409,6 +413,7 @@ def _orientation(values):
     return (quaternion / norm).tolist()
 
 
+@one_line_errors
 def scene_from_parameters(scene, values):
     """
     Return `scene` with the parameter values that are set applied to it.
@@ -620,6 +625,7 @@ def show_effective_values(node, scene, values, effective_scene):
             'follows from the overrides)')
 
 
+@one_line_errors
 def imu_model_from_parameters(values):
     """
     Return the :class:`ImuModel` the imu.* parameter values describe.
