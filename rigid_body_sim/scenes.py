@@ -469,8 +469,8 @@ class _SceneYamlLoader(yaml.SafeLoader):
 
     The composer counts the depth and the values as it builds nodes, and stops at
     MAX_SCENE_DEPTH or MAX_SCENE_VALUES: PyYAML's composer and constructor recurse once per
-    level (3,000 levels were a RecursionError), and each value costs ~25 us and ~1 KB (a
-    list of a million took 55 s and 920 MB).
+    level (3,000 levels were a RecursionError), and each value costs ~30 us and ~1 KB (a
+    list of a million took 35 s and 850 MB: benchmarks/scene_input_cost.py).
     """
 
     def __init__(self, stream):
