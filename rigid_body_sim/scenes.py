@@ -26,12 +26,15 @@ set (they win over the scene's values, and are validated the same way), then
 import copy
 from dataclasses import dataclass
 from dataclasses import field
+import io
 from pathlib import Path
 import re
+import sys
 
 import numpy as np
 import yaml
 
+from .messages import one_line_errors
 from .paths import scenes_dir
 from .physics import INTEGRATORS
 from .physics import RigidBody
@@ -51,7 +54,13 @@ __all__ = [
     'DEFAULT_SCENE',
     'DEFAULT_TOLERANCE',
     'Drawing',
+    'MAX_SCENE_DEPTH',
+    'MAX_SCENE_SIZE',
+    'MAX_SCENE_VALUES',
+    'RATE_RANGE',
     'Scene',
+    'SUBSTEPS_RANGE',
+    'TOLERANCE_RANGE',
     'find_scene',
     'load_scene',
     'parse_scene',
@@ -65,11 +74,29 @@ DEFAULT_SCENE = 'default'
 DEFAULT_INTEGRATOR = 'buss'
 DEFAULT_RATE = 100.0
 RATE_RANGE = (0.1, 10000.0)
-"""The tick rates (Hz) a scene and the node take."""
+"""The tick rates (Hz) a scene, the node and the command line take."""
+TOLERANCE_RANGE = (0.0, 1.0)
+"""The error control (rad per simulated s; 0: off) a scene, the node and the command line
+take."""
+SUBSTEPS_RANGE = (1, 100000)
+"""The integrator steps per tick the node and the command line take."""
 DEFAULT_TOLERANCE = 1e-7
 """Error control (rad per simulated s) of a scene file without ``tolerance:``: the largest
 that keeps every built-in scene within 1e-3 rad over 60 s (the T-handle and the tennis racket
 need it); the built-in scenes set their own, the largest each allows (docs/scenes.md)."""
+MAX_SCENE_SIZE = 256 * 1024
+"""The most characters of a scene file.  The built-in scenes have under 5,000; PyYAML reads
+about 0.5 MB/s, so this bounds a load to half a second."""
+MAX_SCENE_DEPTH = 20
+"""The deepest nesting of a scene's YAML (a scene needs 5: effects, an effect, its parameters,
+a vector)."""
+MAX_SCENE_VALUES = 10000
+"""The most values (YAML nodes: mappings, lists, keys and scalars) in a scene; an alias counts
+as the values it repeats.  The built-in scenes have 33 to 53."""
+MAX_NAME_LENGTH = 100
+MAX_DESCRIPTION_LENGTH = 300
+"""The longest name and description (characters): they are shown on one line (the built-in
+scenes' are under 20 and 100), and a name starts the default bag directory's name."""
 DEFAULT_COLOR = (0.8, 0.5, 0.2, 1.0)
 SHAPES = ('box', 'cylinder', 'sphere', 'ellipsoid')
 
@@ -316,6 +343,7 @@ def scene_names():
     return sorted(path.stem for path in Path(scenes_dir()).glob('*.yaml'))
 
 
+@one_line_errors
 def find_scene(name_or_path):
     """
     Return the file of a scene given by built-in name or by path.
@@ -326,21 +354,27 @@ def find_scene(name_or_path):
     text = str(name_or_path)
     if not text:
         raise ValueError(f'scene: empty name; built-in scenes: {", ".join(scene_names())}')
-    if '/' in text or text.endswith(('.yaml', '.yml')):
-        path = Path(text).expanduser()
-        if path.is_dir():
+    given_path = '/' in text or text.endswith(('.yaml', '.yml'))
+    path = Path(text).expanduser() if given_path else Path(scenes_dir()) / f'{text}.yaml'
+    try:
+        is_dir, is_file = path.is_dir(), path.is_file()
+    except (OSError, ValueError) as error:  # a name too long, a null character
+        raise ValueError(f'scene {text!r}: {getattr(error, "strerror", None) or error}') \
+            from None
+    if given_path:
+        if is_dir:
             raise ValueError(f'scene {text!r} is a directory; give the path of a .yaml file '
                              'in it')
-        if not path.is_file():
+        if not is_file:
             raise ValueError(f'scene file {text!r} does not exist')
         return path
-    path = Path(scenes_dir()) / f'{text}.yaml'
-    if not path.is_file():
+    if not is_file:
         raise ValueError(f'unknown scene {text!r}; built-in scenes: {", ".join(scene_names())}'
                          ' (or give a path to a .yaml file)')
     return path
 
 
+@one_line_errors
 def load_scene(name_or_path=DEFAULT_SCENE):
     """
     Read, validate and return a scene, by built-in name or by path.
@@ -366,19 +400,38 @@ def load_scene(name_or_path=DEFAULT_SCENE):
     return parse_scene(data, source)
 
 
+@one_line_errors
 def read_scene_yaml(stream, source='<scene>'):
     """
     Return the data of a scene file's YAML (a str or a text stream), as the loader reads it.
 
     Stricter than ``yaml.safe_load``: a key given twice in one mapping is an error (safe_load
-    keeps the last one silently), and numbers follow YAML 1.2 (``1e-3`` is a float).
+    keeps the last one silently), numbers follow YAML 1.2 (``1e-3`` is a float), and an
+    integer beyond a float's range (+-1.8e308) is an error.
+
+    Its work is bounded: a text of more than MAX_SCENE_SIZE characters, more than
+    MAX_SCENE_DEPTH levels of nesting or more than MAX_SCENE_VALUES values (an alias counted
+    as the values it repeats) is refused as soon as it is seen.
 
     Raises
     ------
     ValueError
-        ``<source>: not valid YAML: ...``, or ``<source>: <key path>: duplicate key ...``.
+        ``<source>: not valid YAML: ...``, ``<source>: <key path>: duplicate key ...``,
+        ``<source>: <key path>: an integer of 400 digits (base 10) is beyond ...``, or
+        ``<source>: line 3: more than 20 levels of nesting ...``.
 
     """
+    if isinstance(stream, str):
+        text = stream
+    else:
+        # One character more than the limit tells a file that is too large, however large.
+        text = stream.read(MAX_SCENE_SIZE + 1)
+        # Named as the stream, so that YAML's messages still say 'in "x.yaml", line 3'.
+        name, stream = getattr(stream, 'name', '<file>'), io.StringIO(text)
+        stream.name = name
+    if len(text) > MAX_SCENE_SIZE:
+        raise ValueError(f'{source}: more than {MAX_SCENE_SIZE} characters, the most a scene '
+                         f'file may have ({MAX_SCENE_SIZE // 1024} KiB)')
     try:
         # The reader checks the text's characters as it is built (a control character is a
         # ReaderError here).
@@ -386,10 +439,12 @@ def read_scene_yaml(stream, source='<scene>'):
         node = loader.get_single_node()
     except yaml.YAMLError as error:
         raise ValueError(f'{source}: not valid YAML: {_one_line(error)}') from None
+    except _TooLarge as error:
+        raise ValueError(f'{source}: line {error.mark.line + 1}: {error}') from None
     try:
         if node is None:
             return None
-        _reject_duplicate_keys(loader, node, source)
+        _check_nodes(loader, node, source)
         try:
             return loader.construct_document(node)
         except (yaml.YAMLError, ValueError, TypeError, OverflowError) as error:
@@ -400,8 +455,54 @@ def read_scene_yaml(stream, source='<scene>'):
         loader.dispose()
 
 
+class _TooLarge(ValueError):
+    """A scene's YAML nested too deep or with too many values; `mark` says where."""
+
+    def __init__(self, problem, mark):
+        super().__init__(problem)
+        self.mark = mark
+
+
 class _SceneYamlLoader(yaml.SafeLoader):
-    """SafeLoader with YAML 1.2 numbers (see _YAML12_INT, _YAML12_FLOAT)."""
+    """
+    SafeLoader with YAML 1.2 numbers (see _YAML12_INT, _YAML12_FLOAT) and bounded nesting.
+
+    The composer counts the depth and the values as it builds nodes, and stops at
+    MAX_SCENE_DEPTH or MAX_SCENE_VALUES: PyYAML's composer and constructor recurse once per
+    level (3,000 levels were a RecursionError), and each value costs ~30 us and ~1 KB (a
+    list of a million took 35 s and 850 MB: benchmarks/scene_input_cost.py).
+    """
+
+    def __init__(self, stream):
+        super().__init__(stream)
+        self._depth = 0
+        self._values = 0
+        # id(node) -> the values it holds, itself included: what an alias to it repeats.
+        self._sizes = {}
+
+    def compose_node(self, parent, index):
+        """Compose one node, counting it (an alias: the values it repeats) and its depth."""
+        event = self.peek_event()
+        if isinstance(event, yaml.AliasEvent):
+            node = super().compose_node(parent, index)
+            self._count(self._sizes.get(id(node), 1), event.start_mark)
+            return node
+        if self._depth >= MAX_SCENE_DEPTH:
+            raise _TooLarge(f'more than {MAX_SCENE_DEPTH} levels of nesting; a scene needs 5',
+                            event.start_mark)
+        self._depth += 1
+        first = self._values
+        self._count(1, event.start_mark)
+        node = super().compose_node(parent, index)
+        self._depth -= 1
+        self._sizes[id(node)] = self._values - first
+        return node
+
+    def _count(self, values, mark):
+        self._values += values
+        if self._values > MAX_SCENE_VALUES:
+            raise _TooLarge(f'more than {MAX_SCENE_VALUES} values (an alias counts as the '
+                            'values it repeats); a built-in scene has 33 to 53', mark)
 
     # PyYAML's 1.1 int and float resolvers are dropped (not shadowed): the first that
     # matches a plain scalar decides its type, and 1.1's would read 010 as 8.
@@ -412,10 +513,9 @@ class _SceneYamlLoader(yaml.SafeLoader):
     def construct_yaml12_int(self, node):
         """Return a YAML 1.2 integer: decimal (leading zeros too), 0o octal or 0x hex."""
         text = self.construct_scalar(node)
-        sign, digits = (-1, text[1:]) if text[:1] == '-' else (1, text.lstrip('+'))
-        base = {'0o': 8, '0x': 16}.get(digits[:2], 10)
         try:
-            return sign * int(digits[2:] if base != 10 else digits, base)
+            sign, base, digits = _integer_parts(text)
+            return sign * int(digits, base)
         except ValueError:
             raise yaml.constructor.ConstructorError(
                 None, None, f'{text!r} is not an integer', node.start_mark) from None
@@ -437,19 +537,29 @@ _SceneYamlLoader.add_constructor(_INT_TAG, _SceneYamlLoader.construct_yaml12_int
 _SceneYamlLoader.add_constructor(_FLOAT_TAG, _SceneYamlLoader.construct_yaml12_float)
 
 
-def _reject_duplicate_keys(loader, root, source):
-    """Raise ValueError ``<source>: <key path>: duplicate key ...`` for a key given twice."""
+def _check_nodes(loader, root, source):
+    """
+    Raise ValueError ``<source>: <key path>: ...`` for a key given twice or a huge integer.
+
+    Both are found on the composed nodes, before any value is built: a mapping keeps the
+    last of two equal keys silently, and an integer beyond a float's range (or beyond the
+    4300 digits Python converts) would end as an OverflowError without the key path.
+    """
     pending, seen = [(root, '')], set()
     while pending:
         node, path = pending.pop()
         if id(node) in seen:  # an alias: already checked where its anchor is
             continue
         seen.add(id(node))
-        if isinstance(node, yaml.SequenceNode):
+        if isinstance(node, yaml.ScalarNode):
+            _check_integer(node, path, source)
+        elif isinstance(node, yaml.SequenceNode):
             pending.extend((item, f'{path}[{index}]') for index, item in enumerate(node.value))
         elif isinstance(node, yaml.MappingNode):
             marks = {}
             for key_node, value_node in node.value:
+                if isinstance(key_node, yaml.ScalarNode):
+                    _check_integer(key_node, path, source)
                 key = _mapping_key(loader, key_node)
                 key_path = _join(path, str(key))
                 if key is not None:
@@ -459,6 +569,35 @@ def _reject_duplicate_keys(loader, root, source):
                                          'give each key once')
                     marks[key] = key_node.start_mark
                 pending.append((value_node, key_path))
+
+
+def _check_integer(node, path, source):
+    """Raise ValueError if `node` is an integer no float holds (beyond +-1.8e308)."""
+    if node.tag != _INT_TAG or not _YAML12_INT.match(node.value):
+        return
+    _, base, digits = _integer_parts(node.value)
+    # More than 309 digits is beyond a float in every base here; a shorter number is
+    # converted exactly to tell.
+    if len(digits) <= 309 and int(digits, base) <= sys.float_info.max:
+        return
+    where = f'{path}: ' if path else ''
+    raise ValueError(f'{source}: {where}an integer of {len(digits)} digits (base {base}) is '
+                     f'beyond the range of a float (+-{sys.float_info.max:.3g})')
+
+
+def _integer_parts(text):
+    """
+    Return (sign, base, digits) of a YAML 1.2 integer's text; ValueError if it has no digits.
+
+    The digits come without leading zeros: Python converts at most 4300 digits, and
+    00...01 is 1 however many zeros it has.
+    """
+    sign, digits = (-1, text[1:]) if text[:1] == '-' else (1, text.lstrip('+'))
+    base = {'0o': 8, '0x': 16}.get(digits[:2], 10)
+    digits = digits[2:] if base != 10 else digits
+    if not digits:
+        raise ValueError(f'{text!r} has no digits')
+    return sign, base, digits.lstrip('0') or '0'
 
 
 def _mapping_key(loader, key_node):
@@ -484,6 +623,7 @@ def _one_line(error):
     return ' '.join(str(error).split())
 
 
+@one_line_errors
 def parse_scene(data, source='<scene>'):
     """
     Validate a scene's mapping (as from YAML) and return the :class:`Scene`.
@@ -504,13 +644,9 @@ class _SceneReader:
         self.source = source
 
     def error(self, path, problem):
+        # Escaped and cut to one line by parse_scene (one_line_errors).
         prefix = f'{self.source}: {path}: ' if path else f'{self.source}: '
-        message = prefix + problem
-        if not message.isprintable():
-            # A key with a newline or a control character in it: shown escaped, so the
-            # error stays one line.
-            message = ''.join(c if c.isprintable() else repr(c)[1:-1] for c in message)
-        return ValueError(message)
+        return ValueError(prefix + problem)
 
     def read(self, data):
         mapping = self.mapping(data, '', _TOP_KEYS)
@@ -518,8 +654,8 @@ class _SceneReader:
         for key in ('name', 'description', 'body'):
             if key not in mapping or mapping[key] is None:
                 raise self.error(key, 'missing; the scene requires it')
-        name = self.text(mapping['name'], 'name')
-        description = self.text(mapping['description'], 'description')
+        name = self.text(mapping['name'], 'name', MAX_NAME_LENGTH)
+        description = self.text(mapping['description'], 'description', MAX_DESCRIPTION_LENGTH)
         body, body_shape = self.body(mapping['body'])
         effects = self.effects(mapping.get('effects', []))
         pivot = next((e for e in effects if getattr(e, 'effect_name', None) == 'pivot'), None)
@@ -538,8 +674,9 @@ class _SceneReader:
                                      f'{rate:g}')
         tolerance = self.number(mapping.get('tolerance', DEFAULT_TOLERANCE), 'tolerance',
                                 'rad/s')
-        if not 0.0 <= tolerance <= 1.0:
-            raise self.error('tolerance', f'must be 0 (off) to 1 rad/s, got {tolerance:g}')
+        if not TOLERANCE_RANGE[0] <= tolerance <= TOLERANCE_RANGE[1]:
+            raise self.error('tolerance', f'must be {TOLERANCE_RANGE[0]:g} (off) to '
+                                          f'{TOLERANCE_RANGE[1]:g} rad/s, got {tolerance:g}')
         drawing = self.drawing(mapping.get('draw', {}), body, body_shape, mapping['body'])
         imu = self.imu(mapping.get('imu', {}))
         return Scene(name=name, description=description, body=body, state=state,
@@ -579,12 +716,23 @@ class _SceneReader:
                 raise self.error(_join(path, key), f'missing; {where} requires it')
         return value
 
-    def text(self, value, path):
+    def text(self, value, path, limit):
+        """Return one line of printable text of at most `limit` characters (no control ones)."""
         if not isinstance(value, str) or not value.strip():
             raise self.error(path, f'expected a non-empty string, got {describe_value(value)}')
-        if '\n' in value.strip():
+        value = value.strip()
+        if '\n' in value:
             raise self.error(path, 'expected one line')
-        return value.strip()
+        if len(value) > limit:
+            raise self.error(path, f'{len(value)} characters; give at most {limit} characters')
+        # A name and a description reach terminals and logs: an escape sequence in them
+        # (written "\e[31m" in YAML) would act there.
+        for index, character in enumerate(value):
+            if not character.isprintable():
+                shown = f'{repr(character)[1:-1]} (U+{ord(character):04X})'
+                raise self.error(path, f'contains {shown} at character {index + 1}, which is not '
+                                       'printable; give one line of printable text')
+        return value
 
     def number(self, value, path, unit='', positive=False):
         try:
@@ -728,8 +876,18 @@ class _SceneReader:
         rotation = None
         if 'orientation' in initial:
             rotation = self.orientation(initial['orientation'])
-        # A finite but huge angular velocity can overflow L = R I omega or the energy
-        # 1/2 omega . L: refused naming the key, without numpy's warnings.
+        # A finite but huge velocity can overflow p = m v or the energy |p|^2 / 2m, and an
+        # angular velocity L = R I omega or 1/2 omega . L: refused naming the key, without
+        # numpy's warnings.  The velocity first, so that its overflow is not blamed on the
+        # angular velocity.
+        if 'velocity' in vectors:
+            with np.errstate(over='ignore', invalid='ignore'):
+                momentum = body.mass * vectors['velocity']
+                energy = 0.5 * (momentum @ momentum) / body.mass
+            if not (np.isfinite(energy) and np.all(np.isfinite(momentum))):
+                raise self.error('initial.velocity', f'gives a linear momentum of '
+                                                     f'{momentum.tolist()} kg m/s and a kinetic '
+                                                     f'energy of {energy:g} J: not finite')
         given = next((f'initial.{key}' for key in ('angular_velocity_body',
                                                    'angular_velocity_world') if key in vectors),
                      'initial')

@@ -24,18 +24,25 @@ what discovery actually reported.
 Durability.  :meth:`BagWriter.flush` makes everything written so far readable if the
 process dies right after, even by SIGKILL: an MCAP file gets its pending chunk written and
 a provisional end (DataEnd, a footer without summary, the closing magic), which the next
-write overwrites; a sqlite3 file commits; and ``metadata.yaml`` is rewritten with the counts
-so far (atomically, by rename).  rosbags and ``mcap`` read such a bag as it is (a linear
-scan, there being no summary); :func:`rigid_body_sim.recording.recovery.recover_bag`
-rewrites it into a complete one with index and summary.
+write overwrites; a sqlite3 bag commits its live database file and names it in
+``metadata.yaml``, then writes on in its other file (:class:`_Sqlite3Storage`: the file
+metadata.yaml names is never written, so it reads as counted whenever the process dies);
+and ``metadata.yaml`` is rewritten with the counts so far (atomically, by rename), first
+when the bag is created.  rosbags and ``mcap`` read such a bag as it is (a linear scan,
+there being no summary); :func:`rigid_body_sim.recording.recovery.recover_bag` rewrites it
+into a complete one with index and summary.  A write that fails (a full disk) is an
+OSError naming the file, and the bag is left as at the last flush, as metadata.yaml says:
+an MCAP file is cut back to that flush's provisional end.
 """
 
 from collections import defaultdict
+import errno
 from io import BytesIO
 from io import StringIO
 import json
 import os
 from pathlib import Path
+import sqlite3
 import struct
 
 import numpy as np
@@ -178,6 +185,10 @@ class _McapStorage(McapWriter):
     def __init__(self, path, compression):
         super().__init__(path, compression)
         self._provisional_end_at = None
+        self.closed = False
+        # Where the provisional end that metadata.yaml counts up to is (None: no flush yet).
+        self._published_end_at = None
+        self.published = self.path
 
     def add_connection(self, connection, offered_qos_profiles):
         # As rosbags writes a channel, with the topic_type_hash entry that rosbag2's MCAP
@@ -283,18 +294,42 @@ class _McapStorage(McapWriter):
         self.bio.write(_PROVISIONAL_END)
         self.bio.flush()
 
-    def flush(self, sync):
-        """Write the pending chunk and a provisional end; the file is then a valid MCAP."""
+    def flush(self, sync, publish):
+        """Write the pending chunk and a provisional end (a valid MCAP), then ``publish``."""
         if self.chunk.bio.tell():
             self.close_chunk()
         self._drop_provisional_end()
         self._write_provisional_end()
         if sync:
             os.fsync(self.bio.fileno())
+        end = self._provisional_end_at
+        publish(self.path)
+        self._published_end_at = end
+
+    def abort(self):
+        """
+        Close after a failed write, the file ending as at the last flush.
+
+        That is what metadata.yaml counts; what came after is cut off (on a full disk, that
+        frees the space the end needs).
+        """
+        try:
+            self.bio.close()  # a buffer that cannot be written is dropped
+        except OSError:
+            pass
+        if self._published_end_at is not None:
+            with open(self.path, 'r+b') as stream:
+                stream.truncate(self._published_end_at)
+                stream.seek(self._published_end_at)
+                stream.write(_PROVISIONAL_END)
+
+    def finish(self, publish):
+        """After close: nothing to do, the bag's one file is named in metadata.yaml."""
 
     def close(self, version, metadata):
         self._drop_provisional_end()
         super().close(version, _as_jazzy(metadata))
+        self.closed = True
 
     def _drop_provisional_end(self):
         # Whatever comes next (a chunk, the summary) is longer than the provisional end
@@ -305,7 +340,34 @@ class _McapStorage(McapWriter):
 
 
 class _Sqlite3Storage(Sqlite3Writer):
-    """rosbags' sqlite3 writer with flush() (commit); publish time and sequence unused."""
+    """
+    rosbags' sqlite3 writer, durable: two database files written in turn.
+
+    rosbags reads a database with ``immutable=1``, ignoring any journal: a database that
+    SQLite was writing when the process died reads as it is on disk, with the pages of the
+    open transaction that SQLite had to write out (its page cache holds 2 MB) or half of a
+    commit, malformed or with messages missing or added.  So the file metadata.yaml names is
+    never written to.  Messages go into the live file; a flush commits it, has metadata.yaml
+    name it (:meth:`flush` calls `publish`), and only then brings the other file up to it
+    (its rows copied by SQLite) and makes that one live.  Both files hold the same rows
+    with the same ids after each flush.  Closing leaves one file, ``<bag>.db3``.
+    """
+
+    def __init__(self, path, compression):
+        super().__init__(path, compression)
+        canonical = self.path
+        self.files = (canonical, canonical.with_name(f'{canonical.stem}_alternate.db3'))
+        other = sqlite3.connect(f'file:{self.files[1]}', uri=True)
+        other.executescript(self.SQLITE_SCHEMA)
+        self._connections = (self.conn, other)
+        for connection, partner in zip(self._connections, reversed(self.files)):
+            connection.execute('ATTACH DATABASE ? AS partner', (f'file:{partner}?mode=ro',))
+            # No fsync at each commit: the file a SIGKILL could leave half-written is never
+            # the one metadata.yaml names, and flush(sync=True) fsyncs the one it publishes.
+            connection.execute('PRAGMA synchronous = OFF')
+        self._live = 0
+        self.published = None
+        self.closed = False
 
     def write(self, connection, timestamp, data, publish_time=None, sequence=0):
         self.cursor.execute('INSERT INTO messages (topic_id, timestamp, data) VALUES(?, ?, ?)',
@@ -319,12 +381,66 @@ class _Sqlite3Storage(Sqlite3Writer):
              for i, log_time in enumerate(log_times)
              for connection, data in zip(connections, datas)))
 
-    def flush(self, sync):
-        """Commit: what was written so far survives the process."""
+    def flush(self, sync, publish):
+        """Commit the live file, ``publish(file)`` it, then make the other file live."""
+        self.conn.commit()
+        published = self.files[self._live]
+        if sync:
+            _fsync(published)
+        publish(published)
+        self.published = published
+        self._live = 1 - self._live
+        self.conn = self._connections[self._live]
+        self.cursor = self.conn.cursor()
+        self.path = self.files[self._live]
+        # The rows the published file has and this one lacks: those of the last two flushes.
+        for table in ('topics', 'message_definitions', 'messages'):
+            self.conn.execute(f'INSERT INTO main.{table} SELECT * FROM partner.{table} '
+                              f'WHERE id > (SELECT coalesce(max(id), 0) FROM main.{table})')
         self.conn.commit()
 
     def close(self, version, metadata):
+        """Finish the live file (its metadata table) and close both files."""
+        self.conn.commit()
+        # PRAGMA optimize (in rosbags' close) would analyse the read-only partner too.
+        self.conn.execute('DETACH DATABASE partner')
         super().close(version, _as_jazzy(metadata))
+        self._connections[1 - self._live].close()
+        self.published = self.files[self._live]
+        self.closed = True
+
+    def abort(self):
+        """Close both files without committing: the published one stays as it is."""
+        for connection in self._connections:
+            try:
+                connection.rollback()
+            except sqlite3.Error:
+                pass
+            connection.close()
+
+    def finish(self, publish):
+        """
+        After close: leave the bag with its one file, ``<bag>.db3``, named in metadata.yaml.
+
+        If the live file was the alternate, ``<bag>.db3`` becomes a second name of it (a
+        hard link) before metadata.yaml names it and the alternate name goes: at every
+        moment metadata.yaml names a complete file.
+        """
+        canonical, alternate = self.files
+        if self.published == alternate:
+            canonical.unlink()
+            os.link(alternate, canonical)
+            publish(canonical)
+            self.published = canonical
+        alternate.unlink()
+
+
+def _fsync(path):
+    descriptor = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(descriptor)
+    finally:
+        os.close(descriptor)
 
 
 def _as_jazzy(metadata):
@@ -433,6 +549,10 @@ class BagWriter:
     ------
     ValueError
         For an unknown storage or an existing path.
+    OSError
+        From any method, when the storage cannot be written (a full disk: ENOSPC), naming
+        the file.  The bag is then left as at the last flush, as its metadata.yaml says, and
+        the writer is closed.
 
     """
 
@@ -446,6 +566,8 @@ class BagWriter:
         self._writer = _Writer(self.path, version=BAG_VERSION, storage_plugin=_PLUGINS[storage])
         self._connections = {}
         self._closed = False
+        # The messages metadata.yaml counts (None: there is no metadata.yaml yet).
+        self._published_count = None
 
     def __enter__(self):
         self.create()
@@ -456,8 +578,17 @@ class BagWriter:
         return False
 
     def create(self):
-        """Create the directory and the storage file (done on entering a with block)."""
-        self._writer.open()
+        """
+        Create the directory and the storage file (done on entering a with block).
+
+        And flush: from the start the bag reads as its metadata.yaml says, empty, so that a
+        disk full before the first flush of the run still leaves a bag that tells the truth.
+        """
+        try:
+            self._writer.open()
+        except (OSError, sqlite3.Error) as error:
+            raise self._failure(error) from None
+        self.flush(sync=False)
 
     @property
     def storage_file(self):
@@ -491,9 +622,12 @@ class BagWriter:
                                  'definition and hash')
             message_definition, _ = store.generate_msgdef(message_type, ros_version=2)
             type_hash = store.hash_rihs01(message_type)
-        connection = self._writer.add_connection(
-            topic, message_type, msgdef=message_definition, rihs01=type_hash,
-            offered_qos_profiles=list(offered_qos_profiles))
+        try:
+            connection = self._writer.add_connection(
+                topic, message_type, msgdef=message_definition, rihs01=type_hash,
+                offered_qos_profiles=list(offered_qos_profiles))
+        except (OSError, sqlite3.Error) as error:
+            raise self._failure(error) from None
         self._connections[topic] = connection
         return connection
 
@@ -523,7 +657,10 @@ class BagWriter:
             The publisher's sequence number (MCAP only; 0 if unknown).
 
         """
-        self._writer.write(connection, log_time, data, publish_time, sequence)
+        try:
+            self._writer.write(connection, log_time, data, publish_time, sequence)
+        except (OSError, sqlite3.Error) as error:
+            raise self._failure(error) from None
 
     def write_rows(self, connections, datas, log_times):
         """
@@ -540,7 +677,10 @@ class BagWriter:
             in the order of `connections`.
 
         """
-        self._writer.write_rows(connections, datas, np.asarray(log_times, dtype=np.int64))
+        try:
+            self._writer.write_rows(connections, datas, np.asarray(log_times, dtype=np.int64))
+        except (OSError, sqlite3.Error) as error:
+            raise self._failure(error) from None
 
     @property
     def message_counts(self):
@@ -557,8 +697,10 @@ class BagWriter:
         and counts written until now.  `sync` also fsyncs the storage file, against power
         loss (a killed process loses nothing the kernel has).
         """
-        self._writer.storage.flush(sync)
-        self._write_metadata()
+        try:
+            self._writer.storage.flush(sync, self._write_metadata)
+        except (OSError, sqlite3.Error) as error:
+            raise self._failure(error) from None
 
     def sync_to_disk(self):
         """
@@ -573,13 +715,47 @@ class BagWriter:
 
     def close(self):
         """Finish the bag: summary and index, final ``metadata.yaml``.  Idempotent."""
-        if not self._closed and self._writer.storage is not None:
-            self._closed = True
+        storage = self._writer.storage
+        if self._closed or storage is None:
+            return
+        self._closed = True
+        try:
             self._writer.close()
             # Rewritten in rosbag2's key order, without rosbags' line folding.
-            self._write_metadata(final=True)
+            self._write_metadata(storage.published, final=True)
+            storage.finish(lambda file: self._write_metadata(file, final=True))
+        except (OSError, sqlite3.Error) as error:
+            raise self._failure(error, storage) from None
 
-    def _write_metadata(self, final=False):
+    def _failure(self, error, storage=None):
+        """
+        Close the storage after `error`, leaving it as at the last flush; return the OSError.
+
+        The OSError names the file (an OSError of a buffered write or SQLite's 'database or
+        disk is full' name none): ENOSPC for a full disk, EIO for another SQLite error.
+        """
+        storage = storage or self._writer.storage
+        self._closed = True
+        self._writer.storage = None
+        if storage is not None and not storage.closed:
+            try:
+                storage.abort()
+            except (OSError, sqlite3.Error):
+                pass  # the first error is the one to report
+        file = str(storage.path) if storage is not None else str(self.path)
+        if isinstance(error, sqlite3.Error):
+            full = getattr(error, 'sqlite_errorname', '') == 'SQLITE_FULL'
+            number, reason = (errno.ENOSPC, os.strerror(errno.ENOSPC)) if full else (
+                errno.EIO, f'sqlite3: {error}')
+        else:
+            number, reason = error.errno, error.strerror or str(error)
+            file = error.filename or file
+        if self._published_count is not None:
+            reason += (f'; the bag keeps the {self._published_count} messages of its last '
+                       'flush, as its metadata.yaml says')
+        return OSError(number, reason, file)
+
+    def _write_metadata(self, file, final=False):
         # The metadata.yaml of rosbags' Writer.close(), with the counts so far, its keys in
         # the order rosbag2 writes them.  The final one is block-style YAML without folded
         # lines; at a flush, JSON (which is YAML too): ruamel's pure-Python emitter would
@@ -588,7 +764,7 @@ class BagWriter:
         count = sum(writer.counts.values())
         start = writer.min_timestamp if count else 0
         duration = writer.max_timestamp - start if count else 0
-        name = self.storage_file.name
+        name = Path(file).name
         information = {
             'version': BAG_VERSION,
             'storage_identifier': self.storage,
@@ -614,13 +790,20 @@ class BagWriter:
         }
         document = {'rosbag2_bagfile_information': information}
         temporary = self.path / 'metadata.yaml.tmp'
-        with open(temporary, 'w', encoding='utf-8') as stream:
-            if final:
-                yaml = YAML()
-                yaml.default_flow_style = False
-                yaml.width = 4096
-                yaml.dump(document, stream)
-            else:
-                json.dump(document, stream, indent=1)
-                stream.write('\n')
+        try:
+            with open(temporary, 'w', encoding='utf-8') as stream:
+                if final:
+                    yaml = YAML()
+                    yaml.default_flow_style = False
+                    yaml.width = 4096
+                    yaml.dump(document, stream)
+                else:
+                    json.dump(document, stream, indent=1)
+                    stream.write('\n')
+        except OSError as error:
+            # The metadata.yaml of the last flush stays, true to what the storage holds.
+            temporary.unlink(missing_ok=True)
+            raise OSError(error.errno, error.strerror, str(self.path / 'metadata.yaml')) \
+                from None
         os.replace(temporary, self.path / 'metadata.yaml')
+        self._published_count = count

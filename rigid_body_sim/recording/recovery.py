@@ -13,17 +13,22 @@ What can be read from such a file (tested):
 - an MCAP cut anywhere: rosbags refuses it (no footer: "File end magic is invalid");
   ``mcap``'s seeking reader fails the same way, its stream reader yields every record
   up to the cut and then raises.  Every message of every complete chunk is there;
-- a sqlite3 file: every committed message.
+- a sqlite3 bag: every committed message.  It has two database files while it is written
+  (:class:`rigid_body_sim.recording.bag_writer.BagWriter`), which rosbags reads as
+  metadata.yaml says; the one with the most committed messages is recovered.  A database
+  left with a journal (a transaction open at the kill, or a bag of an earlier writer) is
+  read as SQLite rolls it back, from a copy: the original's bytes stay as they were.
 
 :func:`recover_bag` reads every complete record that way and writes a new, complete bag
 (chunks with their index, summary, statistics, ``metadata.yaml``) in the bag's place; the
-damaged original is kept beside it as ``<bag>.orig``.
+damaged original is kept beside it, byte for byte, as ``<bag>.orig``.
 """
 
 from pathlib import Path
 import shutil
 import sqlite3
 import struct
+import tempfile
 
 from mcap.exceptions import McapError
 from mcap.records import Channel
@@ -56,12 +61,13 @@ class RecoverySummary:
         return '\n'.join(lines)
 
 
-def _storage_file(path):
-    files = sorted(path.glob('*.mcap')) + sorted(path.glob('*.db3'))
-    if len(files) != 1:
-        raise ValueError(f'{path} holds {len(files)} .mcap/.db3 files; a bag to recover has '
-                         'exactly one')
-    return files[0]
+def _storage_files(path):
+    """Return the bag's storage files: its .mcap file, or its one or two .db3 files."""
+    mcap, sqlite3_files = sorted(path.glob('*.mcap')), sorted(path.glob('*.db3'))
+    if len(mcap) + min(len(sqlite3_files), 1) != 1 or len(sqlite3_files) > 2:
+        raise ValueError(f'{path} holds {len(mcap)} .mcap and {len(sqlite3_files)} .db3 '
+                         'files; a bag to recover has one .mcap or one or two .db3 files')
+    return mcap or sqlite3_files
 
 
 def bag_is_complete(path):
@@ -69,7 +75,8 @@ def bag_is_complete(path):
     from rosbags.rosbag2 import Reader
 
     path = Path(path)
-    storage = _storage_file(path)
+    files = _storage_files(path)
+    storage = files[0]
     if storage.suffix == '.mcap':
         with open(storage, 'rb') as stream:
             stream.seek(0, 2)
@@ -82,7 +89,7 @@ def bag_is_complete(path):
             return False
         if int.from_bytes(footer[9:17], 'little') == 0:
             return False
-    elif not _sqlite3_closed(storage):
+    elif len(files) > 1 or not _sqlite3_closed(storage):
         return False
     try:
         with Reader(path) as reader:
@@ -92,9 +99,12 @@ def bag_is_complete(path):
 
 
 def _sqlite3_closed(storage):
-    # Closing writes the bag's metadata into the database's metadata table (schema 4).
+    # Closing writes the bag's metadata into the database's metadata table (schema 4) and
+    # leaves no journal.  Read as it is (immutable): nothing in the bag is changed.
+    if Path(f'{storage}-journal').exists():
+        return False
     try:
-        connection = sqlite3.connect(f'file:{storage}?mode=ro', uri=True)
+        connection = sqlite3.connect(f'file:{storage}?immutable=1', uri=True)
         try:
             return connection.execute('SELECT count(*) FROM metadata').fetchone()[0] > 0
         finally:
@@ -154,7 +164,45 @@ def _recover_mcap(storage, writer):
     return records.truncated
 
 
-def _recover_sqlite3(storage, writer):
+def _recover_sqlite3(files, writer):
+    """Copy the committed messages of the bag's database that has most into `writer`."""
+    bag = files[0].parent
+    with tempfile.TemporaryDirectory(prefix='.recovering-', dir=bag.parent) as directory:
+        # Opening a database with a journal rolls the journal back: done in copies.
+        copies = [_copy_with_journal(file, Path(directory)) for file in files]
+        counts = [_message_count(copy) for copy in copies]
+        if max(counts) < 0:
+            raise ValueError(f'{bag}: no database in it can be read')
+        try:
+            _copy_sqlite3(copies[counts.index(max(counts))], writer)
+        except sqlite3.Error as error:
+            raise ValueError(f'{bag}: cannot read its database: {error}') from None
+    return False
+
+
+def _copy_with_journal(file, directory):
+    """Return a copy of a database in `directory`, with its journal if it has one."""
+    copy = directory / file.name
+    shutil.copyfile(file, copy)
+    journal = Path(f'{file}-journal')
+    if journal.exists():
+        shutil.copyfile(journal, Path(f'{copy}-journal'))
+    return copy
+
+
+def _message_count(database):
+    """Return the committed messages of a database (-1 if it cannot be read)."""
+    try:
+        connection = sqlite3.connect(str(database))
+        try:
+            return connection.execute('SELECT count(*) FROM messages').fetchone()[0]
+        finally:
+            connection.close()
+    except sqlite3.Error:
+        return -1
+
+
+def _copy_sqlite3(storage, writer):
     connection = sqlite3.connect(str(storage))
     try:
         topics = connection.execute(
@@ -193,7 +241,7 @@ def recover_bag(path, force=False):
     path = Path(path)
     if not path.is_dir():
         raise ValueError(f'{path} is not a bag directory')
-    storage = _storage_file(path)
+    files = _storage_files(path)
     if not force and bag_is_complete(path):
         raise ValueError(f'{path} is a complete bag already; nothing to recover')
     original = path.with_name(path.name + '.orig')
@@ -201,16 +249,16 @@ def recover_bag(path, force=False):
         raise ValueError(f'{original} exists already; move it away first')
     custom_data = _custom_data(path)
     path.rename(original)
-    storage = original / storage.name
+    files = [original / file.name for file in files]
     try:
-        kind = 'mcap' if storage.suffix == '.mcap' else 'sqlite3'
+        kind = 'mcap' if files[0].suffix == '.mcap' else 'sqlite3'
         with BagWriter(path, kind) as writer:
             for key, value in custom_data.items():
                 writer.set_custom_data(key, value)
             if kind == 'mcap':
-                truncated = _recover_mcap(storage, writer)
+                truncated = _recover_mcap(files[0], writer)
             else:
-                truncated = _recover_sqlite3(storage, writer)
+                truncated = _recover_sqlite3(files, writer)
             counts = dict(writer.message_counts)
     except BaseException:
         shutil.rmtree(path, ignore_errors=True)

@@ -40,12 +40,15 @@ from rclpy.exceptions import InvalidParameterValueException
 from rclpy.exceptions import ParameterUninitializedException
 from rclpy.parameter import Parameter
 
+from ..messages import one_line_errors
 from ..physics import get_integrator
 from ..physics import INTEGRATORS
 from ..physics.imu import ImuModel
 from ..scenes import DEFAULT_SCENE
 from ..scenes import RATE_RANGE
 from ..scenes import SHAPES
+from ..scenes import SUBSTEPS_RANGE
+from ..scenes import TOLERANCE_RANGE
 
 __all__ = [
     'PARAMETERS',
@@ -116,14 +119,14 @@ PARAMETERS = (
     _spec('substeps', int, 1,
           'Integrator steps per tick (step = 1 / (rate * substeps) s); with a tolerance, the '
           'least number of substeps.',
-          read_only=False, value_range=(1, 100000)),
+          read_only=False, value_range=SUBSTEPS_RANGE),
     _spec('tolerance', float, SCENE_VALUE,
           "Error control in rad per simulated second; default: the scene's.  Each tick is "
           'split into as many equal substeps (at least substeps) as keep the orientation '
           'error the integrator adds per simulated second at or below it (a step-doubling '
           "estimate with the integrator's order); 0: off, substeps fixed steps per tick.  May "
           'change at run time; the state stays continuous.',
-          read_only=False, value_range=(0.0, 1.0)),
+          read_only=False, value_range=TOLERANCE_RANGE),
     _spec('real_time_factor', float, 1.0,
           'Simulated seconds per wall-clock second: the ticks come every '
           '(1/rate)/real_time_factor s of wall-clock time, each still advancing the '
@@ -243,6 +246,8 @@ def parameter_descriptor(spec):
     return descriptor
 
 
+# A -p value can be a megabyte string or list: echoed cut, on one line.
+@one_line_errors
 def declare_scene_parameter(node):
     """
     Declare the parameter ``scene`` on `node` and return its value.
@@ -257,6 +262,7 @@ def declare_scene_parameter(node):
     return node.get_parameter('scene').value
 
 
+@one_line_errors
 def declare_parameters(node, scene):
     """
     Declare every parameter of :data:`PARAMETERS` not yet declared on `node`.
@@ -407,6 +413,7 @@ def _orientation(values):
     return (quaternion / norm).tolist()
 
 
+@one_line_errors
 def scene_from_parameters(scene, values):
     """
     Return `scene` with the parameter values that are set applied to it.
@@ -618,6 +625,7 @@ def show_effective_values(node, scene, values, effective_scene):
             'follows from the overrides)')
 
 
+@one_line_errors
 def imu_model_from_parameters(values):
     """
     Return the :class:`ImuModel` the imu.* parameter values describe.

@@ -22,7 +22,12 @@ from pathlib import Path
 import sys
 import time
 
+from .run_limits import check_duration
+from .run_limits import check_rate
+from .run_limits import check_substeps
+from .run_limits import check_tolerance
 from ..physics import INTEGRATORS
+from ..physics import unresolved_rotation
 from ..recording.bag_writer import STORAGES
 from ..scenes import DEFAULT_SCENE
 from ..scenes import load_scene
@@ -34,21 +39,21 @@ def add_arguments(parser):
                         help='built-in scene name (see rigid-body-sim scenes) or path to a '
                              f'.yaml file (default: {DEFAULT_SCENE})')
     parser.add_argument('--duration', type=float, required=True,
-                        help='simulated time in s (a whole number of ticks)')
+                        help='simulated time in s (a whole number of ticks, at most 2^31)')
     parser.add_argument('--rate', type=float,
-                        help="tick rate in Hz, as the node's rate parameter (default: the "
-                             "scene's)")
+                        help="tick rate in Hz, 0.1 to 10000 as the node's rate parameter "
+                             "(default: the scene's)")
     parser.add_argument('--integrator',
                         help=f'one of: {", ".join(sorted(INTEGRATORS))} (default: the '
                              "scene's)")
     parser.add_argument('--substeps', type=int, default=1,
-                        help='integrator steps per tick; with a tolerance the least number '
-                             '(default: 1)')
+                        help='integrator steps per tick, 1 to 100000; with a tolerance the '
+                             'least number (default: 1)')
     parser.add_argument('--tolerance', type=float, default=None,
                         help="error control in rad per simulated s, as the node's tolerance "
                              'parameter: each tick is split into as many substeps as keep the '
-                             'orientation error added per second below it; 0: off (default: '
-                             "the scene's)")
+                             'orientation error added per second below it; 0: off, at most 1 '
+                             "(default: the scene's)")
     parser.add_argument('--bag',
                         help='bag directory to create (default: <scene>_<date>_<time>)')
     parser.add_argument('--overwrite', action='store_true',
@@ -126,6 +131,11 @@ def main(args):
     from ..recording.simulate import simulate_to_bag
 
     scene = load_scene(args.scene)
+    check_duration(args.duration)
+    rate = scene.rate if args.rate is None else check_rate(args.rate)
+    check_substeps(args.substeps)
+    if args.tolerance is not None:
+        check_tolerance(args.tolerance)
     if args.integrator is not None and args.integrator not in INTEGRATORS:
         raise ValueError(f'unknown integrator {args.integrator!r}; valid: '
                          f'{", ".join(sorted(INTEGRATORS))}')
@@ -140,14 +150,10 @@ def main(args):
     start_time = start_time_nanoseconds(args.start_time)
     if not (math.isfinite(args.flush_period) and args.flush_period >= 0.0):
         raise ValueError(f'--flush-period must be a number of s >= 0; got {args.flush_period:g}')
-    rate = scene.rate if args.rate is None else args.rate
     tolerance = scene.tolerance if args.tolerance is None else (args.tolerance or None)
-    if rate > 0.0:
-        from ..physics import unresolved_rotation
-        warning = unresolved_rotation(scene.body, scene.state, 1.0 / rate, args.substeps,
-                                      tolerance)
-        if warning is not None:
-            print(f'rigid-body-sim simulate: warning: {warning}', file=sys.stderr)
+    warning = unresolved_rotation(scene.body, scene.state, 1.0 / rate, args.substeps, tolerance)
+    if warning is not None:
+        print(f'rigid-body-sim simulate: warning: {warning}', file=sys.stderr)
     with StopOnSignals() as signals:
         summary = simulate_to_bag(
             scene, bag, args.duration, rate=args.rate, integrator=args.integrator,

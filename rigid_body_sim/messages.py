@@ -1,0 +1,69 @@
+"""
+Messages that echo outside input: one line of printable text of bounded length.
+
+A scene file, a path on the command line or a parameter value can hold a megabyte string or
+terminal control sequences; a message that quotes it must neither flood the terminal or the
+log nor let an escape sequence through.  :func:`one_line` escapes what is not printable
+(as Python's repr does: a newline becomes backslash n, ESC backslash x1b) and cuts a long
+text in its middle, keeping the beginning (the file and the key) and the end (what to do).
+
+:func:`one_line_errors` does it for every ValueError of a function: a public function that
+reads outside input wears it once, and every message it raises is then such a line.
+"""
+
+import functools
+
+__all__ = ['MESSAGE_LIMIT', 'one_line', 'one_line_errors']
+
+MESSAGE_LIMIT = 500
+"""The most characters :func:`one_line` returns: room for every message the project writes
+itself (the longest are ~300), not for a value quoted whole."""
+
+_TAIL = 120
+
+
+def one_line(text, limit=MESSAGE_LIMIT):
+    """
+    Return `text` as one line of at most `limit` printable characters.
+
+    Characters that are not printable are escaped; a text still longer than `limit` keeps
+    its beginning and its last ~`limit`/4 characters around a note of its whole length.
+    A text that is already such a line is returned unchanged.
+    """
+    text = str(text)
+    if len(text) <= limit and text.isprintable():
+        return text
+    # Each part is escaped after it is cut: a megabyte of control characters is never
+    # escaped whole (an escape is up to 10 characters).
+    head = _escaped(text[:limit])
+    if len(text) <= limit and len(head) <= limit:
+        return head
+    tail_size = min(_TAIL, limit // 4)
+    note = f' [...{len(text)} characters in all...] '
+    head_size = max(0, limit - tail_size - len(note))
+    return head[:head_size] + note + _escaped(text[-tail_size:])[-tail_size:]
+
+
+def _escaped(text):
+    if text.isprintable():
+        return text
+    return ''.join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
+def one_line_errors(function):
+    """
+    Return `function` with every ValueError it raises made :func:`one_line`.
+
+    An error that already is such a line is raised as it is (its type and traceback kept).
+    """
+    @functools.wraps(function)
+    def checked(*args, **kwargs):
+        try:
+            return function(*args, **kwargs)
+        except ValueError as error:
+            message = str(error)
+            shown = one_line(message)
+            if shown == message:
+                raise
+            raise ValueError(shown) from None
+    return checked

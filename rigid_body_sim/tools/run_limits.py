@@ -1,0 +1,83 @@
+"""
+The ranges of the options that set how ``run`` and ``simulate`` step.
+
+They are checked before anything is simulated, each refusal one line naming the option (a
+ValueError for the command line).
+
+They are the node's: a rate of 0.1 to 10000 Hz (a step of 0.1 ms to 10 s), 1 to 100000
+substeps, a tolerance of 0 (off) to 1 rad/s; and a duration above 0 s and at most 2^31 s (a
+bag's stamps hold int32 seconds).  Within them every run ends: at most 2.1e13 steps, a count
+that int64 and a float's 53 bits hold exactly, and a simulated clock that resolves each
+step.  Outside them a step of 1e15 s advanced nothing (1 s of it is below what
+Simulator.run takes), one of 5e-324 s overflowed the step count, a NaN duration ran nothing
+and exited 0.
+"""
+
+import math
+
+from ..scenes import RATE_RANGE
+from ..scenes import SUBSTEPS_RANGE
+from ..scenes import TOLERANCE_RANGE
+
+__all__ = ['MAX_DURATION', 'check_duration', 'check_rate', 'check_step', 'check_substeps',
+           'check_tolerance', 'check_every']
+
+MAX_DURATION = 2.0 ** 31
+"""The longest simulated time (s) the commands take: a bag's stamps hold int32 seconds."""
+
+STEP_RANGE = (1.0 / RATE_RANGE[1], 1.0 / RATE_RANGE[0])
+"""The steps (s) ``run --dt`` takes: the periods of the node's rates."""
+
+
+def check_duration(duration, option='--duration'):
+    """Return `duration` (s) if it is above 0 and at most MAX_DURATION, else ValueError."""
+    if not 0.0 < duration <= MAX_DURATION:
+        raise ValueError(f'{option} must be above 0 and at most 2^31 s (68 years); got '
+                         f'{duration:g}')
+    return duration
+
+
+def check_rate(rate, option='--rate'):
+    """Return `rate` (Hz) if it is one the node takes, else ValueError."""
+    if not RATE_RANGE[0] <= rate <= RATE_RANGE[1]:
+        raise ValueError(f'{option} must be {RATE_RANGE[0]:g} to {RATE_RANGE[1]:g} Hz, as '
+                         f"the node's rate; got {rate:g}")
+    return rate
+
+
+def check_step(step, option='--dt'):
+    """Return `step` (s) if it is the period of a rate the node takes, else ValueError."""
+    if not STEP_RANGE[0] <= step <= STEP_RANGE[1]:
+        raise ValueError(f'{option} must be {STEP_RANGE[0]:g} to {STEP_RANGE[1]:g} s (the '
+                         f"node's rates, {RATE_RANGE[0]:g} to {RATE_RANGE[1]:g} Hz); got "
+                         f'{step:g}')
+    return step
+
+
+def check_substeps(substeps, option='--substeps'):
+    """Return `substeps` if it is a number of substeps the node takes, else ValueError."""
+    if not SUBSTEPS_RANGE[0] <= substeps <= SUBSTEPS_RANGE[1]:
+        raise ValueError(f'{option} must be {SUBSTEPS_RANGE[0]} to {SUBSTEPS_RANGE[1]}, as '
+                         f"the node's substeps; got {substeps}")
+    return substeps
+
+
+def check_tolerance(tolerance, option='--tolerance'):
+    """Return `tolerance` (rad/s, 0: off) if the node takes it, else ValueError."""
+    if not TOLERANCE_RANGE[0] <= tolerance <= TOLERANCE_RANGE[1]:
+        raise ValueError(f'{option} must be {TOLERANCE_RANGE[0]:g} (off) to '
+                         f"{TOLERANCE_RANGE[1]:g} rad/s, as the node's tolerance; got "
+                         f'{tolerance:g}')
+    return tolerance
+
+
+def check_every(every, step, option='--every'):
+    """
+    Return `every` (s between printed rows) if it is at least one `step` (s), else ValueError.
+
+    A row between two steps would cut the step short, silently a shorter step than asked.
+    """
+    if math.isnan(every) or every < step:
+        raise ValueError(f'{option} must be at least one step, {step:g} s (or give a shorter '
+                         f'--dt); got {every:g}')
+    return every
