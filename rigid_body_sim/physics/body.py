@@ -19,6 +19,12 @@ _TRIANGLE_RTOL = 1e-10
 _EQUAL_MOMENTS_RTOL = 1e-9
 
 
+MIN_MASS = 1.0e-9
+"""The lightest body accepted, kg."""
+MAX_MASS = 1.0e15
+"""The heaviest body accepted, kg."""
+
+
 def _check_mass(mass):
     try:
         value = float(mass)
@@ -28,6 +34,9 @@ def _check_mass(mass):
         raise ValueError(f'mass must be finite; got {value}')
     if value <= 0.0:
         raise ValueError(f'mass must be > 0 kg; got {value:g}')
+    if not MIN_MASS <= value <= MAX_MASS:
+        raise ValueError(f'mass must be within {MIN_MASS:g} .. {MAX_MASS:g} kg (a microgram to '
+                         f'a mountain; beyond, a 1 N push overflows); got {value:g}')
     return value
 
 

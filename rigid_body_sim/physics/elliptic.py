@@ -34,7 +34,7 @@ __all__ = [
     'carlson_rj_compiled',
 ]
 
-_jit = functools.partial(numba.njit, cache=True, nogil=True)
+_jit = functools.partial(numba.njit, cache=True, nogil=True, error_model='numpy')
 
 # Below this parameter the first-order expansion in m (A&S 16.13) is exact to ~m^2 < 1e-18
 # relative, so the compiled Landen descent stops there.

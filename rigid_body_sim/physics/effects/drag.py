@@ -13,6 +13,11 @@ from ..kernels.layout import inverse_inertia_times
 from ..kernels.model import wrench_term
 
 
+MAX_COEFFICIENT = 1.0e6
+"""The largest drag coefficient accepted (SI): far beyond any fluid (water on a 1 m body is
+~1e3), and products with speeds of 1e6 m/s stay finite."""
+
+
 @wrench_term
 def fluid_resistance(state, time, parameters):
     """
@@ -68,12 +73,15 @@ class Drag(Effect):
 
     def __init__(self, linear=0.0, quadratic=0.0, rotational_linear=0.0,
                  rotational_quadratic=0.0):
-        self.linear = check_number(linear, 'linear', 'N s/m', minimum=0.0)
-        self.quadratic = check_number(quadratic, 'quadratic', 'N s^2/m^2', minimum=0.0)
+        self.linear = check_number(linear, 'linear', 'N s/m', minimum=0.0,
+                                   maximum=MAX_COEFFICIENT)
+        self.quadratic = check_number(quadratic, 'quadratic', 'N s^2/m^2', minimum=0.0,
+                                      maximum=MAX_COEFFICIENT)
         self.rotational_linear = check_number(rotational_linear, 'rotational_linear', 'N m s',
-                                              minimum=0.0)
+                                              minimum=0.0, maximum=MAX_COEFFICIENT)
         self.rotational_quadratic = check_number(rotational_quadratic, 'rotational_quadratic',
-                                                 'N m s^2', minimum=0.0)
+                                                 'N m s^2', minimum=0.0,
+                                                 maximum=MAX_COEFFICIENT)
         translational = self.linear > 0.0 or self.quadratic > 0.0
         self.exerts_torque = self.rotational_linear > 0.0 or self.rotational_quadratic > 0.0
         if not (translational or self.exerts_torque):

@@ -37,9 +37,9 @@ class ExternalWrench(Effect):
 
     def __init__(self, max_force=None, max_torque=None):
         self.max_force = None if max_force is None else check_number(
-            max_force, 'max_force', 'N', positive=True)
+            max_force, 'max_force', 'N', positive=True, maximum=1e12)
         self.max_torque = None if max_torque is None else check_number(
-            max_torque, 'max_torque', 'N m', positive=True)
+            max_torque, 'max_torque', 'N m', positive=True, maximum=1e12)
 
     def limit(self, force, torque):
         """Return (force, torque) scaled down, direction kept, to the magnitude limits."""

@@ -5,6 +5,8 @@ from .registry import Effect
 from .registry import register_effect
 from ..kernels.model import wrench_term
 
+MAX_ACCELERATION = 1.0e6
+"""The largest field accepted, m/s^2 (1e5 g: far beyond a planet's)."""
 STANDARD_ACCELERATION = (0.0, 0.0, -9.81)
 """Default field in m/s^2, world frame: 9.81 m/s^2 along -z (REP 103: z up)."""
 
@@ -38,7 +40,8 @@ class Gravity(Effect):
     example = {}
 
     def __init__(self, acceleration=STANDARD_ACCELERATION):
-        self.acceleration = check_vector(acceleration, 'acceleration', 'm/s^2')
+        self.acceleration = check_vector(acceleration, 'acceleration', 'm/s^2',
+                                         largest=MAX_ACCELERATION)
 
     def wrench_parameters(self, body):
         """Return the weight m g in N (world frame)."""

@@ -39,6 +39,10 @@ from ..rotations import cross as cross_product
 from ..state import State
 
 
+MAX_DISTANCE = 1.0e6
+"""The farthest a pivot may be from the COM or the anchor from the origin, m."""
+
+
 @expand_function
 def expand(integrated, parameters, physical):
     """
@@ -101,8 +105,8 @@ class Pivot(Effect):
     example = {'point': [0.02, -0.01, -0.05], 'anchor': [0.0, 0.0, 1.0]}
 
     def __init__(self, point, anchor=(0.0, 0.0, 0.0)):
-        self.point = check_vector(point, 'point', 'm')
-        self.anchor = check_vector(anchor, 'anchor', 'm')
+        self.point = check_vector(point, 'point', 'm', largest=MAX_DISTANCE)
+        self.anchor = check_vector(anchor, 'anchor', 'm', largest=MAX_DISTANCE)
 
     def constrain(self, body):
         """Return the :class:`PivotConstraint` of this pivot on `body`."""

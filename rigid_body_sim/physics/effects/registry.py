@@ -208,11 +208,12 @@ def _is_number(value):
         value, (bool, np.bool_))
 
 
-def check_number(value, key, unit='', minimum=None, positive=False):
+def check_number(value, key, unit='', minimum=None, positive=False, maximum=None):
     """
     Return `value` as a finite float, else raise ParameterError naming `key`.
 
-    minimum: the smallest allowed value (inclusive); positive=True requires > 0.
+    minimum / maximum: the smallest / largest allowed value (inclusive); positive=True
+    requires > 0.  The effects give a maximum that keeps their arithmetic finite.
     """
     if not _is_number(value):
         raise ParameterError(key, f'expected a number{_unit(unit)}, got {describe_value(value)}')
@@ -224,11 +225,17 @@ def check_number(value, key, unit='', minimum=None, positive=False):
         raise ParameterError(key, f'must be > 0{unit}, got {number:g}')
     if minimum is not None and number < minimum:
         raise ParameterError(key, f'must be >= {minimum:g}{unit}, got {number:g}')
+    if maximum is not None and number > maximum:
+        raise ParameterError(key, f'must be at most {maximum:g}{unit}, got {number:g}')
     return number
 
 
-def check_vector(value, key, unit='', size=3):
-    """Return `value` as a float array of `size` finite numbers, else raise ParameterError."""
+def check_vector(value, key, unit='', size=3, largest=None):
+    """
+    Return `value` as a float array of `size` finite numbers, else raise ParameterError.
+
+    largest: the largest magnitude |v| allowed (the effects' bound on their arithmetic).
+    """
     if isinstance(value, np.ndarray):
         value = value.tolist()
     if not isinstance(value, (list, tuple)):
@@ -243,6 +250,13 @@ def check_vector(value, key, unit='', size=3):
     array = np.array(value, dtype=float)
     if not np.all(np.isfinite(array)):
         raise ParameterError(key, f'expected finite numbers, got {array.tolist()}')
+    if largest is not None:
+        # |v| scaled by its largest component, so that 1e300 does not overflow to inf.
+        scale = float(np.max(np.abs(array)))
+        magnitude = scale * float(np.linalg.norm(array / scale)) if scale > 0.0 else 0.0
+        if not magnitude <= largest:
+            raise ParameterError(key, f'must be at most {largest:g}{_unit(unit)} in magnitude, '
+                                      f'got {magnitude:.4g}')
     array.flags.writeable = False
     return array
 

@@ -11,6 +11,12 @@ from .registry import register_effect
 from ..kernels.model import wrench_term
 
 
+MAX_AMPLITUDE = 1.0e9
+"""The largest torque amplitude accepted, N m (a ship's engine is ~1e7)."""
+MAX_FREQUENCY = 1.0e6
+"""The largest frequency accepted, Hz (beyond any tick rate it is an aliased blur)."""
+
+
 @wrench_term
 def oscillating_torque(state, time, parameters):
     """Return (0, A sin(omega t + phi)); parameters: A (3, N m), omega (rad/s), phi (rad)."""
@@ -42,9 +48,10 @@ class SinusoidalTorque(Effect):
     example = {'amplitude': [0.1, -0.2, 0.3], 'frequency': 0.5, 'phase': 0.2}
 
     def __init__(self, amplitude, frequency, phase=0.0):
-        self.amplitude = check_vector(amplitude, 'amplitude', 'N m')
-        self.frequency = check_number(frequency, 'frequency', 'Hz', positive=True)
-        self.phase = check_number(phase, 'phase', 'rad')
+        self.amplitude = check_vector(amplitude, 'amplitude', 'N m', largest=MAX_AMPLITUDE)
+        self.frequency = check_number(frequency, 'frequency', 'Hz', positive=True,
+                                      maximum=MAX_FREQUENCY)
+        self.phase = check_number(phase, 'phase', 'rad', minimum=-1e6, maximum=1e6)
 
     def wrench_parameters(self, body):
         """Return (A_x, A_y, A_z, 2 pi f, phase)."""

@@ -499,6 +499,16 @@ def _rounded_step(q, increment, lx, ly, lz, moments, axes, kind):
 def free_rotation(q, lx, ly, lz, moments, axes, kind, duration):
     if (lx == 0.0 and ly == 0.0 and lz == 0.0) or duration == 0.0:
         return q
+    largest = max(abs(lx), abs(ly), abs(lz))
+    if not 1e-40 < largest < 1e40:
+        # The flow is homogeneous (m(t) for s m0 is s m(s t)): L scaled by a power of two,
+        # exactly, and the time the other way keep the products of up to four components
+        # of L (the last rounding's energy turn) from under- or overflowing (a spin that
+        # drag brought to 1e-63 kg m^2/s gave 0/0).
+        exponent = math.frexp(largest)[1]
+        lx, ly, lz = math.ldexp(lx, -exponent), math.ldexp(ly, -exponent), \
+            math.ldexp(lz, -exponent)
+        duration = math.ldexp(duration, exponent)
     mx, my, mz = rotate_back(q, (lx, ly, lz))
     momentum_norm = math.sqrt(lx * lx + ly * ly + lz * lz)
     if kind == ASYMMETRIC:

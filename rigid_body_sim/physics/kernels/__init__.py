@@ -33,17 +33,21 @@ PHYSICS_ROOT = Path(__file__).resolve().parent.parent
 _FINGERPRINT_FILE = '__pycache__/kernel-sources.sha256'
 
 
-kernel = functools.partial(numba.njit, cache=True, nogil=True)
+# error_model='numpy': a float division by zero gives inf or nan, as IEEE arithmetic does, not
+# a ZeroDivisionError out of a kernel (the Simulator stops a state that turns non-finite and
+# says why); it also spares every division its zero test.
+kernel = functools.partial(numba.njit, cache=True, nogil=True, error_model='numpy')
 """Decorator of an entry point called from Python: compiled on first use, cached to disk."""
 
-helper = functools.partial(numba.njit, cache=True, nogil=True, inline='always')
+helper = functools.partial(numba.njit, cache=True, nogil=True, inline='always',
+                           error_model='numpy')
 """Decorator of a compiled helper called from other compiled code (also callable from Python).
 
 Inlined into its callers at numba's IR level: left to LLVM, calls of the algebra's small
 tuple functions cost 5 of a Buss step's 48 ns (numba's calling convention around each); a
 Python caller gets the helper compiled on its own, cached."""
 
-inline = functools.partial(numba.njit, inline='always', nogil=True)
+inline = functools.partial(numba.njit, inline='always', nogil=True, error_model='numpy')
 """Decorator of a compiled function that takes other compiled functions as arguments.
 
 numba inlines it into its caller at the IR level, so the function arguments become direct

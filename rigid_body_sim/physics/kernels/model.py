@@ -74,7 +74,7 @@ def _signed(signature, function):
     compiled in every process instead, a fraction of a second for an effect's wrench.
     """
     cache = os.path.isfile(function.__code__.co_filename)
-    return numba.njit(signature, cache=cache, nogil=True)(function)
+    return numba.njit(signature, cache=cache, nogil=True, error_model='numpy')(function)
 
 
 def wrench_term(function):

@@ -1,0 +1,158 @@
+"""
+Stiff effects and diverging states: refused before the first step, or stopped finite.
+
+An explicit step of a linear decay y' = -lambda y grows without bound beyond a limit of
+lambda h fixed by the method (physics/stability.py measures it on each kernel); a state that
+turns non-finite anyway (an effect's own blow-up) is not stepped further: the Simulator keeps
+the last finite state and raises DivergedError naming when and under what.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from rigid_body_sim.physics import INTEGRATORS
+from rigid_body_sim.physics import RigidBody
+from rigid_body_sim.physics import Simulator
+from rigid_body_sim.physics import State
+from rigid_body_sim.physics.effects import create_effect
+from rigid_body_sim.physics.effects import Drag
+from rigid_body_sim.physics.effects import EFFECTS
+from rigid_body_sim.physics.effects import ParameterError
+from rigid_body_sim.physics.effects.registry import Effect
+from rigid_body_sim.physics.kernels.model import wrench_term
+from rigid_body_sim.physics.simulator import DivergedError
+from rigid_body_sim.physics.stability import decay_limit
+
+# The limits of the test equation, from each method's amplification factor g(z), z = lambda h:
+# Euler 1 - z (|g| <= 1 up to 2); classical RK4's polynomial (up to 2.785); an explicit
+# midpoint kick of h/2 around the drift, twice a step, 1 - z/2 + z^2/8 each (up to 4).
+THEORY = {'first_order': 2.0, 'rk4': 2.7853, 'buss': 4.0, 'buss_plain': 4.0,
+          'splitting': 4.0, 'exact': 4.0}
+SCAN_STEP = 0.02
+
+
+@pytest.mark.parametrize('name', sorted(THEORY))
+def test_each_methods_measured_decay_limit_is_its_theoretical_one(name):
+    assert decay_limit(name) == pytest.approx(THEORY[name], abs=SCAN_STEP)
+
+
+def test_every_integrator_has_a_positive_decay_limit():
+    for name in INTEGRATORS:
+        assert decay_limit(name) > 1.0, name
+
+
+def _issue_box():
+    # Issue 22's case: a 0.4 x 0.2 x 0.1 m box (1 kg) under rotational_linear 10 N m s.
+    body = RigidBody.box(1.0, (0.4, 0.2, 0.1))
+    return body, State.from_velocity(body, angular_velocity_body=(1.0, 2.0, 3.0))
+
+
+@pytest.mark.parametrize('name', sorted(INTEGRATORS))
+def test_a_fixed_step_too_long_for_stiff_drag_is_refused_in_one_line(name):
+    body, state = _issue_box()
+    simulator = Simulator(body, state, integrator=name, effects=[Drag(rotational_linear=10.0)])
+    with pytest.raises(ValueError) as caught:
+        simulator.run(1.0, 0.01)
+    message = str(caught.value)
+    assert '\n' not in message and message.startswith('drag damps the motion at 2400 /s')
+    assert 'raise rate to at least' in message and 'substeps to' in message
+    # Nothing was stepped.
+    assert simulator.time == 0.0 and simulator.state == state
+
+
+@pytest.mark.parametrize('name', sorted(INTEGRATORS))
+def test_the_substeps_the_refusal_names_carry_the_stiff_drag_finite_and_decaying(name):
+    body, state = _issue_box()
+    simulator = Simulator(body, state, integrator=name, effects=[Drag(rotational_linear=10.0)])
+    with pytest.raises(ValueError) as caught:
+        simulator.step(0.01)
+    substeps = int(str(caught.value).split('substeps to ')[1].split(',')[0])
+    simulator.substeps = substeps
+    final = simulator.run(1.0, 0.01)
+    assert np.all(np.isfinite(final.angular_momentum))
+    # 2400 /s of decay about the least axis, at least k1 / I3 = 480 /s about any: after 1 s
+    # nothing is left of the spin.
+    assert np.linalg.norm(final.angular_momentum) < 1e-100
+
+
+def test_under_error_control_the_stiff_drag_runs_finite_with_at_least_the_stable_count():
+    body, state = _issue_box()
+    simulator = Simulator(body, state, effects=[Drag(rotational_linear=10.0)], tolerance=1e-7)
+    final = simulator.run(0.5, 0.01)
+    assert np.all(np.isfinite(final.quaternion)) and np.all(np.isfinite(final.angular_momentum))
+    needed = math.ceil(2400.0 * 0.01 / (0.9 * decay_limit('buss')))
+    assert simulator.substep_statistics()['substeps_min'] >= needed
+
+
+@wrench_term
+def _blow_up(state, time, parameters):
+    """Return a finite torque until parameters[0] s, then an infinite one."""
+    torque = math.inf if time >= parameters[0] else 0.1
+    return 0.0, 0.0, 0.0, torque, 0.0, 0.0
+
+
+class _BlowUp(Effect):
+    compiled_wrench = staticmethod(_blow_up)
+
+    def __init__(self, at):
+        self.at = at
+
+    def wrench_parameters(self, body):
+        return np.array([self.at])
+
+
+@pytest.mark.parametrize('name', sorted(INTEGRATORS))
+def test_a_state_turning_non_finite_stops_at_the_last_finite_one_naming_when(name):
+    body, state = _issue_box()
+    simulator = Simulator(body, state, integrator=name, effects=[_BlowUp(0.105)])
+    for _ in range(10):
+        simulator.step(0.01)
+    kept = simulator.state
+    with pytest.raises(DivergedError) as caught:
+        for _ in range(10):
+            simulator.step(0.01)
+    message = str(caught.value)
+    assert '\n' not in message
+    # The first step that samples the torque at t >= 0.105 s: its end (the kicks), its middle
+    # (rk4), or, for first_order, which samples the start alone, the next one.
+    start = 0.11 if name == 'first_order' else 0.1
+    assert caught.value.time == pytest.approx(start)
+    assert f'between t = {start:g} s and {start + 0.01:g} s' in message and name in message
+    assert '_BlowUp' in message
+    # The last finite state is kept, and the clock did not move past it.
+    assert simulator.time == pytest.approx(start)
+    if name != 'first_order':
+        assert simulator.state == kept
+    assert np.all(np.isfinite(simulator.state.angular_momentum))
+
+
+# Values past each bound: the effects refuse them at load, naming the unit.
+BEYOND = [('drag', {'rotational_linear': 1e300}, 'rotational_linear', 'N m s'),
+          ('drag', {'linear': 2e6}, 'linear', 'N s/m'),
+          ('sinusoidal_torque', {'amplitude': [1e300, 0, 0], 'frequency': 1.0}, 'amplitude',
+           'N m'),
+          ('sinusoidal_torque', {'amplitude': [1, 0, 0], 'frequency': 1e9}, 'frequency', 'Hz'),
+          ('gravity', {'acceleration': [0, 0, -1e300]}, 'acceleration', 'm/s^2'),
+          ('pivot', {'point': [1e300, 0, 0]}, 'point', 'm'),
+          ('dissipation', {'damping': 1e300}, 'damping', '')]
+
+
+@pytest.mark.parametrize('name, parameters, key, unit', BEYOND)
+def test_effect_parameters_beyond_their_bound_are_refused_naming_the_unit(name, parameters,
+                                                                         key, unit):
+    with pytest.raises(ParameterError) as caught:
+        create_effect(name, parameters)
+    assert caught.value.key == key and 'at most' in caught.value.problem
+    assert unit in caught.value.problem
+
+
+def test_every_effects_example_is_within_its_bounds():
+    for name, cls in EFFECTS.items():
+        create_effect(name, cls.example)
+
+
+@pytest.mark.parametrize('mass', [5e-324, 1e-12, 1e20])
+def test_a_body_mass_beyond_a_microgram_to_a_mountain_is_refused(mass):
+    with pytest.raises(ValueError, match='mass must be within 1e-09 .. 1e\\+15 kg'):
+        RigidBody(mass, (1.0, 1.0, 1.0))
