@@ -139,8 +139,8 @@ BEYOND = [('drag', {'rotational_linear': 1e300}, 'rotational_linear', 'N m s'),
 
 
 @pytest.mark.parametrize('name, parameters, key, unit', BEYOND)
-def test_effect_parameters_beyond_their_bound_are_refused_naming_the_unit(name, parameters,
-                                                                         key, unit):
+def test_effect_parameters_beyond_their_bound_are_refused_naming_the_unit(
+        name, parameters, key, unit):
     with pytest.raises(ParameterError) as caught:
         create_effect(name, parameters)
     assert caught.value.key == key and 'at most' in caught.value.problem

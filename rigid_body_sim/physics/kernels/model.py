@@ -66,6 +66,7 @@ FLOW_SIGNATURE = types.none(_vector, _vector, types.float64)
 EXPAND_SIGNATURE = types.none(_vector, _vector, _vector)
 TRANSMIT_SIGNATURE = _wrench(_vector, _wrench, _vector)
 
+
 def _signed(signature, function):
     """
     Compile `function` for `signature` now, cached beside its file.
