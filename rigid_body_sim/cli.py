@@ -12,6 +12,8 @@ import os
 import signal
 import sys
 
+from .physics.simulator import DivergedError
+
 # Subcommand name -> module in rigid_body_sim.tools.
 TOOLS = {
     'run': 'summary',
@@ -59,7 +61,8 @@ def main(argv=None):
     """
     Run the command line; return the exit code.
 
-    0 success, 1 failure (a path that cannot be written or read), 2 bad input, 130 Ctrl-C,
+    0 success, 1 failure (a path that cannot be written or read, a simulation that turned
+    non-finite), 2 bad input, 130 Ctrl-C,
     141 when the reader of the output went away (``| head``);
     a tool stopped by signal n cleanly (``simulate``) returns 128 + n.
     """
@@ -70,6 +73,10 @@ def main(argv=None):
         return 0
     try:
         return int(args.tool.main(args) or 0)
+    except DivergedError as error:
+        # The simulation went non-finite: what was written ends at the last finite state.
+        print(f'rigid-body-sim {args.command}: error: {error}', file=sys.stderr)
+        return 1
     except ValueError as error:
         print(f'rigid-body-sim {args.command}: error: {error}', file=sys.stderr)
         return 2

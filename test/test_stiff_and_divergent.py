@@ -156,3 +156,16 @@ def test_every_effects_example_is_within_its_bounds():
 def test_a_body_mass_beyond_a_microgram_to_a_mountain_is_refused(mass):
     with pytest.raises(ValueError, match='mass must be within 1e-09 .. 1e\\+15 kg'):
         RigidBody(mass, (1.0, 1.0, 1.0))
+
+
+def test_the_command_line_says_a_divergence_in_one_line_and_exits_1(monkeypatch, capsys):
+    from rigid_body_sim import cli
+
+    def diverge(self, duration, dt, progress=None):
+        raise DivergedError('the state turned non-finite between t = 1 s and 1.01 s', 1.0)
+
+    monkeypatch.setattr(Simulator, 'run', diverge)
+    assert cli.main(['run', '--duration', '2']) == 1
+    err = capsys.readouterr().err.strip()
+    assert err == ('rigid-body-sim run: error: the state turned non-finite between t = 1 s '
+                   'and 1.01 s')
