@@ -14,7 +14,7 @@ exceeds 1.  A new integrator gets its limit without an edit here.  Measured: fir
 (Euler), rk4 2.78, buss, buss_plain, splitting and exact 4.0 (two midpoint kicks of h/2),
 splitting4 7.3 (its kicks are of at most 0.66 h / 2).
 
-Effects say how stiff they are (``stiffness(body) -> (rate 1/s, what)``, registry.py); the
+Effects say how stiff they are (``damping_rate(body) -> (rate 1/s, what)``, registry.py); the
 Simulator checks each new step against them (:func:`stiffness_problem`).
 """
 
@@ -70,10 +70,10 @@ def stiffness_problem(simulator, dt):
     h = dt / steps
     limit = LIMIT_MARGIN * decay_limit(simulator.integrator)
     for effect in simulator.effects:
-        stiffness = getattr(effect, 'stiffness', None)
-        if stiffness is None:
+        damping_rate = getattr(effect, 'damping_rate', None)
+        if damping_rate is None:
             continue
-        rate, what = stiffness(simulator.body)
+        rate, what = damping_rate(simulator.body)
         if not rate * h > limit:
             continue
         if limit <= 0.0:

@@ -87,7 +87,7 @@ class Drag(Effect):
         if not (translational or self.exerts_torque):
             raise ValueError('drag: every coefficient is zero; give one, or drop the effect')
 
-    def stiffness(self, body):
+    def damping_rate(self, body):
         """
         Return (the fastest linear decay rate in 1/s, what it is) on `body`.
 

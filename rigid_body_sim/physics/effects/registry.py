@@ -27,7 +27,7 @@ once, as compiled code (kernels/model.py), so that every integrator runs it comp
   plots show as conserved only what every effect of a scene conserves;
 - ``accepts_external_wrench = True``: the body may be pushed from outside (the node's
   torque and wrench topics write the Simulator's held wrench);
-- ``stiffness(body) -> (rate, what)``: the fastest rate (1/s) at which it damps the motion
+- ``damping_rate(body) -> (rate, what)``: the fastest rate (1/s) at which it damps the motion
   linearly, and what sets it: the Simulator refuses a fixed step the integrator cannot
   follow (physics/stability.py), and under error control never takes fewer substeps;
 - ``example``: a dict of typical parameters (required): the tests run every effect, built
