@@ -75,3 +75,16 @@ def test_the_compile_command_says_what_is_compiled_already():
                             capture_output=True, text=True, timeout=600, check=False)
     assert result.returncode == 0, result.stderr
     assert 'buss         already compiled' in result.stdout
+
+
+def test_a_command_about_to_compile_says_what_and_how_long(monkeypatch, capsys):
+    from rigid_body_sim.tools.compile import announce_compile
+    announce_compile('simulate', ['buss'])
+    assert capsys.readouterr().err == ''
+    # As on a fresh install, where nothing is marked compiled yet.
+    monkeypatch.setattr(warm_up, 'is_compiled', lambda name: False)
+    announce_compile('simulate', ['rk4'])
+    line = capsys.readouterr().err.strip()
+    assert line.startswith('rigid-body-sim simulate: compiling the rk4 kernel(s) for their '
+                           'first use (about ')
+    assert '\n' not in line and 'rigid-body-sim compile' in line

@@ -9,12 +9,29 @@ are compiled again: never a stale one).  The set-up (``make venv``, so ``make ru
 ``ros2 run rigid_body_sim rigid-body-sim compile`` after it).
 """
 
+import sys
 import time
 
 from ..physics import INTEGRATORS
+from ..physics.warm_up import compile_estimate
 from ..physics.warm_up import COMPILE_SECONDS
 from ..physics.warm_up import is_compiled
+from ..physics.warm_up import missing
 from ..physics.warm_up import warm_up
+
+
+def announce_compile(command, integrators, stream=None):
+    """
+    Say, in one line, which kernels a command is about to compile and about how long.
+
+    Nothing when they are compiled (the set-up compiles them all); otherwise the first use
+    waits for numba, and the user hears why.
+    """
+    waiting = missing(integrators)
+    if waiting:
+        print(f'rigid-body-sim {command}: compiling the {", ".join(waiting)} kernel(s) for '
+              f'their first use (about {compile_estimate(waiting):.0f} s, once; '
+              '`rigid-body-sim compile` does them all)', file=stream or sys.stderr, flush=True)
 
 
 def add_arguments(parser):
