@@ -317,8 +317,8 @@ class _Mujoco:
             return
         applied = data.xfrc_applied[1]
         body = self.case.scene.body
-        terms = [(effect.compiled_wrench, np.ascontiguousarray(effect.wrench_parameters(body),
-                                                                dtype=float))
+        terms = [(effect.compiled_wrench,
+                  np.ascontiguousarray(effect.wrench_parameters(body), dtype=float))
                  for effect in self.applied]
         # An effect that reads no more than the orientation gets it alone (the rest zero).
         whole = any(effect.reads_state for effect in self.applied)
