@@ -20,6 +20,7 @@ from rclpy.serialization import serialize_message
 
 from ..physics import State
 from ..ros.conversions import marker_geometry
+from ..ros.conversions import state_field_columns
 from ..ros.conversions import state_messages
 from ..ros.conversions import STATE_TOPICS
 
@@ -103,8 +104,7 @@ class BatchSerializer:
                  topics=STATE_TOPICS):
         if geometry is None:
             geometry = marker_geometry(body)
-        self._inverse = body.inertia_inverse.tolist()
-        self._mass = body.mass
+        self._body = body
         self._marker_axes = geometry.axes
         self.topics = tuple(topics)
         reference = State()
@@ -147,60 +147,8 @@ class BatchSerializer:
         return serialized
 
     def _values(self, rows):
-        """Return topic -> list of value columns, as conversions._state_values computes."""
-        qx, qy, qz, qw = rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3]
-        position = [rows[:, 4], rows[:, 5], rows[:, 6]]
-        px, py, pz = rows[:, 7], rows[:, 8], rows[:, 9]
-        angular_momentum = [rows[:, 10], rows[:, 11], rows[:, 12]]
-        # R of rotations.matrix_from_quaternion: normalise, then the usual expansion.
-        norm = np.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
-        x, y, z, w = qx / norm, qy / norm, qz / norm, qw / norm
-        rotation = [
-            [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w)],
-            [2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w)],
-            [2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y)],
-        ]
-        mass = self._mass
-        velocity = [px / mass, py / mass, pz / mass]
-        # Omega = I_b^-1 R^T L (body frame), omega = R Omega (world frame).
-        omega_body = _multiply(self._inverse, _multiply_transposed(rotation, angular_momentum))
-        quaternion = [qx, qy, qz, qw]
-        pose = position + quaternion
-        if self._marker_axes is None:
-            marker = pose
-        else:
-            marker = position + _quaternion_product(quaternion, self._marker_axes)
-        return {
-            'pose': pose,
-            'twist': velocity + _multiply(rotation, omega_body),
-            'angular_momentum': angular_momentum,
-            'odom': pose + _multiply_transposed(rotation, velocity) + omega_body,
-            'marker': marker,
-        }
-
-
-# The products below are written term by term, left to right, as conversions writes them
-# with Python floats: the same roundings, so the same bits.
-
-
-def _multiply(matrix, vector):
-    x, y, z = vector
-    return [row[0] * x + row[1] * y + row[2] * z for row in matrix]
-
-
-def _multiply_transposed(matrix, vector):
-    (a, b, c), (d, e, f), (g, h, i) = matrix
-    x, y, z = vector
-    return [a * x + d * y + g * z, b * x + e * y + h * z, c * x + f * y + i * z]
-
-
-def _quaternion_product(a, b):
-    ax, ay, az, aw = a
-    bx, by, bz, bw = b
-    return [aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-            aw * bw - ax * bx - ay * by - az * bz]
+        """Return topic -> list of value columns, as the node's messages carry them."""
+        return state_field_columns(self._body, rows, self._marker_axes)
 
 
 def _column(data, offset, dtype):
