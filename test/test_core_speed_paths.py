@@ -27,13 +27,13 @@ from rigid_body_sim.physics import State
 from rigid_body_sim.physics.effects import Dissipation
 from rigid_body_sim.physics.effects import Gravity
 from rigid_body_sim.physics.effects import Pivot
-from rigid_body_sim.physics.effects.registry import Effect
-from rigid_body_sim.physics.kernels.model import wrench_term
 from rigid_body_sim.physics.rotations import cross
 from rigid_body_sim.physics.simulator import COMPILED
 from rigid_body_sim.physics.simulator import READABLE
 from rigid_body_sim.scenes import load_scene
 from rigid_body_sim.scenes import scene_names
+from spy_effects import CountingWrench
+from spy_effects import evaluations
 
 EPS = np.finfo(float).eps
 COMPILED_NAMES = sorted(INTEGRATORS)
@@ -43,25 +43,12 @@ HELD = {'force_world': (0.1, 0.0, 0.0), 'torque_world': (0.0, 0.01, 0.0),
         'force_body': (0.05, 0.0, 0.1), 'torque_body': (0.0, 0.0, 0.002)}
 
 
-@wrench_term
-def _counted_nothing(state, time, parameters):
-    parameters[0] += 1.0
-    return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-
-
-class _Counting(Effect):
-    compiled_wrench = staticmethod(_counted_nothing)
-
-    def wrench_parameters(self, body):
-        return np.zeros(1)
-
-
 def _stages(name):
     """Return the wrench evaluations per step of integrator `name`, counted by a spy term."""
     body = RigidBody(1.0, (1.0, 2.0, 3.0))
-    simulator = Simulator(body, State(), integrator=name, effects=[_Counting()])
+    simulator = Simulator(body, State(), integrator=name, effects=[CountingWrench()])
     simulator.run(0.1, 0.01)
-    return int(simulator._model.term_parameters[0]) // 10
+    return evaluations(simulator) // 10
 
 
 STAGES = {name: _stages(name) for name in COMPILED_NAMES}

@@ -25,10 +25,10 @@ from rigid_body_sim.physics.effects import ParameterError
 from rigid_body_sim.physics.effects import Pivot
 from rigid_body_sim.physics.effects import register_effect
 from rigid_body_sim.physics.effects import SinusoidalTorque
-from rigid_body_sim.physics.effects.registry import Effect
-from rigid_body_sim.physics.kernels.model import wrench_term
 from rigid_body_sim.physics.rotations import quaternion_multiply
 from scipy.integrate import solve_ivp
+from spy_effects import CountingWrench
+from spy_effects import evaluations
 
 # Second order: halving the step divides the error by 4; allow 3.4..4.6 for the next
 # order's share at these steps (checked: the ratios measured are within 1 % of 4).
@@ -44,27 +44,6 @@ def _random_state(body, rng, speed=1.0, spin=3.0):
                                position=rng.normal(size=3),
                                velocity=speed * rng.normal(size=3),
                                angular_velocity_body=spin * rng.normal(size=3))
-
-
-@wrench_term
-def counted_nothing(state, time, parameters):
-    """Push with nothing, and count the evaluations in parameters[0]."""
-    parameters[0] += 1.0
-    return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-
-
-class CountingWrench(Effect):
-    """A compiled pushing effect that counts its evaluations (and pushes with nothing)."""
-
-    compiled_wrench = staticmethod(counted_nothing)
-
-    def wrench_parameters(self, body):
-        return np.zeros(1)
-
-
-def _evaluations(simulator):
-    # The counter lives in the simulator's compiled model (its parameters are copied there).
-    return int(simulator._model.term_parameters[0])
 
 
 # -- registry
@@ -155,10 +134,10 @@ def test_a_wrench_term_is_evaluated_at_the_methods_kick_points_only_while_named(
     counted = Simulator(body, state, effects=[CountingWrench()])
     counted.run(0.1, 0.01)
     # buss evaluates the wrench in its two half kicks, rk4 at its four stages.
-    assert _evaluations(counted) == 2 * 10
+    assert evaluations(counted) == 2 * 10
     counted = Simulator(body, state, integrator='rk4', effects=[CountingWrench()])
     counted.run(0.1, 0.01)
-    assert _evaluations(counted) == 4 * 10
+    assert evaluations(counted) == 4 * 10
 
 
 @pytest.mark.parametrize('fast', [True, False])

@@ -43,24 +43,25 @@ def run_steps(step, state, model, method, dt, steps, time):
     state = borrowed(state)
     pushed = forcing.term_count > 0 or forcing.holding
     translates = pushed or state[7] != 0.0 or state[8] != 0.0 or state[9] != 0.0
-    flowing = forcing.flow_count > 0
-    half = 0.5 * dt
     # The low bits a step hands the next (splitting's Kahan sums): each call starts afresh.
     forcing.carry[:] = 0.0
     # Two copies of the loop, in which `pushed` is a constant: the torque-free one carries no
     # kick code at all (its registers are the step's alone: 2 ns of Buss's 47 ns step).
     if pushed:
-        for k in range(steps):
-            if flowing:
-                apply_flows(state, forcing, half, False)
-            step(state, forcing, method, dt, time + k * dt, True, translates)
-            if flowing:
-                apply_flows(state, forcing, half, True)
+        _steps(step, state, forcing, method, dt, steps, time, True, translates)
     else:
-        for k in range(steps):
-            if flowing:
-                apply_flows(state, forcing, half, False)
-            step(state, forcing, method, dt, time + k * dt, False, translates)
-            if flowing:
-                apply_flows(state, forcing, half, True)
+        _steps(step, state, forcing, method, dt, steps, time, False, translates)
     return steps
+
+
+@inline
+def _steps(step, state, forcing, method, dt, steps, time, pushed, translates):
+    """Take the steps of :func:`run_steps` with `pushed` a constant (see there)."""
+    flowing = forcing.flow_count > 0
+    half = 0.5 * dt
+    for k in range(steps):
+        if flowing:
+            apply_flows(state, forcing, half, False)
+        step(state, forcing, method, dt, time + k * dt, pushed, translates)
+        if flowing:
+            apply_flows(state, forcing, half, True)
