@@ -81,6 +81,7 @@ from .conversions import STATE_TOPICS
 from .conversions import StateSerializer
 from .conversions import wrench_input_from_message
 from .conversions import WrenchInput
+from .parameter_services import ParameterServices
 from .parameters import check_integrator
 from .parameters import declare_parameters
 from .parameters import declare_scene_parameter
@@ -96,6 +97,7 @@ from .start_up import only_note_signals
 from .start_up import signalled
 from .start_up import signals_deferred
 from .start_up import start_up_phase
+from .text import shortened
 from ..physics import unresolved_rotation
 from ..scenes import load_scene
 
@@ -163,7 +165,9 @@ class RigidBodyNode(Node):
     """
 
     def __init__(self, node_name=NODE_NAME, **kwargs):
-        super().__init__(node_name, **kwargs)
+        # rclpy's parameter services let a malformed request stop the node: ours answer it.
+        super().__init__(node_name, start_parameter_services=False, **kwargs)
+        ParameterServices(self)
         self._ticker = None
         self._ticks = 0
         try:
@@ -587,7 +591,7 @@ class RigidBodyNode(Node):
         # Types, ranges and read-only flags are checked by rclpy from the descriptors.
         for parameter in parameters:
             if parameter.name == 'integrator':
-                reason = check_integrator(parameter.value)
+                reason = check_integrator(shortened(parameter.value))
                 if reason is not None:
                     return SetParametersResult(successful=False, reason=reason)
         return SetParametersResult(successful=True)
