@@ -316,6 +316,7 @@ class RigidBodyNode(Node):
         """Start ticking at `rate` Hz in a thread of its own."""
         if self._ticker is None:
             self._stop = threading.Event()
+            self._wake = threading.Event()
             self._ticker = threading.Thread(target=self._tick_loop, name='tick', daemon=True)
             self._ticker.start()
 
@@ -323,6 +324,7 @@ class RigidBodyNode(Node):
         """Stop ticking; return after the tick in progress, if any, has finished."""
         if self._ticker is not None:
             self._stop.set()
+            self._wake.set()
             self._ticker.join()
             self._ticker = None
 
@@ -330,26 +332,29 @@ class RigidBodyNode(Node):
         # Deadlines on the steady clock at whole multiples of the period: the rate is exact
         # on average whatever each tick's jitter.  A tick that comes late (the process was
         # not scheduled) is followed at once by the ticks it held up, so simulated time keeps
-        # pace with the clock; beyond _MAX_LAG the missed ticks are dropped instead.
-        deadline = time.monotonic()
+        # pace with the clock; beyond _MAX_LAG the missed ticks are dropped instead.  Work
+        # queued between ticks (services, parameters) wakes the loop and is applied at once;
+        # a new pace (real_time_factor) counts from the last tick, never from the deadline
+        # of the old one.
+        period = self._wall_period
+        last_deadline = time.monotonic()
+        deadline = last_deadline + period
         stop = self._stop
+        wake = self._wake
         while not stop.is_set():
-            # Read every time: real_time_factor may change at run time.
-            period = self._wall_period
-            max_lag = max(_MAX_LAG, 2.0 * period)
-            deadline += period
             delay = deadline - time.monotonic()
             if delay > 0.0:
-                # time.sleep costs a fraction of Event.wait(timeout) per tick; stop() is
-                # seen within _STOP_LATENCY even at slow rates.
-                while delay > _STOP_LATENCY:
-                    time.sleep(_STOP_LATENCY)
-                    if stop.is_set():
-                        return
-                    delay = deadline - time.monotonic()
-                if delay > 0.0:
-                    time.sleep(delay)
-            elif delay < -max_lag:
+                # stop() is seen within _STOP_LATENCY even at slow rates.
+                if wake.wait(min(delay, _STOP_LATENCY)):
+                    wake.clear()
+                    if self._queue and self._apply_queue():
+                        self._hold_inputs()
+                    if self._wall_period != period:
+                        period = self._wall_period
+                        deadline = last_deadline + period
+                continue
+            max_lag = max(_MAX_LAG, 2.0 * period)
+            if delay < -max_lag:
                 missed = int(-delay / period)
                 self._missed_ticks += missed
                 deadline += missed * period
@@ -362,6 +367,8 @@ class RigidBodyNode(Node):
                 self.tick_error = error
                 self.context.try_shutdown()
                 return
+            last_deadline = deadline
+            deadline += period
 
     def _tick(self):
         started = time.perf_counter()
@@ -574,15 +581,20 @@ class RigidBodyNode(Node):
     # -- callbacks (executor thread): they only queue work for the tick, stamped with the
     # system time (the clock of the inputs' DDS reception stamps) to keep them in order.
 
+    def _queue_work(self, item):
+        self._queue.append((time.time_ns(), item))
+        if self._ticker is not None:
+            self._wake.set()  # applied now, not at the next tick
+
     def _reset_callback(self, request, response):
-        self._queue.append((time.time_ns(), ('reset',)))
+        self._queue_work(('reset',))
         response.success = True
         response.message = 'reset to the initial state and time 0 at the next tick' + (
             ' (/clock counts on)' if self._publish_clock else '')
         return response
 
     def _pause_callback(self, request, response):
-        self._queue.append((time.time_ns(), ('pause', bool(request.data))))
+        self._queue_work(('pause', bool(request.data)))
         response.success = True
         response.message = 'paused' if request.data else 'running'
         return response
@@ -605,8 +617,7 @@ class RigidBodyNode(Node):
                     # Load the integrator's compiled kernels here (~0.1 s the first time),
                     # not in the tick thread, which would miss ticks meanwhile.
                     _load_kernels(self._scene, parameter.value, self._period)
-                self._queue.append((time.time_ns(),
-                                    ('parameter', parameter.name, parameter.value)))
+                self._queue_work(('parameter', parameter.name, parameter.value))
 
     def _warn_throttled(self, key, text):
         now = time.monotonic()
