@@ -12,6 +12,7 @@ that exactly, to round-off.
 import math
 import time
 
+from node_harness import applied_from
 from node_harness import Client
 from node_harness import DISCOVERY_TIMEOUT
 from node_harness import isolate_ros_environment
@@ -73,9 +74,15 @@ def sim(tmp_path_factory):
 
 
 def fresh_start(sim):
-    """Reset the node and return the time after which messages come from the new run."""
-    assert sim.reset().success
-    return sim.settle(SETTLE * RATE, RATE)
+    """
+    Reset the node and return the time after which messages come from the new run.
+
+    The reply names the stamp after which the reset state is published: the arrival of the
+    first pose stamped after it (the messages of one tick are published together).
+    """
+    response = sim.reset()
+    assert response.success
+    return sim.arrival_of_first_after('pose', applied_from(response))
 
 
 def vector(message):
@@ -179,7 +186,9 @@ def test_odometry_twist_is_the_world_twist_seen_from_the_body(sim):
     """The odom twist is in the body frame: R^T v and R^T omega of the world-frame twist."""
     since = fresh_start(sim)
     sim.publish_wrench([0.2, -0.1, 0.3], [0.0, 0.0, 0.0], 'world')  # a velocity to see
-    sim.settle(10, RATE)
+    sim.wait_for(lambda: len([t for t in sim.messages('twist', since)
+                              if np.any(vector(t.linear) != 0.0)]) >= 10,
+                 DISCOVERY_TIMEOUT, 'ten ticks of the force')
     odom = sim.messages('odom', since)[-1]
     twists = sim.messages('twist', since)
     # twist has no stamp: find the one whose world angular velocity matches this odom's.
@@ -565,43 +574,43 @@ def test_reset_returns_to_the_initial_state(sim):
                  DISCOVERY_TIMEOUT, 'the wrench to change L by 0.1')
     response = sim.reset()
     assert response.success
-    since = sim.settle(SETTLE * RATE, RATE)
-    sim.wait_for_messages('pose', 1, since=since)
-    momentum = sim.wait_for_messages('angular_momentum', 1, since=since)[0].vector
-    momentum = vector(momentum)
+    reset_stamp = applied_from(response)
+    replied = time.monotonic()
+    pose = sim.stamped_after('pose', reset_stamp)[0].pose
+    momentum = vector(sim.stamped_after('angular_momentum', reset_stamp)[0].vector)
+    # The first tick after the reset: one step from the initial state, no wrench.
     np.testing.assert_allclose(momentum, L0, rtol=0, atol=ROUND_OFF)
-    pose = sim.messages('pose', since)[0].pose
     # The held wrench went with the reset: the COM is back at the origin and at rest.
     np.testing.assert_array_equal(vector(pose.position), 0.0)
     q = pose.orientation
     angle = 2.0 * math.acos(min(1.0, abs(q.w)))
     omega = np.linalg.norm(INITIAL.angular_velocity(BODY))
-    assert angle <= omega * 2.0 * SETTLE
+    assert angle <= omega * PERIOD * (1 + 1e-9)
     # ... and the simulated time restarted at 0: the next /diagnostics report is at most
-    # the wall time since the reset (at real-time factor 1) plus a tick.
-    reported_at = time.monotonic()
-    diagnostics = sim.wait_for_messages('/diagnostics', 1, since=reported_at, timeout=5.0)[0]
+    # the wall time since the reply (at real-time factor 1) plus a tick.
+    diagnostics = sim.wait_for_messages('/diagnostics', 1, since=time.monotonic())[0]
     status = next(s for s in diagnostics.status
                   if s.hardware_id == f'{sim.namespace}/{NODE_NAME}')
     simulated = float({kv.key: kv.value for kv in status.values}['simulated time [s]'])
-    assert simulated <= time.monotonic() - since + 2 * SETTLE + PERIOD, simulated
+    assert simulated <= time.monotonic() - replied + PERIOD, simulated
 
 
 def test_pause_freezes_the_state_and_keeps_publishing(sim):
     """Paused, the state stays put while messages keep coming; resumed, it moves."""
     fresh_start(sim)
     try:
-        assert sim.pause(True).success
-        since = sim.settle(SETTLE * RATE, RATE)
-        poses = sim.wait_for_messages('pose', int(0.5 * RATE), since=since)
+        response = sim.pause(True)
+        assert response.success and response.message.startswith('paused'), response.message
+        poses = sim.stamped_after('pose', applied_from(response), int(0.5 * RATE))
         orientations = {(p.pose.orientation.x, p.pose.orientation.y, p.pose.orientation.z,
                          p.pose.orientation.w) for p in poses}
         assert len(orientations) == 1
     finally:
-        assert sim.pause(False).success
-    since = sim.settle(SETTLE * RATE, RATE)
+        response = sim.pause(False)
+        assert response.success and response.message.startswith('running')
+    resumed = applied_from(response)
     sim.wait_for(lambda: len({(p.pose.orientation.x, p.pose.orientation.w)
-                              for p in sim.messages('pose', since)}) > 1,
+                              for p in sim.stamped_after('pose', resumed)}) > 1,
                  DISCOVERY_TIMEOUT, 'the orientation to move again')
 
 

@@ -31,6 +31,7 @@ from ..physics.rotations import quaternion_from_matrix
 
 __all__ = [
     'STATE_TOPICS',
+    'STATE_TYPES',
     'SHAPES',
     'MarkerGeometry',
     'WrenchInput',
@@ -48,6 +49,10 @@ __all__ = [
 
 STATE_TOPICS = ('pose', 'twist', 'angular_momentum', 'odom', 'marker')
 """Topic names (relative) of the messages :func:`state_messages` returns, in that order."""
+
+STATE_TYPES = {'pose': PoseStamped, 'twist': Twist, 'angular_momentum': Vector3Stamped,
+               'odom': Odometry, 'marker': Marker}
+"""Topic name (relative) -> message class of :func:`state_messages`, known without a scene."""
 
 SHAPES = ('box', 'cylinder', 'sphere', 'ellipsoid')
 """Body shapes with a closed-form inertia and a matching RViz marker."""
