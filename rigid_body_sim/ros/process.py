@@ -72,7 +72,9 @@ def _watchdog(signal_number):
 
 
 def install_signal_handlers():
-    """Make SIGINT and SIGTERM noted (see the module docstring)."""
+    """Make SIGINT and SIGTERM noted (see the module docstring); main thread only."""
+    if threading.current_thread() is not threading.main_thread():
+        return
     signal.signal(signal.SIGTERM, _note)
     signal.signal(signal.SIGINT, _note)
 
