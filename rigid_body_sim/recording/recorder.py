@@ -66,10 +66,8 @@ from .simulate import CUSTOM_DATA_PREFIX
 from .simulate import DIAGNOSTICS_TOPIC
 from .simulate import message_type_name
 from .simulate import topic_names
-from ..defaults import default_body
-from ..physics import State
 from ..ros import qos
-from ..ros.conversions import state_messages
+from ..ros.conversions import STATE_TYPES
 
 __all__ = ['NODE_NAME', 'RecordingSummary', 'default_topics', 'record']
 
@@ -93,8 +91,7 @@ def default_topics(namespace=''):
 
     The state topics under `namespace`, /diagnostics and /clock.
     """
-    messages = state_messages(default_body(), State(), 0)
-    topics = {name: (type(messages[topic]), qos.STATE_QOS)
+    topics = {name: (STATE_TYPES[topic], qos.STATE_QOS)
               for topic, name in topic_names(namespace).items()}
     topics[DIAGNOSTICS_TOPIC] = (DiagnosticArray, qos.DIAGNOSTICS_QOS)
     topics[CLOCK_TOPIC] = (Clock, qos.CLOCK_QOS)
