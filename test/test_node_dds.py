@@ -632,3 +632,52 @@ def test_diagnostics_report_integrator_rates_and_drift(sim):
     # No input since the last reset: the torque-free drift of Buss's method is round-off
     # for |L| (it conserves world L exactly) and small for the energy at h = 0.01 s.
     assert abs(float(values['|L| drift since last input'])) <= 1e-12
+
+
+def test_tf_carries_the_pose_bit_for_bit_at_the_same_stamp_and_the_imu_mount_is_static(
+        tmp_path):
+    """
+    Over DDS: every /tf transform world -> body equals the pose of its stamp, exactly.
+
+    A node of its own with a body frame no other test node uses (/tf is a global topic);
+    /tf_static (transient local) reaches a subscriber that comes after it was published.
+    """
+    from rigid_body_sim.ros.qos import TF_QOS
+    from rigid_body_sim.ros.qos import TF_STATIC_QOS
+    from tf2_msgs.msg import TFMessage
+    namespace = unique_namespace()
+    body_frame = f'body_{namespace.strip("/")}'
+    node = NodeProcess(tmp_path / 'node.log', namespace=namespace,
+                       parameters={'rate': RATE, 'body_frame': body_frame})
+    client = Client(namespace, extra_topics={'/tf': (TFMessage, TF_QOS),
+                                             '/tf_static': (TFMessage, TF_STATIC_QOS)})
+    try:
+        client.wait_until_connected()
+
+        def ours(topic):
+            return [t for m in client.messages(topic) for t in m.transforms
+                    if body_frame in (t.child_frame_id, t.header.frame_id)]
+        client.wait_for(lambda: len(ours('/tf')) >= 200, DISCOVERY_TIMEOUT, '200 transforms')
+        client.wait_for(lambda: ours('/tf_static'), DISCOVERY_TIMEOUT, 'the static transform')
+        poses = {(p.header.stamp.sec, p.header.stamp.nanosec): p.pose
+                 for p in client.messages('pose')}
+        compared = 0
+        for transform in ours('/tf'):
+            assert (transform.header.frame_id, transform.child_frame_id) == (
+                'world', body_frame)
+            pose = poses.get((transform.header.stamp.sec, transform.header.stamp.nanosec))
+            if pose is None:
+                continue  # that tick's pose was not (yet) received here
+            t, r = transform.transform.translation, transform.transform.rotation
+            assert (t.x, t.y, t.z) == (pose.position.x, pose.position.y, pose.position.z)
+            assert (r.x, r.y, r.z, r.w) == (pose.orientation.x, pose.orientation.y,
+                                            pose.orientation.z, pose.orientation.w)
+            compared += 1
+        assert compared >= 150, compared
+        (mount,) = ours('/tf_static')
+        assert (mount.header.frame_id, mount.child_frame_id) == (body_frame, 'imu')
+    except AssertionError as error:
+        raise AssertionError(f'{error}\nnode output:\n{node.output()}') from None
+    finally:
+        client.close()
+        assert node.stop() == 0, node.output()
