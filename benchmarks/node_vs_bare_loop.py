@@ -92,6 +92,7 @@ def subscriber(namespace):
 
 
 def main(argv=None):
+    """Run the three processes side by side and print the CPU ratio per window."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--windows', type=int, default=5)
     parser.add_argument('--seconds', type=float, default=10.0)
