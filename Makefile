@@ -20,6 +20,8 @@ $(STAMP): requirements.txt setup.py setup.cfg package.xml
 	$(BIN)/python -m pip install --upgrade pip
 	$(BIN)/python -m pip install -r requirements.txt
 	$(BIN)/python -m pip install --no-deps -e .
+	@echo 'Compiling the numba kernels once, so that no run waits for them (about 1-2 min):'
+	$(BIN)/rigid-body-sim compile
 	touch $@
 
 $(TF2_STAMP): $(STAMP) requirements-tf2.txt interfaces/build_tf2_msgs.sh \
@@ -30,22 +32,24 @@ $(TF2_STAMP): $(STAMP) requirements-tf2.txt interfaces/build_tf2_msgs.sh \
 
 run: $(STAMP) $(TF2_STAMP)
 	@echo 'Starting rigid_body_node with the default scene: a T-handle spun near its unstable'
-	@echo 'middle axis. It first flips over after ~7.2 s, then every ~14.4 s. Look at it (and'
-	@echo 'push it) from another terminal with ROS 2 Jazzy sourced:'
+	@echo 'middle axis. It first flips over after ~7.2 s, then every ~14.4 s.'
+	@echo 'Watch it live from another terminal in this directory (nothing else to install):'
+	@echo '  .venv/bin/rigid-body-sim watch              a window: the body turning, its angular'
+	@echo '                                              velocity, the drift, the node'"'"'s cost'
+	@echo '  .venv/bin/rigid-body-sim watch --terminal   the same numbers, refreshed in place'
+	@echo 'With ROS 2 Jazzy sourced, the ROS tools see it too:'
 	@echo '  ros2 topic echo /odom --field twist.twist.angular   body angular velocity: y flips sign'
-	@echo '  ros2 topic echo /angular_momentum                   world-frame L: stays constant'
-	@echo '  rviz2 -f world                                      add a Marker display on /marker'
-	@echo '  ros2 topic echo /diagnostics                        rate, step time, drift'
 	@echo '  ros2 topic pub --once /torque geometry_msgs/msg/Vector3Stamped "{vector: {z: 0.5}}"'
+	@echo '  rviz2 -f world                                      add a Marker display on /marker'
 	@echo 'Other scenes: .venv/bin/rigid-body-sim scenes, then make run NODE_ARGS="--ros-args -p scene:=heavy_top"'
-	@echo 'Ctrl-C stops it. The offline summary without ROS: .venv/bin/rigid-body-sim run'
+	@echo 'Ctrl-C stops it. The offline summary without DDS: .venv/bin/rigid-body-sim run'
 	$(BIN)/rigid_body_node $(NODE_ARGS)
 
 test: export ROS_AUTOMATIC_DISCOVERY_RANGE = LOCALHOST
 test: $(STAMP) $(TF2_STAMP)
-	@# The numba kernels first (cached; ~40 s on a fresh clone, under 2 s after), so that
-	@# no test's node spends its start-up compiling them.
-	$(BIN)/rigid-body-sim compile
+	@# The numba kernels (compiled by the set-up; a changed source is compiled again here),
+	@# so that no test's node spends its start-up compiling them.
+	$(BIN)/rigid-body-sim compile --quiet
 	$(BIN)/python -m pytest test -q -n 2 --dist loadgroup $(PYTEST_ARGS)
 
 clean:

@@ -19,8 +19,12 @@ sys.path.insert(0, str(ROOT / 'test'))
 import test_integrator_convergence as convergence  # noqa: E402  (after the path set-up)
 
 
-def main():
+def main(argv=None):
     """Print the table; return 0."""
+    import argparse
+    argparse.ArgumentParser(description=__doc__.strip().splitlines()[0],
+                            epilog='Usage: .venv/bin/python benchmarks/convergence_orders.py '
+                                   '(no options; about a minute)').parse_args(argv)
     columns = [(body, wrench) for body in sorted(convergence.BODIES)
                for wrench in convergence.WRENCHES]
     print('observed order (whole state error) per body and wrench; nominal order first')

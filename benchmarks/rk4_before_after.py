@@ -95,4 +95,8 @@ if __name__ == '__main__':
     if sys.argv[1:2] == ['--child']:
         child(sys.argv[2], float(sys.argv[3]))
         sys.exit(0)
+    import argparse
+    argparse.ArgumentParser(description=__doc__.strip().splitlines()[0],
+                            epilog='No options: runs the old rk4 from a temporary git worktree '
+                                   f'of {BEFORE} beside the current one.').parse_args()
     sys.exit(main())

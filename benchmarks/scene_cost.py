@@ -10,9 +10,7 @@ the same body, state, integrator and step with no effects are timed: in one run(
 timing is CPU time of this process (time.process_time: the machine may be loaded), the
 median over K repeats of about S CPU seconds of work, after a warm-up run (so numba
 compilation is not counted), in microseconds per step.  The ratio of the two bulk columns
-is the price of the scene's effects.  'path' says what takes the steps: 'compiled' (one
-compiled run, a dissipation flow fused in), 'kernel+flows' (single compiled steps, other
-flows composed around them in Python) or 'readable' (the readable integrator).
+is the price of the scene's effects (every effect runs compiled: 'path' says so).
 """
 
 import argparse
@@ -66,7 +64,7 @@ def main():
         timings = [microseconds_per_step(make, scene.dt, args.seconds, args.repeats, tick)
                    for tick in (False, True) for make in (with_effects, torque_free)]
         # _path is private; read here only to label the table.
-        path = scene.simulator()._path
+        path = scene.simulator().path
         effects = ', '.join(scene.effect_names()) or '-'
         print(f'{name:<14} {scene.integrator:<10} {scene.rate:>5g} {effects:<26} {path:<13}'
               f'{timings[0]:>9.2f} {timings[1]:>8.2f} {timings[0] / timings[1]:>6.1f}   '

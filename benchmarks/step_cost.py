@@ -20,7 +20,6 @@ import argparse
 import statistics
 import time
 
-from rigid_body_sim.physics import FAST_KERNELS
 from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import Simulator
 from rigid_body_sim.scenes import load_scene
@@ -79,9 +78,6 @@ def main():
             else:
                 steps = args.steps
             for torque in (False, True):
-                if fast and name not in FAST_KERNELS:
-                    row.append('n/a')
-                    continue
                 cost = microseconds_per_step(name, steps, args.repeats, fast, torque, per_call)
                 row.append(f'{cost:.3f}')
         print(f'{name:<12}' + ''.join(f'{cell:>17}' for cell in row))

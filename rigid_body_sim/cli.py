@@ -15,6 +15,7 @@ import sys
 # Subcommand name -> module in rigid_body_sim.tools.
 TOOLS = {
     'run': 'summary',
+    'watch': 'watch',
     'bench': 'bench',
     'scenes': 'scenes',
     'simulate': 'simulate',
@@ -27,6 +28,7 @@ TOOLS = {
 _EPILOG = """\
 examples:
   rigid-body-sim run                        simulate the default tumbling body, print a summary
+  rigid-body-sim watch                      a live view of the running node (make run)
   rigid-body-sim run --integrator rk4 --dt 0.01 --duration 60
   rigid-body-sim COMMAND --help             what each command does and takes
 """

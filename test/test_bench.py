@@ -30,6 +30,7 @@ import pytest
 from rigid_body_sim import cli
 from rigid_body_sim.benchmark.bodies import benchmark_cases
 from rigid_body_sim.benchmark.bodies import CASE_NAMES
+from rigid_body_sim.benchmark.extended_reference import committed_references
 from rigid_body_sim.benchmark.extended_reference import exact_time
 from rigid_body_sim.benchmark.extended_reference import key_string
 from rigid_body_sim.benchmark.extended_reference import problem_fingerprint
@@ -45,7 +46,6 @@ from rigid_body_sim.benchmark.peer_mujoco import MUJOCO_INTEGRATORS
 from rigid_body_sim.benchmark.peer_mujoco import MujocoPeer
 from rigid_body_sim.benchmark.reference import ode_reference
 from rigid_body_sim.benchmark.reference import rotation_angle
-from rigid_body_sim.benchmark.reference_values import REFERENCE_VALUES
 from rigid_body_sim.benchmark.report import cost_to_reach
 from rigid_body_sim.benchmark.report import GOAL_LEVELS
 from rigid_body_sim.benchmark.report import goal_summary
@@ -240,7 +240,7 @@ def test_committed_extended_reference_covers_every_run_and_is_reproduced():
     """
     cases = {case.name: case for case in benchmark_cases(CASE_NAMES)}
     for name, case in cases.items():
-        entry = REFERENCE_VALUES[problem_fingerprint(case.body, case.state)]
+        entry = committed_references('bodies')[problem_fingerprint(case.body, case.state)]
         needed = set()
         for config in (FULL, QUICK):
             if name in config.cases:
@@ -252,7 +252,8 @@ def test_committed_extended_reference_covers_every_run_and_is_reproduced():
     # One solve at 34 digits (the committed value is the 42-digit one of the pair).
     values, _ = taylor_flow(case.body.inertia, case.state.quaternion,
                             case.state.angular_momentum, [time])
-    committed = REFERENCE_VALUES[problem_fingerprint(case.body, case.state)]['values']
+    fingerprint = problem_fingerprint(case.body, case.state)
+    committed = committed_references('bodies')[fingerprint]['values']
     with decimal.localcontext() as context:
         context.prec = 50
         again = values[time]

@@ -207,3 +207,22 @@ def test_colcon_install_ships_the_config_and_paths_find_it(colcon_install):
     assert ran.returncode == 0, ran.stdout + ran.stderr
     found = Path(ran.stdout.strip().splitlines()[-1]).resolve()
     assert found == (share / 'config').resolve()
+
+
+def test_colcon_install_ships_the_committed_benchmark_references(colcon_install):
+    """The benchmark's reference values (package data) load from the installed copy."""
+    site = colcon_install / PACKAGE_NAME / 'lib'
+    data = sorted(path.name for path in
+                  (PACKAGE_ROOT / PACKAGE_NAME / 'benchmark' / 'data').glob('*.json'))
+    installed = sorted(path.name for path in site.rglob('benchmark/data/*.json'))
+    assert data and installed == data, (installed, data)
+    ran = _in_sourced_workspace(
+        colcon_install,
+        '"{0}" -c "from rigid_body_sim.benchmark import extended_reference as e; '
+        'print(e.__file__); print(sum(len(e.committed_references(n)) '
+        'for n in e.REFERENCE_SETS))"'.format(sys.executable))
+
+    assert ran.returncode == 0, ran.stdout + ran.stderr
+    module, problems = ran.stdout.strip().splitlines()[-2:]
+    assert site.resolve() in Path(module).resolve().parents, module
+    assert int(problems) > 0

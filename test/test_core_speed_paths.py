@@ -1,8 +1,9 @@
 """
-The Simulator's compiled paths: what runs compiled, equal to the readable path, doing no more.
+The Simulator's compiled paths: everything runs compiled, equal to the readable path, no more.
 
-What runs compiled (pivot with gravity, dissipation), that it equals the readable path and
-keeps each method's order, and that it computes only what the scene calls for.
+That a pivot with gravity and dissipation run compiled under every integrator, equal the
+readable path and keep each method's order, and that the model holds only what the scene
+calls for.
 
 Frames world, units SI.  Round-off bounds: the compiled and readable paths evaluate the same
 formulas in a different order, each step adding a few ulp that then grow about linearly over
@@ -19,7 +20,6 @@ from reference import reference_solution
 from reference import rotation_angle_between
 from reference import state_error
 from reference import torque_free_momentum_drift
-from rigid_body_sim.physics import FAST_KERNELS
 from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import RigidBody
 from rigid_body_sim.physics import Simulator
@@ -27,44 +27,59 @@ from rigid_body_sim.physics import State
 from rigid_body_sim.physics.effects import Dissipation
 from rigid_body_sim.physics.effects import Gravity
 from rigid_body_sim.physics.effects import Pivot
-from rigid_body_sim.physics.integrators import fast
-from rigid_body_sim.physics.integrators.fast import CompiledIntegrator
+from rigid_body_sim.physics.effects.registry import Effect
+from rigid_body_sim.physics.kernels.model import wrench_term
 from rigid_body_sim.physics.rotations import cross
 from rigid_body_sim.physics.simulator import COMPILED
-from rigid_body_sim.physics.simulator import KERNEL_AND_FLOWS
 from rigid_body_sim.physics.simulator import READABLE
 from rigid_body_sim.scenes import load_scene
 from rigid_body_sim.scenes import scene_names
 
 EPS = np.finfo(float).eps
-COMPILED_NAMES = sorted(name for name, kernel in FAST_KERNELS.items()
-                        if isinstance(kernel, CompiledIntegrator))
-# Stage evaluations per step (splitting4: Suzuki's five stages; rk4: four derivatives).
-STAGES = {'first_order': 1, 'buss': 1, 'buss_plain': 1, 'rk4': 4, 'splitting': 1,
-          'splitting4': 5, 'exact': 1}
+COMPILED_NAMES = sorted(INTEGRATORS)
 GRAVITY = np.array([0.0, 0.0, -9.81])
 # The held wrench of the pivot problems: every part, so each reaches the kernel.
 HELD = {'force_world': (0.1, 0.0, 0.0), 'torque_world': (0.0, 0.01, 0.0),
         'force_body': (0.05, 0.0, 0.1), 'torque_body': (0.0, 0.0, 0.002)}
 
 
-def test_every_compiled_integrator_is_covered():
-    # The tests below run every integrator with the packed form; a new one needs a stage count.
-    assert set(COMPILED_NAMES) == set(STAGES)
+@wrench_term
+def _counted_nothing(state, time, parameters):
+    parameters[0] += 1.0
+    return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
 
 
-def test_every_fast_kernel_has_the_packed_form():
-    # A kernel without it (the registry's 13-argument form alone) cannot take a lever force
-    # (its moment turns with the body) nor fuse a flow: the scenes with a pivot under gravity
-    # or with dissipation would fall back to the readable steps.
-    assert set(COMPILED_NAMES) == set(FAST_KERNELS)
+class _Counting(Effect):
+    compiled_wrench = staticmethod(_counted_nothing)
+
+    def wrench_parameters(self, body):
+        return np.zeros(1)
+
+
+def _stages(name):
+    """Return the wrench evaluations per step of integrator `name`, counted by a spy term."""
+    body = RigidBody(1.0, (1.0, 2.0, 3.0))
+    simulator = Simulator(body, State(), integrator=name, effects=[_Counting()])
+    simulator.run(0.1, 0.01)
+    return int(simulator._model.term_parameters[0]) // 10
+
+
+STAGES = {name: _stages(name) for name in COMPILED_NAMES}
+
+
+def test_the_stage_counts_are_the_methods():
+    # Kicks at both ends for the split methods (five stages for splitting4), rk4's four
+    # derivatives, first_order's one sample.
+    names = ('first_order', 'buss', 'rk4', 'splitting', 'splitting4', 'exact')
+    assert {name: STAGES[name] for name in names} == {
+        'first_order': 1, 'buss': 2, 'rk4': 4, 'splitting': 2, 'splitting4': 10, 'exact': 2}
 
 
 @pytest.mark.parametrize('scene_name', ['heavy_top', 'bike_wheel', 'flat_spin'])
 @pytest.mark.parametrize('name', COMPILED_NAMES)
 def test_pivot_and_dissipation_scenes_run_compiled_with_every_integrator(scene_name, name):
     simulator = load_scene(scene_name).simulator(integrator=name)
-    assert simulator._path == COMPILED
+    assert simulator.path == COMPILED
 
 
 def _round_off(name, steps):
@@ -103,8 +118,8 @@ def _assert_states_agree(state, other, tolerance):
 @pytest.mark.parametrize('name', COMPILED_NAMES)
 def test_pivot_with_gravity_runs_compiled_and_equals_the_readable_path(name):
     compiled, readable = _pivot_simulator(name, True), _pivot_simulator(name, False)
-    assert compiled._path == COMPILED
-    assert readable._path == READABLE
+    assert compiled.path == COMPILED
+    assert readable.path == READABLE
     steps = 500
     compiled.run(steps * 1e-3, 1e-3)
     readable.run(steps * 1e-3, 1e-3)
@@ -134,29 +149,22 @@ def _pivot_reference(duration):
     return constraint.expand(reference_solution(constraint.body, start, duration, wrench))
 
 
-# (order, coarse steps over 0.5 s): the coarse error well below 0.05, the fine one far above
-# the reference's ~1e-12 (both asserted).
-PIVOT_ORDERS = {'first_order': (1, 80000), 'buss': (2, 400), 'buss_plain': (2, 400),
-                'rk4': (4, 100), 'splitting': (2, 200), 'splitting4': (4, 50),
-                'exact': (2, 200)}
-
-
-def test_every_compiled_integrator_has_a_pivot_convergence_case():
-    assert set(PIVOT_ORDERS) == set(COMPILED_NAMES)
-    for name, (order, _) in PIVOT_ORDERS.items():
-        assert INTEGRATORS[name].order == order
+# Coarse steps over 0.5 s by the method's order: the coarse error well below 0.05, the fine
+# one far above the reference's ~1e-12 (both asserted).
+COARSE_STEPS = {1: 80000, 2: 400, 4: 100}
 
 
 @pytest.mark.parametrize('name', COMPILED_NAMES)
 def test_compiled_pivot_with_gravity_keeps_the_method_order(name):
-    order, steps = PIVOT_ORDERS[name]
+    order = INTEGRATORS[name].order
+    steps = COARSE_STEPS[order]
     duration = 0.5
     reference = _pivot_reference(duration)
     body = _top()[0]
     errors = []
     for count in (steps, 2 * steps):
         simulator = _pivot_simulator(name, True)
-        assert simulator._path == COMPILED
+        assert simulator.path == COMPILED
         errors.append(state_error(simulator.run(duration, duration / count), reference,
                                   0.1, body.mass)['total'])
     coarse, fine = errors
@@ -196,7 +204,7 @@ def test_dissipation_is_fused_into_the_compiled_run_and_equals_the_composition(n
                                 angular_velocity_body=(0.4, 3.0, 0.3))
     fused = Simulator(body, state, integrator=name, effects=[Dissipation(0.05)])
     composed = Simulator(body, state, integrator=name, effects=[Dissipation(0.05)], fast=False)
-    assert fused._path == COMPILED
+    assert fused.path == COMPILED
     steps = 500
     fused.run(steps * 0.01, 0.01)
     composed.run(steps * 0.01, 0.01)
@@ -208,52 +216,23 @@ def test_dissipation_is_fused_into_the_compiled_run_and_equals_the_composition(n
     assert np.linalg.norm(fused.state.angular_momentum - state.angular_momentum) <= drift
 
 
-def test_a_flow_the_kernels_do_not_know_is_composed_around_kernel_steps():
-    body = RigidBody(1.0, (1.0, 2.0, 3.0))
-    state = State.from_velocity(body, angular_velocity_body=(0.4, 3.0, 0.3))
-
-    class SlowDissipation(Dissipation):
-        """A subclass: the Simulator cannot know its flow is the compiled one."""
-
-    composed = Simulator(body, state, effects=[SlowDissipation(0.05)])
-    readable = Simulator(body, state, effects=[SlowDissipation(0.05)], fast=False)
-    assert composed._path == KERNEL_AND_FLOWS
-    composed.run(1.0, 0.01)
-    readable.run(1.0, 0.01)
-    _assert_states_agree(composed.state, readable.state, _round_off('buss', 100))
-
-
-# -- 3. translation only when something moves the COM
-
-
-def _packed(state):
-    return np.concatenate(state._fields())
-
-
-def _body_values(body):
-    return fast.body_values(body.inertia, body.inertia_inverse, body.mass)
-
-
 @pytest.mark.parametrize('name', COMPILED_NAMES)
-def test_compiled_kernels_skip_the_translation_of_a_com_at_rest(name):
+def test_a_com_at_rest_stays_exactly_where_it_is_under_a_torque_and_a_force_moves_it(name):
     body = RigidBody(2.0, (1.0, 1.6, 2.2))
     start = State.from_velocity(body, position=(1.0, -2.0, 0.5),
                                 angular_velocity_body=(0.8, -0.5, 1.1))
-    kernel, steps, dt = FAST_KERNELS[name], 100, 0.01
-    values = _packed(start)
-    # A torque and a lever force turn the body but push no COM.
-    wrench = fast.packed_wrench(torque_world=(0.1, 0.2, 0.0), lever_force=(0.0, 0.0, -5.0),
-                                lever_arm=(0.0, 0.0, 0.1))
-    moved = kernel.run(values, wrench, _body_values(body), kernel.method, 0.0, dt, steps)
-    assert moved == 0
-    np.testing.assert_array_equal(values[4:10], _packed(start)[4:10])
-    assert not np.array_equal(values[10:13], start.angular_momentum)
-    # From rest under a force, the COM moves every step.
-    values = _packed(start)
-    moved = kernel.run(values, fast.packed_wrench(force_world=(0.0, 0.0, -1.0)),
-                       _body_values(body), kernel.method, 0.0, dt, steps)
-    assert moved == steps
-    np.testing.assert_allclose(values[4:7], start.position + 0.5 * (-1.0 / body.mass)
+    steps, dt = 100, 0.01
+    turned = Simulator(body, start, integrator=name)
+    turned.set_wrench(torque=(0.1, 0.2, 0.0))
+    final = turned.run(steps * dt, dt)
+    np.testing.assert_array_equal(final.position, start.position)
+    np.testing.assert_array_equal(final.linear_momentum, start.linear_momentum)
+    assert not np.array_equal(final.angular_momentum, start.angular_momentum)
+    # From rest under a force, the COM falls the parabola.
+    pushed = Simulator(body, start, integrator=name)
+    pushed.set_wrench(force=(0.0, 0.0, -1.0))
+    final = pushed.run(steps * dt, dt)
+    np.testing.assert_allclose(final.position, start.position + 0.5 * (-1.0 / body.mass)
                                * (steps * dt) ** 2 * np.array([0.0, 0.0, 1.0]), atol=1e-14)
 
 
@@ -262,15 +241,14 @@ def test_unforced_com_moves_uniformly_on_the_compiled_path(name):
     body = RigidBody(2.0, (1.0, 1.6, 2.2))
     start = State.from_velocity(body, position=(1.0, -2.0, 0.5), velocity=(0.3, -0.2, 0.6),
                                 angular_velocity_body=(0.8, -0.5, 1.1))
-    kernel, steps, dt = FAST_KERNELS[name], 1000, 0.01
-    values = _packed(start)
-    moved = kernel.run(values, fast.packed_wrench(torque_body=(0.0, 0.1, 0.0)),
-                       _body_values(body), kernel.method, 0.0, dt, steps)
-    assert moved == steps
-    np.testing.assert_array_equal(values[7:10], start.linear_momentum)
+    steps, dt = 1000, 0.01
+    simulator = Simulator(body, start, integrator=name)
+    simulator.set_wrench(torque=(0.0, 0.1, 0.0), frame='body')
+    final = simulator.run(steps * dt, dt)
+    np.testing.assert_array_equal(final.linear_momentum, start.linear_momentum)
     expected = start.position + steps * dt * start.velocity(body)
     # x + dt v added 1000 times (1000 rounded additions of ~|x| eps each).
-    np.testing.assert_allclose(values[4:7], expected, rtol=0,
+    np.testing.assert_allclose(final.position, expected, rtol=0,
                                atol=steps * EPS * np.max(np.abs(expected)))
 
 
@@ -293,70 +271,40 @@ def test_readable_steps_do_not_recompute_a_com_at_rest(name):
         assert state.position is start.position
 
 
-class SpyIntegrator(CompiledIntegrator):
-    """A compiled integrator that records what every run is given and how often x moved."""
-
-    def __init__(self, compiled):
-        super().__init__(self._record, compiled.method)
-        self._compiled_run = compiled.run
-        self.calls = []
-
-    def _record(self, state, wrench, body, method, damping, dt, steps):
-        moved = self._compiled_run(state, wrench, body, method, damping, dt, steps)
-        self.calls.append((wrench.copy(), damping, steps, moved))
-        return moved
-
-
-def _spied_scene(monkeypatch, name):
-    # At a fixed step (tolerance 0): what the kernel is given, one run per call.
-    scene = load_scene(name)
-    spy = SpyIntegrator(FAST_KERNELS[scene.integrator])
-    monkeypatch.setitem(FAST_KERNELS, scene.integrator, spy)
-    return scene, scene.simulator(tolerance=0.0), spy
-
-
 def _torque_free_scenes():
     return [name for name in scene_names()
             if all(effect.effect_name == 'external_wrench' for effect in load_scene(name).effects)]
 
 
-def test_torque_free_scenes_pass_the_kernel_no_wrench_and_move_no_com(monkeypatch):
+def test_the_models_of_the_scenes_hold_only_what_they_name():
     names = _torque_free_scenes()
     assert {'default', 't_handle', 'van_zon'} <= set(names)
     for name in names:
-        scene, simulator, spy = _spied_scene(monkeypatch, name)
-        assert simulator._path == COMPILED, name
+        simulator = load_scene(name).simulator()
+        model = simulator._model
+        # No term, no flow, nothing held: the kernel takes no kick.
+        assert (model.term_count, model.flow_count, model.constrained) == (0, 0, False), name
         assert simulator.wrench_function() is None
-        simulator.run(50 * scene.dt, scene.dt)
-        for _ in range(5):
-            simulator.step(scene.dt)
-        assert len(spy.calls) == 6
-        for wrench, damping, _, moved in spy.calls:
-            assert not np.any(wrench) and damping == 0.0, name
-            # The kernel's own decision: no kick code runs, and x (at rest) is never touched.
-            assert fast.pushes(wrench) == (False, False)
-            assert moved == 0
-
-
-def test_pivot_scenes_turn_by_the_lever_alone_and_never_translate(monkeypatch):
     for name in ('heavy_top', 'bike_wheel'):
-        scene, simulator, spy = _spied_scene(monkeypatch, name)
-        assert simulator._path == COMPILED
-        simulator.run(100 * scene.dt, scene.dt)
-        (wrench, _, steps, moved), = spy.calls
-        assert steps == 100 and moved == 0
-        assert fast.pushes(wrench) == (True, False)
-        np.testing.assert_array_equal(wrench[fast.LEVER_FORCE], scene.body.mass * GRAVITY)
-        assert not np.any(wrench[[fast.FORCE_WORLD, fast.FORCE_BODY]])
+        model = load_scene(name).simulator()._model
+        # Gravity's one term, transmitted about the pivot.
+        assert (model.term_count, model.flow_count, model.constrained) == (1, 0, True)
+    model = load_scene('thrown_box').simulator()._model
+    assert (model.term_count, model.flow_count, model.constrained) == (1, 0, False)
+    model = load_scene('flat_spin').simulator()._model
+    assert (model.term_count, model.flow_count, model.constrained) == (0, 1, False)
 
 
-def test_thrown_box_moves_its_com_every_step_and_flat_spin_fuses_its_flow(monkeypatch):
-    scene, simulator, spy = _spied_scene(monkeypatch, 'thrown_box')
-    simulator.run(10 * scene.dt, scene.dt)
-    assert spy.calls[0][3] == 10
-    scene, simulator, spy = _spied_scene(monkeypatch, 'flat_spin')
-    simulator.run(10 * scene.dt, scene.dt)
-    assert spy.calls[0][1] == scene.effects[0].damping
+@pytest.mark.parametrize('name', ['heavy_top', 'bike_wheel'])
+def test_pivot_scenes_never_translate(name):
+    scene = load_scene(name)
+    simulator = scene.simulator(tolerance=0.0)
+    start = simulator._integrated_state()
+    simulator.run(100 * scene.dt, scene.dt)
+    integrated = simulator._integrated_state()
+    # The pivot system's origin is the anchor and its linear momentum zero, exactly.
+    np.testing.assert_array_equal(integrated.position, start.position)
+    np.testing.assert_array_equal(integrated.linear_momentum, np.zeros(3))
 
 
 # -- 4. one fast path for the node (step per tick) and the offline tools (run)

@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 from reference import random_rotation
 from reference import rotation_angle_between
-from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import RigidBody
 from rigid_body_sim.physics import Simulator
 from rigid_body_sim.physics import State
@@ -25,7 +24,9 @@ from rigid_body_sim.physics.effects import Gravity
 from rigid_body_sim.physics.effects import ParameterError
 from rigid_body_sim.physics.effects import Pivot
 from rigid_body_sim.physics.effects import register_effect
-from rigid_body_sim.physics.integrators.seed import buss
+from rigid_body_sim.physics.effects import SinusoidalTorque
+from rigid_body_sim.physics.effects.registry import Effect
+from rigid_body_sim.physics.kernels.model import wrench_term
 from rigid_body_sim.physics.rotations import quaternion_multiply
 from scipy.integrate import solve_ivp
 
@@ -45,25 +46,25 @@ def _random_state(body, rng, speed=1.0, spin=3.0):
                                angular_velocity_body=spin * rng.normal(size=3))
 
 
-class CountingWrench:
-    """A pushing effect that counts its evaluations (and pushes with nothing)."""
-
-    def __init__(self):
-        self.calls = 0
-
-    def wrench(self, body, state, time):
-        self.calls += 1
-        return np.zeros(3), np.zeros(3)
+@wrench_term
+def counted_nothing(state, time, parameters):
+    """Push with nothing, and count the evaluations in parameters[0]."""
+    parameters[0] += 1.0
+    return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
 
 
-class CountingGravity(Gravity):
-    """Gravity that counts how often its wrench is evaluated."""
+class CountingWrench(Effect):
+    """A compiled pushing effect that counts its evaluations (and pushes with nothing)."""
 
-    calls = 0
+    compiled_wrench = staticmethod(counted_nothing)
 
-    def wrench(self, body, state, time):
-        type(self).calls += 1
-        return super().wrench(body, state, time)
+    def wrench_parameters(self, body):
+        return np.zeros(1)
+
+
+def _evaluations(simulator):
+    # The counter lives in the simulator's compiled model (its parameters are copied there).
+    return int(simulator._model.term_parameters[0])
 
 
 # -- registry
@@ -124,49 +125,49 @@ def test_drag_without_any_coefficient_is_an_error():
 # -- only what a scene names is computed
 
 
-def _spy_integrator(recorded):
-    def spy(body, state, time, dt, wrench):
-        recorded.append(wrench)
-        return buss(body, state, time, dt, wrench)
-    return spy
-
-
-def test_torque_free_simulation_passes_no_wrench_to_the_integrator(monkeypatch):
-    recorded = []
-    monkeypatch.setitem(INTEGRATORS, 'spy', _spy_integrator(recorded))
-    body = _asymmetric_body()
-    # external_wrench only marks that the body may be pushed: nothing is pushing yet.
-    simulator = Simulator(body, State.from_velocity(body, angular_velocity_body=(1, 2, 3)),
-                          integrator='spy', effects=[ExternalWrench()])
-    assert simulator.wrench_function() is None
-    simulator.run(0.1, 0.01)
-    assert len(recorded) == 10 and all(wrench is None for wrench in recorded)
-    simulator.set_wrench(torque=(0.0, 0.0, 1.0))
-    simulator.step(0.01)
-    assert recorded[-1] is not None
-
-
-def test_a_wrench_effect_is_evaluated_only_while_named(monkeypatch):
+def test_a_scenes_model_holds_exactly_the_terms_flows_and_constraint_it_names():
     body = _asymmetric_body()
     state = State.from_velocity(body, angular_velocity_body=(1, 2, 3))
-    counting = CountingWrench()
-    Simulator(body, state, effects=[counting]).run(0.1, 0.01)
-    # buss evaluates the wrench in its two half kicks.
-    assert counting.calls == 2 * 10
-    counting.calls = 0
-    Simulator(body, state).run(0.1, 0.01)
-    assert counting.calls == 0
+    cases = (([], 0, 0, False), ([ExternalWrench()], 0, 0, False), ([Gravity()], 1, 0, False),
+             ([Pivot(point=(0, 0, -0.1)), Gravity()], 1, 0, True),
+             ([Drag(linear=0.1), SinusoidalTorque((0, 0, 1), 1.0)], 2, 0, False),
+             ([Dissipation(0.1)], 0, 1, False))
+    for effects, terms, flows, constrained in cases:
+        model = Simulator(body, state, effects=effects)._model
+        assert (model.term_count, model.flow_count, model.constrained) == (
+            terms, flows, constrained), effects
+
+
+def test_an_unused_external_wrench_costs_nothing_and_a_held_one_pushes():
+    # external_wrench only marks that the body may be pushed: the same bits as without it.
+    body = _asymmetric_body()
+    state = State.from_velocity(body, angular_velocity_body=(1, 2, 3))
+    marked = Simulator(body, state, effects=[ExternalWrench()])
+    assert marked.wrench_function() is None
+    assert marked.run(0.1, 0.01) == Simulator(body, state).run(0.1, 0.01)
+    marked.set_wrench(torque=(0.0, 0.0, 1.0))
+    assert not np.array_equal(marked.step(0.01).angular_momentum, state.angular_momentum)
+
+
+def test_a_wrench_term_is_evaluated_at_the_methods_kick_points_only_while_named():
+    body = _asymmetric_body()
+    state = State.from_velocity(body, angular_velocity_body=(1, 2, 3))
+    counted = Simulator(body, state, effects=[CountingWrench()])
+    counted.run(0.1, 0.01)
+    # buss evaluates the wrench in its two half kicks, rk4 at its four stages.
+    assert _evaluations(counted) == 2 * 10
+    counted = Simulator(body, state, integrator='rk4', effects=[CountingWrench()])
+    counted.run(0.1, 0.01)
+    assert _evaluations(counted) == 4 * 10
 
 
 @pytest.mark.parametrize('fast', [True, False])
-def test_gravity_is_a_held_force_never_evaluated_per_step(fast):
+def test_gravity_gives_the_exact_parabola_of_the_com(fast):
     body = _asymmetric_body()
     state = _random_state(body, np.random.default_rng(1))
-    CountingGravity.calls = 0
-    simulator = Simulator(body, state, effects=[CountingGravity()], fast=fast)
+    simulator = Simulator(body, state, effects=[Gravity()], fast=fast)
     simulator.run(1.0, 0.01)
-    assert CountingGravity.calls == 0
-    # The exact parabola of the COM (leapfrog is exact for a constant force).
+    # Leapfrog is exact for a constant force.
     g = np.array([0.0, 0.0, -9.81])
     expected = state.position + state.velocity(body) + 0.5 * g
     np.testing.assert_allclose(simulator.state.position, expected, rtol=0, atol=1e-13)
@@ -185,7 +186,7 @@ def test_rotational_drag_leaves_the_translation_untouched():
     assert np.linalg.norm(final.angular_momentum) < np.linalg.norm(state.angular_momentum)
 
 
-def test_plain_wrench_objects_still_work_as_effects():
+def test_an_effect_with_a_python_wrench_only_is_refused_naming_what_to_write():
     body = _asymmetric_body()
     state = State.from_velocity(body)
 
@@ -194,8 +195,9 @@ def test_plain_wrench_objects_still_work_as_effects():
         def wrench(self, body, state, time):
             return np.array([1.0, 0.0, 0.0]), np.zeros(3)
 
-    final = Simulator(body, state, effects=[Push()]).run(1.0, 0.01)
-    np.testing.assert_allclose(final.linear_momentum, [1.0, 0.0, 0.0], atol=1e-14)
+    with pytest.raises(ValueError, match='compiled_wrench') as caught:
+        Simulator(body, state, effects=[Push()])
+    assert 'wrench_term' in str(caught.value) and '\n' not in str(caught.value)
 
 
 # -- external_wrench
@@ -233,7 +235,9 @@ def test_gravity_potential_follows_any_field_direction():
     state = State(position=(1.0, 2.0, 3.0))
     gravity = Gravity(acceleration=(1.0, 0.0, 0.0))
     assert gravity.potential_energy(body, state) == -body.mass * 1.0
-    np.testing.assert_array_equal(gravity.constant_force(body), [body.mass, 0.0, 0.0])
+    force, torque = gravity.wrench(body, state, 0.0)
+    np.testing.assert_array_equal(force, [body.mass, 0.0, 0.0])
+    np.testing.assert_array_equal(torque, [0.0, 0.0, 0.0])
 
 
 # -- drag

@@ -21,29 +21,32 @@ import decimal
 from fractions import Fraction
 import math
 
+import exact_rounding_reference as oracle
 import numpy as np
 import pytest
 from reference import random_rotation
 from reference import reference_solution
 from reference import rotation_angle_between
 from rigid_body_sim.benchmark.bodies import benchmark_cases
-from rigid_body_sim.physics import FAST_KERNELS
 from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import RigidBody
 from rigid_body_sim.physics import Simulator
 from rigid_body_sim.physics import State
+from rigid_body_sim.physics.effects.registry import Effect
 from rigid_body_sim.physics.elliptic import carlson_rf
 from rigid_body_sim.physics.elliptic import carlson_rf_compiled
 from rigid_body_sim.physics.elliptic import carlson_rj
 from rigid_body_sim.physics.elliptic import carlson_rj_compiled
 from rigid_body_sim.physics.elliptic import jacobi_elliptic
 from rigid_body_sim.physics.elliptic import jacobi_elliptic_compiled
-from rigid_body_sim.physics.integrators import exact as readable_exact
-from rigid_body_sim.physics.integrators import fast
-from rigid_body_sim.physics.integrators import fast_exact
-from rigid_body_sim.physics.integrators.exact import _circulation_frame
+from rigid_body_sim.physics.integrators import exact as exact_module
 from rigid_body_sim.physics.integrators.exact import exact_free_flow
-from rigid_body_sim.physics.integrators.principal import principal_frame
+from rigid_body_sim.physics.kernels.algebra import rotate
+from rigid_body_sim.physics.kernels.algebra import rotate_back
+from rigid_body_sim.physics.kernels.model import wrench_term
+from rigid_body_sim.physics.principal_frame import ASYMMETRIC
+from rigid_body_sim.physics.principal_frame import principal_frame
+from rigid_body_sim.physics.principal_frame import SPHERICAL
 from rigid_body_sim.physics.rotations import quaternion_from_rotation_vector
 from rigid_body_sim.physics.rotations import quaternion_multiply
 from scipy.special import ellipj
@@ -255,6 +258,13 @@ KINDS = ('asymmetric', 'near_separatrix', 'prolate', 'oblate', 'spherical', 'pro
 SEPARATRIX_KINDS = ('closer_to_separatrix', 'on_separatrix')
 
 
+def _separatrix(frame, momentum):
+    """Return L^2 - I2 E2 as the step forms it: m1^2 (I1 - I2)/I1 + m3^2 (I3 - I2)/I3."""
+    i1, i2, i3 = frame.moments
+    m1, _, m3 = momentum
+    return m1 * m1 * (i1 - i2) / i1 + m3 * m3 * (i3 - i2) / i3
+
+
 def test_the_cases_are_of_the_kinds_they_claim():
     # The property tests below are only as good as their cases: the symmetric ones take the
     # closed form, the nearly symmetric ones (1e-12, 1e-14 apart) the elliptic solution, the
@@ -273,7 +283,7 @@ def test_the_cases_are_of_the_kinds_they_claim():
                 assert abs(_elliptic_complement(body, state)[0]) < 1e-9 * 1.01
             if kind == 'on_separatrix':
                 momentum = frame.axes.T @ (state.rotation.T @ state.angular_momentum)
-                assert _circulation_frame(frame, momentum)[3] == 0.0
+                assert _separatrix(frame, momentum) == 0.0
     assert kinds == {'asymmetric': 0, 'near_separatrix': 0, 'prolate': 2, 'oblate': 3,
                      'spherical': 1, 'prolate_1e-12': 0, 'oblate_1e-12': 0,
                      'spherical_1e-12': 0, 'closer_to_separatrix': 0, 'on_separatrix': 0,
@@ -396,7 +406,7 @@ def test_exact_flow_on_the_separatrix_uses_the_hyperbolic_closed_form_and_is_exa
     for body, state in _separatrix_cases():
         frame = principal_frame(body.inertia)
         momentum = frame.axes.T @ state.angular_momentum
-        assert _circulation_frame(frame, momentum)[3] == 0.0
+        assert _separatrix(frame, momentum) == 0.0
         turned = np.linalg.norm(state.angular_velocity(body)) * 3.0
         expected = reference_orientations(body, state, [duration])[0]
         for final in (exact_free_flow(body, state, float(duration)),
@@ -548,27 +558,26 @@ def test_exact_flow_does_not_depend_on_the_body_frame():
         assert rotation_angle_between(a.rotation @ axes, b.rotation) < 1e-14 * (1.0 + turned)
 
 
-# -- the compiled fast path equals the readable definition -------------------------------
+# -- the kernel equals the readable step -------------------------------------------------
 
 
 @pytest.mark.parametrize('kind', KINDS)
-def test_fast_path_equals_the_readable_exact_step(kind):
+def test_the_kernels_step_equals_the_exact_free_flow(kind):
     rng = np.random.default_rng(300 + KINDS.index(kind))
-    kernel = FAST_KERNELS['exact']
     for _ in range(25):
         body, state = _case(rng, kind)
         dt = rng.uniform(-10.0, 10.0)
-        q, x = np.array(state.quaternion), np.array(state.position)
-        p, momentum = np.array(state.linear_momentum), np.array(state.angular_momentum)
-        zero = np.zeros(3)
-        kernel(q, x, p, momentum, body.inertia, body.inertia_inverse, body.mass, dt, 1,
-               zero, zero, zero, zero)
+        simulator = Simulator(body, state, integrator='exact')
+        simulator.reset(state)
+        values = np.concatenate(state._fields())
+        exact_module.run(values, simulator._model, simulator._integrator.method, dt, 1, 0.0)
+        compiled = State._from_values(values)
         readable = INTEGRATORS['exact'](body, state, 0.0, dt, None)
         turned = np.linalg.norm(state.angular_velocity(body)) * abs(dt)
-        assert rotation_angle_between(State(q).rotation, readable.rotation) \
+        assert rotation_angle_between(compiled.rotation, readable.rotation) \
             < 1e-14 * (1.0 + turned)
-        assert np.array_equal(momentum, readable.angular_momentum)
-        assert np.allclose(x, readable.position, rtol=1e-15, atol=1e-15)
+        assert np.array_equal(compiled.angular_momentum, readable.angular_momentum)
+        assert np.allclose(compiled.position, readable.position, rtol=1e-15, atol=1e-15)
 
 
 def test_fast_path_equals_the_readable_exact_step_under_a_held_wrench():
@@ -578,7 +587,7 @@ def test_fast_path_equals_the_readable_exact_step_under_a_held_wrench():
     for kind in KINDS:
         body, state = _case(rng, kind)
         simulator = Simulator(body, state, integrator='exact')
-        assert simulator._kernel is FAST_KERNELS['exact']
+        assert simulator.path == 'compiled'
         simulator.hold_wrench(force_world=rng.normal(size=3), torque_world=rng.normal(size=3),
                               force_body=rng.normal(size=3), torque_body=rng.normal(size=3))
         simulator.run(1.0, 0.05)
@@ -595,6 +604,20 @@ def test_fast_path_equals_the_readable_exact_step_under_a_held_wrench():
 
 
 # -- with a torque: second order, exact without -------------------------------------------
+
+
+@wrench_term
+def _lever_torque(state, time, parameters):
+    """Return (0, 2 (R e3) x e_z): the moment of 2 e_z at the body point e3."""
+    rx, ry, rz = rotate((state[0], state[1], state[2], state[3]), (0.0, 0.0, 1.0))
+    return 0.0, 0.0, 0.0, 2.0 * ry, -2.0 * rx, 0.0
+
+
+class _LeverTorque(Effect):
+    compiled_wrench = staticmethod(_lever_torque)
+
+    def wrench_parameters(self, body):
+        return np.zeros(0)
 
 
 def test_exact_with_a_torque_is_second_order_and_exact_without_it():
@@ -614,9 +637,9 @@ def test_exact_with_a_torque_is_second_order_and_exact_without_it():
         rotation = state.rotation
         return 0.5 * rotation[:, 0], 2.0 * np.cross(rotation[:, 2], (0.0, 0.0, 1.0))
 
-    packed = fast.packed_wrench(force_body=(0.5, 0.0, 0.0), lever_force=(0.0, 0.0, 2.0),
-                                lever_arm=(0.0, 0.0, 1.0))
-    kernel = FAST_KERNELS['exact']
+    # The compiled side: the torque is the moment of a lever force 2 e_z at the body point e3,
+    # as a pivot at -e3 (the COM e3 from it) transmits gravity; a body force through the COM.
+    lever = _LeverTorque()
     duration = 1.0
     expected = reference_solution(body, state, duration, wrench)
     errors, compiled_errors = [], []
@@ -627,11 +650,9 @@ def test_exact_with_a_torque_is_second_order_and_exact_without_it():
                                          wrench)
         errors.append(rotation_angle_between(final.rotation, expected.rotation)
                       + np.linalg.norm(final.angular_momentum - expected.angular_momentum))
-        values = np.concatenate(state._fields())
-        kernel.run(values, packed, fast.body_values(body.inertia, body.inertia_inverse,
-                                                    body.mass),
-                   kernel.method, 0.0, duration / steps, steps)
-        compiled = State._from_values(values)
+        simulator = Simulator(body, state, integrator='exact', effects=[lever])
+        simulator.set_wrench(force=(0.5, 0.0, 0.0), frame='body')
+        compiled = simulator.run(duration, duration / steps)
         compiled_errors.append(
             rotation_angle_between(compiled.rotation, expected.rotation)
             + np.linalg.norm(compiled.angular_momentum - expected.angular_momentum))
@@ -647,7 +668,7 @@ def test_exact_with_a_torque_is_second_order_and_exact_without_it():
     assert INTEGRATORS['exact'].order == 2
 
 
-# -- the last rounding: exact in the readable step, the same bits compiled -----------------
+# -- the last rounding: the same bits as done exactly (exact_rounding_reference) ---------
 
 
 def _sandwich_twice_energy(body_frame, quaternion, angular_momentum):
@@ -677,13 +698,13 @@ def test_the_readable_energy_is_exact_in_the_stored_floats():
             frame = principal_frame(body.inertia)
             # A quaternion that is the exact sum of two doubles per component, not unit.
             values = tuple(state.quaternion) + tuple(rng.normal(size=4) * 1e-3)
-            parts, _ = readable_exact._dyadic(values)
+            parts, _ = oracle.dyadic(values)
             integers = [parts[i] + parts[4 + i] for i in range(4)]
             momentum = [float(c) for c in state.angular_momentum]
-            (l, momentum_shift) = readable_exact._dyadic(momentum)
-            (a, axes_shift), ratios = readable_exact._frame_integers(
+            (l, momentum_shift) = oracle.dyadic(momentum)
+            (a, axes_shift), ratios = oracle.frame_integers(
                 tuple(frame.axes.ravel().tolist()), tuple(frame.moments.tolist()))
-            numerator, norm = readable_exact._twice_energy_exactly(integers, l, a, ratios)
+            numerator, norm = oracle.twice_energy_exactly(integers, l, a, ratios)
             common = (ratios[0][0] * ratios[1][0] * ratios[2][0]
                       << 2 * (momentum_shift + axes_shift))
             quaternion = [Fraction(values[i]) + Fraction(values[4 + i]) for i in range(4)]
@@ -703,25 +724,22 @@ def test_the_compiled_last_rounding_gives_the_readable_bits(kind):
         frame = principal_frame(body.inertia)
         quaternion = tuple(float(c) for c in state.quaternion)
         momentum = tuple(float(c) for c in state.angular_momentum)
-        momentum_body = readable_exact._momentum_body(quaternion, momentum)
+        mx, my, mz = rotate_back(quaternion, momentum)
         norm = math.sqrt(sum(c * c for c in momentum))
         duration = rng.uniform(-1.0, 1.0)
-        if frame.kind == readable_exact.ASYMMETRIC:
-            increment = readable_exact._asymmetric_top_increment(frame, momentum_body, norm,
-                                                                 duration)
+        if frame.kind == ASYMMETRIC:
+            increment = exact_module._asymmetric_increment(mx, my, mz, norm, frame.moments,
+                                                           frame.axes, duration)
         else:
-            increment = readable_exact._symmetric_top_increment(frame, momentum_body, norm,
-                                                                duration)
-        readable = readable_exact._rounded_step(frame, quaternion, increment, momentum)
-        vector, scalar = increment
-        compiled = fast_exact._rounded_step(
-            quaternion, tuple(float(c) for c in (*vector, scalar)), *momentum, frame.moments,
-            frame.axes, frame.kind)
-        assert np.array_equal(readable, np.array(compiled)), (readable, compiled)
-        plain = fast_exact._rounded_step(
-            quaternion, tuple(float(c) for c in (*vector, scalar)), *momentum, frame.moments,
-            frame.axes, readable_exact.SPHERICAL)
-        turned += not np.array_equal(readable, np.array(plain))
+            increment = exact_module._symmetric_increment(mx, my, mz, norm, frame.moments,
+                                                          frame.axes, frame.kind, duration)
+        exact = oracle.rounded_step(frame, quaternion, increment, momentum)
+        compiled = exact_module._rounded_step(quaternion, increment, *momentum, frame.moments,
+                                              frame.axes, frame.kind)
+        assert np.array_equal(exact, np.array(compiled)), (exact, compiled)
+        plain = exact_module._rounded_step(quaternion, increment, *momentum, frame.moments,
+                                           frame.axes, SPHERICAL)
+        turned += not np.array_equal(exact, np.array(plain))
     # The energy turn changed the result in some cases (it is not vacuous here) unless
     # the body's energy does not depend on its orientation.
     assert turned > 0 or kind == 'spherical'

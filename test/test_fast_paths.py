@@ -1,25 +1,25 @@
 """
-The compiled fast paths equal the readable step functions, and runs are deterministic.
+The compiled kernels equal the readable step functions, and runs are deterministic.
 
-Every kernel in FAST_KERNELS advances (q, x, p, L) in place under a wrench held in the world
-and body frames; it must compute what INTEGRATORS[name] computes with the same wrench given
-as a callable, to round-off (they differ only in the order of floating-point operations and
-in the frame the turn is formed in).  Over 500 steps of a generic motion round-off grows
-about linearly, so 1e-12 relative to each quantity's scale is the bound.
+Every integrator's kernel advances (q, x, p, L) in place under a wrench held in the world
+and body frames and under every effect; it must compute what the readable step computes with
+the same wrench given as a callable, to round-off (they differ only in the order of
+floating-point operations and in the frame the turn is formed in).  Over 500 steps of a
+generic motion round-off grows about linearly, so 1e-12 relative to each quantity's scale is
+the bound.  The tables derive from the registries: a new integrator or effect is covered.
 """
 
 import numpy as np
 import pytest
 from reference import random_rotation
-from rigid_body_sim.physics import FAST_KERNELS
 from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import RigidBody
 from rigid_body_sim.physics import Simulator
 from rigid_body_sim.physics import State
+from rigid_body_sim.physics.effects import create_effect
+from rigid_body_sim.physics.effects import EFFECTS
 
 STEPS = 500
-# The Simulator-level checks run the seed's integrators; the kernel check runs every kernel.
-SEED_INTEGRATORS = ('buss', 'buss_plain', 'first_order', 'rk4')
 DT = 2e-2
 ROUND_OFF = 1e-12
 
@@ -67,18 +67,14 @@ def _assert_states_agree(state, other, tolerance=ROUND_OFF):
 
 
 @pytest.mark.parametrize('held', sorted(HELD_WRENCHES))
-@pytest.mark.parametrize('name', sorted(FAST_KERNELS))
+@pytest.mark.parametrize('name', sorted(INTEGRATORS))
 def test_kernel_equals_the_readable_step_function(name, held):
     body, state = _problem()
     wrench = _wrench_function(HELD_WRENCHES[held])
     readable = state
     for k in range(STEPS):
         readable = INTEGRATORS[name](body, readable, k * DT, DT, wrench)
-    arrays = [np.array(a) for a in (state.quaternion, state.position, state.linear_momentum,
-                                    state.angular_momentum)]
-    FAST_KERNELS[name](*arrays, body.inertia, body.inertia_inverse, body.mass, DT, STEPS,
-                       *HELD_WRENCHES[held])
-    compiled = State._from_arrays(*arrays)
+    compiled = _held_simulator(body, state, name, True, held).run(STEPS * DT, DT)
     # The motion is non-trivial: the body turned and moved.
     assert np.linalg.norm(compiled.quaternion - state.quaternion) > 0.1
     _assert_states_agree(compiled, readable)
@@ -93,7 +89,7 @@ def _held_simulator(body, state, name, fast, held):
 
 
 @pytest.mark.parametrize('held', sorted(HELD_WRENCHES))
-@pytest.mark.parametrize('name', SEED_INTEGRATORS)
+@pytest.mark.parametrize('name', sorted(INTEGRATORS))
 def test_simulator_fast_and_readable_paths_agree(name, held):
     body, state = _problem()
     fast = _held_simulator(body, state, name, True, held)
@@ -104,7 +100,7 @@ def test_simulator_fast_and_readable_paths_agree(name, held):
     assert fast.time == slow.time
 
 
-@pytest.mark.parametrize('name', SEED_INTEGRATORS)
+@pytest.mark.parametrize('name', sorted(INTEGRATORS))
 def test_set_wrench_frames_match_the_held_wrench_parts(name):
     body, state = _problem()
     force, torque = np.array([0.5, -1.0, 2.0]), np.array([0.3, 0.0, -0.2])
@@ -117,7 +113,7 @@ def test_set_wrench_frames_match_the_held_wrench_parts(name):
         assert by_frame.run(100 * DT, DT) == by_parts.run(100 * DT, DT)
 
 
-@pytest.mark.parametrize('name', SEED_INTEGRATORS)
+@pytest.mark.parametrize('name', sorted(INTEGRATORS))
 def test_simulator_readable_path_is_the_step_function_applied_in_order(name):
     body, state = _problem()
     simulator = _held_simulator(body, state, name, False, 'world_and_body')
@@ -130,7 +126,7 @@ def test_simulator_readable_path_is_the_step_function_applied_in_order(name):
 
 
 @pytest.mark.parametrize('fast', [True, False], ids=['fast', 'readable'])
-@pytest.mark.parametrize('name', SEED_INTEGRATORS)
+@pytest.mark.parametrize('name', sorted(INTEGRATORS))
 def test_same_run_twice_is_bit_identical(name, fast):
     body, state = _problem()
     finals = []
@@ -146,15 +142,28 @@ def test_same_run_twice_is_bit_identical(name, fast):
     assert finals[0][1] == finals[1][1]
 
 
-def test_an_effect_takes_the_readable_path_even_when_fast():
+def _example(name):
+    """Return the example instance of the effect `name` (its class's `example` parameters)."""
+    return create_effect(name, EFFECTS[name].example)
+
+
+def test_every_effect_gives_an_example_of_itself():
+    # The tables below take them: an effect without one would be left out silently.
+    for name, cls in EFFECTS.items():
+        assert isinstance(getattr(cls, 'example', None), dict), name
+        _example(name)
+
+
+@pytest.mark.parametrize('effect', sorted(EFFECTS))
+@pytest.mark.parametrize('name', sorted(INTEGRATORS))
+def test_every_effect_runs_compiled_under_every_integrator_as_the_readable_steps(name, effect):
     body, state = _problem()
-
-    class ConstantTorque:
-        """A constant world torque about the COM (N m), as an effect."""
-
-        def wrench(self, body, state, time):
-            return np.zeros(3), np.array([0.1, -0.2, 0.3])
-
-    fast = Simulator(body, state, effects=[ConstantTorque()], fast=True)
-    slow = Simulator(body, state, effects=[ConstantTorque()], fast=False)
-    assert fast.run(100 * DT, DT) == slow.run(100 * DT, DT)
+    effects = [_example(effect)]
+    compiled = Simulator(body, state, integrator=name, effects=effects)
+    readable = Simulator(body, state, integrator=name, effects=effects, fast=False)
+    for simulator in (compiled, readable):
+        simulator.set_wrench(torque=(0.05, -0.02, 0.03), frame='body')
+        simulator.run(100 * DT, DT)
+    assert compiled.path == 'compiled' and readable.path == 'readable'
+    _assert_states_agree(compiled.state, readable.state, 1e-11)
+    assert np.all(np.isfinite(compiled.state.quaternion))

@@ -37,6 +37,7 @@ from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.exceptions import ParameterNotDeclaredException
 from rclpy.parameter import Parameter
+from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import unresolved_rotation
 from rigid_body_sim.ros.node import RigidBodyNode
 from rigid_body_sim.ros.parameters import PARAMETERS
@@ -231,7 +232,7 @@ PARAMETER_NAMES = st.one_of(st.sampled_from([spec.name for spec in PARAMETERS]),
                             st.text(max_size=10))
 PARAMETER_VALUES = st.one_of(
     st.booleans(), st.integers(-10**18, 10**18), PLAIN_FLOAT, st.text(max_size=12),
-    st.sampled_from(['buss', 'rk4', 'splitting', 'exact', 'first_order', 'splitting4']),
+    st.sampled_from(sorted(INTEGRATORS)),
     st.lists(PLAIN_FLOAT, min_size=1, max_size=4), st.lists(st.integers(-5, 5), min_size=1,
                                                             max_size=4))
 

@@ -37,6 +37,8 @@ from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import RigidBody
 from rigid_body_sim.physics import Simulator
 from rigid_body_sim.physics import State
+from rigid_body_sim.physics.effects.registry import Effect
+from rigid_body_sim.physics.kernels.model import wrench_term
 
 EPS = np.finfo(float).eps
 ORDERS = {'first_order': 1, 'buss': 2, 'buss_plain': 2, 'rk4': 4}
@@ -794,17 +796,25 @@ def test_compensated_clock_stays_exact_over_many_small_steps_near_a_million_seco
     assert abs(plain - (start + steps * dt)) > 100 * np.spacing(start)
 
 
-class _TorqueWave:
+@wrench_term
+def _torque_wave(state, time, parameters):
+    """Return (0, tau0 cos(w (t - t0))); parameters: tau0 (3), w, t0."""
+    s = math.cos(parameters[3] * (time - parameters[4]))
+    return 0.0, 0.0, 0.0, parameters[0] * s, parameters[1] * s, parameters[2] * s
+
+
+class _TorqueWave(Effect):
     """A world torque tau0 cos(w (t - t0)), w = 1 rad/s, from a clock origin t0 (s)."""
 
     amplitude = np.array([0.3, -0.2, 0.1])
     frequency = 1.0
+    compiled_wrench = staticmethod(_torque_wave)
 
     def __init__(self, origin):
         self.origin = origin
 
-    def wrench(self, body, state, time):
-        return np.zeros(3), self.amplitude * math.cos(self.frequency * (time - self.origin))
+    def wrench_parameters(self, body):
+        return np.array([*self.amplitude, self.frequency, self.origin])
 
 
 # Where in the step each method reads the wrench: (fraction of dt, weight) of its quadrature

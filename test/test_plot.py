@@ -254,3 +254,27 @@ def test_cli_plots_and_reports_bags_it_cannot_plot(tmp_path, van_zon, capsys):
         'van_zon.mcap', 'cut.mcap'))
     assert cli_main(['plot', str(cut)]) == 2
     assert 'rigid-body-sim record --recover' in capsys.readouterr().err
+
+
+def test_a_live_bag_is_timed_by_the_nodes_reports_not_by_its_arrival_stamps():
+    from rigid_body_sim.recording.plot import simulated_time_from_reports
+    # Ticks of 10 ms stamped as they were scheduled under load (irregular), a pause of
+    # three ticks (no state change), and a reset: reports say the simulated time.
+    stamps = 1_700_000_000_000_000_000 + np.cumsum(
+        [3, 17, 1, 9, 30, 2, 8, 10, 10, 10, 12, 8]) * 1_000_000
+    moved = np.array([1, 1, 1, 1, 1, 0, 0, 0, 1, 1, 1, 1], dtype=bool)
+    reports = [(stamps[1] + 1000, 7.52, 100.0),   # tick 1 is at 7.52 s
+               (stamps[9] + 1000, 0.02, 100.0)]   # a reset: tick 9 is at 0.02 s
+    time = simulated_time_from_reports(stamps, moved, reports)
+    np.testing.assert_allclose(time, [7.51, 7.52, 7.53, 7.54, 7.55, 7.55, 7.55, 7.55, 7.56,
+                                      0.02, 0.03, 0.04], atol=1e-12)
+    quaternion = np.tile([0.0, 0.0, 0.0, 1.0], (3, 1))
+    zeros = np.zeros((3, 3))
+    wall = BagMotion(stamps[:3], quaternion, zeros, zeros, zeros, {}, 'live')
+    assert not wall.time_is_simulated and wall.stamp_spacing == (0.001, 0.017)
+
+
+def test_a_spin_constant_to_many_digits_is_drawn_from_a_round_value():
+    from rigid_body_sim.recording.plot import _reference_value
+    assert _reference_value(150.0 + np.linspace(1e-7, 5.5e-7, 50)) == 150.0
+    assert _reference_value(np.linspace(-2.0, 2.0, 50)) == 0.0

@@ -24,6 +24,7 @@ from rigid_body_sim.physics.effects import EFFECTS
 from rigid_body_sim.physics.effects import register_effect
 from rigid_body_sim.physics.effects.registry import check_number
 from rigid_body_sim.physics.effects.registry import Effect
+from rigid_body_sim.physics.kernels.model import wrench_term
 from rigid_body_sim.physics.rotations import matrix_from_quaternion
 from rigid_body_sim.scenes import DEFAULT_SCENE
 from rigid_body_sim.scenes import find_scene
@@ -564,6 +565,13 @@ def test_a_broken_scene_file_is_one_line_on_stderr_and_exit_code_2(tmp_path):
 # -- a new effect needs no edit outside its module and the registry
 
 
+@wrench_term
+def _anchor_spring(state, time, parameters):
+    """Return (-k x, 0): a spring of stiffness parameters[0] pulling the COM to the origin."""
+    k = parameters[0]
+    return -k * state[4], -k * state[5], -k * state[6], 0.0, 0.0, 0.0
+
+
 @pytest.fixture
 def anchor_spring():
     """Register a test effect for the test's duration (it sorts first among the effects)."""
@@ -572,11 +580,16 @@ def anchor_spring():
     class AnchorSpring(Effect):
         """A linear spring pulling the COM to the world origin (a test effect)."""
 
+        compiled_wrench = staticmethod(_anchor_spring)
+        reads_state = True
+        exerts_torque = False
+        example = {'stiffness': 2.0}
+
         def __init__(self, stiffness=1.0):
             self.stiffness = check_number(stiffness, 'stiffness', 'N/m', positive=True)
 
-        def wrench(self, body, state, time):
-            return -self.stiffness * state.position, np.zeros(3)
+        def wrench_parameters(self, body):
+            return np.array([self.stiffness])
 
     yield AnchorSpring
     del EFFECTS['anchor_spring']
@@ -597,6 +610,26 @@ def test_a_new_effect_is_listed_loaded_and_documented_without_other_edits(anchor
     with pytest.raises(ValueError, match=r"unknown effect 'springs'; valid effects: "
                                          r'anchor_spring, dissipation'):
         load_scene(_write(tmp_path, MINE + 'effects: [springs]\n'))
+
+
+@pytest.mark.parametrize('integrator', sorted(INTEGRATORS))
+def test_a_new_effect_runs_compiled_under_every_integrator_at_its_order(
+        anchor_spring, integrator, tmp_path):
+    # x(t) = cos(sqrt(k/m) t) from x = 1 m at rest: halving the step divides the error by
+    # ~2^order (kicks around the drift are second order at most; rk4 takes the stages).
+    text = MINE + 'initial: {position: [1, 0, 0]}\neffects: [anchor_spring: {stiffness: 4e+0}]\n'
+    scene = load_scene(_write(tmp_path, text))
+    rate = math.sqrt(4.0 / scene.body.mass)
+    order = INTEGRATORS[integrator].order
+
+    def error(dt):
+        simulator = scene.simulator(integrator=integrator, tolerance=0.0)
+        assert simulator.path == 'compiled'
+        return abs(simulator.run(1.0, dt).position[0] - math.cos(rate))
+
+    coarse, fine = error(0.02), error(0.01)
+    assert coarse < 1e-2
+    assert math.log2(coarse / fine) > min(order, 2) - 0.3, (coarse, fine)
 
 
 def test_output_into_a_closed_pipe_ends_quietly_with_the_sigpipe_status():

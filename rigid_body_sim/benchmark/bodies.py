@@ -46,8 +46,8 @@ _NON_DIAGONAL_INERTIA = ((2.0, -0.3, 0.2),
 # The oblique start R0 = exp([(0.4, -0.7, 1.1)]x) and its L0 = R0 I Omega0, given as the exact
 # doubles they rounded to on the machine that computed the committed references: computed
 # anew, sin/cos and OpenBLAS's CPU-selected kernels differ in the last bit across machines,
-# and a problem 1 ulp away has no committed reference (reference_values.py is keyed by the
-# exact doubles).  Near the separatrix that ulp matters at the reference's resolution.
+# and a problem 1 ulp away has no committed reference (data/reference_values.json is keyed by
+# the exact doubles).  Near the separatrix that ulp matters at the reference's resolution.
 _NON_DIAGONAL_QUATERNION = tuple(float.fromhex(value) for value in (
     '0x1.7a95ff7680917p-3', '-0x1.4b433f87b07f2p-2', '0x1.04471fa17863fp-1',
     '0x1.8d807c0271556p-1'))

@@ -37,20 +37,23 @@ points), and reports the angle between the two at every time: the error estimate
 first solve (conservative for the second, which is the one kept).  The conserved |M| and
 2T = M . A M give a further, independent check (their relative drift is returned too).
 
-Run ``python -m rigid_body_sim.benchmark.extended_reference`` to recompute the committed values
-in :mod:`.reference_values` (minutes: ~10^4 Taylor steps per body in pure Python).
+The values of the benchmark's own problems are committed as package data
+(:func:`committed_references`); ``benchmarks/regenerate_references.py`` recomputes them
+(minutes: ~10^4 Taylor steps per body in pure Python).
 """
 
 import decimal
 from decimal import Decimal
+import functools
+import importlib.resources
 import json
 import math
 import os
 import sys
 
 __all__ = ['taylor_flow', 'extended_reference', 'exact_time', 'rotation_matrix_decimal',
-           'quaternion_angle', 'reference_quaternions', 'problem_fingerprint',
-           'format_values_module', 'DIGITS']
+           'quaternion_angle', 'reference_quaternions', 'problem_fingerprint', 'key_string',
+           'committed_references', 'REFERENCE_SETS', 'DIGITS']
 
 DIGITS = 34
 # Digits added for the second, checking solve.
@@ -237,7 +240,7 @@ def extended_reference(inertia, quaternion, angular_momentum, times, digits=DIGI
     return result, max(drift_coarse, drift_fine)
 
 
-# -- committed values, the cache, and the command that regenerates the committed values
+# -- committed values and the cache
 
 def problem_fingerprint(body, state):
     """
@@ -292,12 +295,34 @@ def _write_cache(path, content):
         print(f'bench: could not write the reference cache {path}: {error}', file=sys.stderr)
 
 
+REFERENCE_SETS = {
+    'bodies': 'reference_values.json',
+    'scenes': 'scene_reference_values.json',
+}
+"""The committed reference sets, files of the package's ``data/`` folder: the benchmark bodies
+at every (N, dt) of both sweeps, and the torque-free built-in scenes every 0.5 s over 60 s at
+each scene's tick."""
+
+
+@functools.cache
+def committed_references(name):
+    """
+    Return the committed reference set `name` (a key of :data:`REFERENCE_SETS`), read once.
+
+    {fingerprint (:func:`problem_fingerprint`): {'name': str, 'drift': float, 'values':
+    {'N x dt' (:func:`key_string`): [x, y, z, w, uncertainty]}}}: the unit quaternion, body
+    to world, at exactly N x dt s as 4 decimal strings, and the angle (rad) between the two
+    solves; drift: the largest relative drift of |M| and 2T over the solves.  The same dict
+    is returned to every caller: read it, never change it.
+    """
+    data = importlib.resources.files(__package__) / 'data' / REFERENCE_SETS[name]
+    return json.loads(data.read_text(encoding='utf-8'))['problems']
+
+
 def _committed(fingerprint):
-    from .reference_values import REFERENCE_VALUES
-    from .scene_reference_values import SCENE_REFERENCE_VALUES
     # A scene may be one of the benchmark bodies (van Zon's): both sets of times count.
-    entries = [table[fingerprint] for table in (REFERENCE_VALUES, SCENE_REFERENCE_VALUES)
-               if fingerprint in table]
+    entries = [problems[fingerprint] for problems in map(committed_references, REFERENCE_SETS)
+               if fingerprint in problems]
     values = {key: value for entry in entries for key, value in entry['values'].items()}
     return values, max((entry['drift'] for entry in entries), default=0.0)
 
@@ -306,8 +331,8 @@ def reference_quaternions(body, state, keys, use_cache=True):
     """
     Return the extended-precision reference of a torque-free problem at N steps of dt.
 
-    Values come from :mod:`.reference_values` (committed, for the benchmark's own bodies and
-    sweeps) when the problem's doubles match bit for bit, else from the cache
+    Values come from :func:`committed_references` (for the benchmark's own bodies and sweeps
+    and the built-in scenes) when the problem's doubles match bit for bit, else from the cache
     (:func:`cache_path`), else they are computed (:func:`extended_reference`) and cached.
 
     Parameters
@@ -359,95 +384,3 @@ def reference_quaternions(body, state, keys, use_cache=True):
             _write_cache(path, content)
     result = {key: (tuple(found[key][:4]), float(found[key][4])) for key in keys}
     return result, drift, ' + '.join(sorted(sources))
-
-
-def format_values_module(entries, variable='REFERENCE_VALUES',
-                         what='Committed extended-precision reference orientations of the '
-                              'benchmark bodies',
-                         command='python -m rigid_body_sim.benchmark.extended_reference',
-                         digits=None, detail=''):
-    """
-    Return the text of a committed values module for {fingerprint: (name, values, drift)}.
-
-    variable: the dict's name; what: the docstring's one-line summary (no final period);
-    detail: a paragraph after it (lines of text, or ''); command: what regenerates it;
-    digits: keep that many significant digits of each quaternion component (None: all; 24
-    resolve 1e-24 rad, far below any double).
-    """
-    lines = [
-        '"""',
-        f'{what}.',
-        '',
-        *((detail.split('\n') + ['']) if detail else []),
-        f'Generated by ``{command}`` (Taylor series',
-        'in decimal arithmetic, see :mod:`.extended_reference`); do not edit by hand.  Keyed by',
-        "the problem's exact doubles (:func:`.extended_reference.problem_fingerprint`), then by",
-        "'N x dt': the unit quaternion (x, y, z, w) at exactly N x dt s, and the angle (rad)",
-        'between the two solves (the uncertainty).  drift: the largest relative drift of |M|',
-        'and 2T over the solves.',
-        '"""',
-        '',
-        f'{variable} = {{',
-    ]
-    for fingerprint, (name, values, drift) in entries.items():
-        lines.append(f'    # {name}')
-        words = fingerprint.split()
-        lines.append('    (')
-        for start in range(0, len(words), 3):
-            lines.append(f"        '{' '.join(words[start:start + 3])} '")
-        lines[-1] = lines[-1][:-2] + "'"
-        lines.append('    ): {')
-        lines.append(f"        'drift': {drift!r},")
-        lines.append("        'values': {")
-        for key in sorted(values, key=lambda text: (float(text.split(' x ')[1]),
-                                                    int(text.split(' x ')[0]))):
-            *quaternion, uncertainty = values[key]
-            lines.append(f"            '{key}': (")
-            for component in quaternion:
-                if digits is not None:
-                    component = _significant(component, digits)
-                lines.append(f"                '{component}',")
-            lines.append(f'                {uncertainty!r}),')
-        lines.append('        },')
-        lines.append('    },')
-    lines.append('}')
-    return '\n'.join(lines) + '\n'
-
-
-def _significant(text, digits):
-    """Return the decimal string `text` rounded to `digits` significant digits."""
-    with decimal.localcontext() as context:
-        context.prec = digits
-        return str(+Decimal(text))
-
-
-def main(argv=None):
-    """Recompute the committed reference values for every body and sweep; write the module."""
-    from .bodies import benchmark_cases
-    from .bodies import CASE_NAMES
-    from .measure import FULL
-    from .measure import QUICK
-    from .measure import reference_keys
-
-    entries = {}
-    for case in benchmark_cases(CASE_NAMES):
-        keys = set()
-        for config in (FULL, QUICK):
-            if case.name in config.cases:
-                keys |= set(reference_keys(config))
-        print(f'{case.name}: {len(keys)} times', file=sys.stderr, flush=True)
-        times = {key: exact_time(*key) for key in keys}
-        values, drift = extended_reference(case.body.inertia, case.state.quaternion,
-                                           case.state.angular_momentum, times.values())
-        entries[problem_fingerprint(case.body, case.state)] = (case.name, {
-            key_string(*key): (*values[time][0], values[time][1])
-            for key, time in times.items()}, drift)
-    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'reference_values.py')
-    with open(path, 'w') as module:
-        module.write(format_values_module(entries))
-    print(f'wrote {path}', file=sys.stderr)
-    return 0
-
-
-if __name__ == '__main__':
-    sys.exit(main())

@@ -29,10 +29,12 @@ closer), and error levels below it are not judged.
 The MuJoCo twin is built from the scene, not by hand per case: a free joint (or, with a
 pivot, a ball joint at the anchor with the COM offset in `inertial pos`), the inertia tensor
 (`fullinertia`), the scene's gravity; a body-fixed torque as the generalised force of the
-joint's rotational dofs (`qfrc_applied`, which are body-frame: constant, set once); a
-time-varying world torque through `xfrc_applied`, set each step at the step's mid time in a
-Python loop, as a user of MuJoCo's Python API would (MuJoCo has no time-dependent applied
-force; its RK4 then sees the midpoint value in all four stages).
+joint's rotational dofs (`qfrc_applied`, which are body-frame: constant, set once); every
+other effect (a time-varying world torque, or any effect added later) through
+`xfrc_applied`, its wrench taken each step at the step's mid time in a Python loop, as a user
+of MuJoCo's Python API would (MuJoCo has no time-dependent applied force; its RK4 then sees
+the midpoint value in all four stages).  The reference takes the scene's wrench the same
+generic way (Simulator.wrench_function): no effect is named in this module.
 """
 
 from dataclasses import asdict
@@ -47,8 +49,12 @@ from .peer_mujoco import MUJOCO_INTEGRATORS
 from .reference import rotation_angle
 from ..physics import INTEGRATORS
 from ..physics import matrix_from_quaternion
+from ..physics import State
 from ..scenes import load_scene
 from ..scenes import parse_scene
+
+# Effects MuJoCo's twin models itself (see forced_mjcf); the rest it applies each step.
+_NATIVE_TO_MUJOCO = ('gravity', 'pivot', 'external_wrench')
 
 __all__ = ['FORCED_CASE_NAMES', 'ForcedCase', 'forced_cases', 'forced_reference',
            'ForcesConfig', 'FORCES_FULL', 'FORCES_QUICK', 'run_forces', 'forces_goal_table',
@@ -118,26 +124,38 @@ def forced_cases(names=FORCED_CASE_NAMES):
 # -- the reference
 
 
-def _torque_function(case):
-    """Return torque(q, t) in N m, world: about the pivot for a pivot scene, else the COM."""
-    scene = case.scene
-    body = scene.body
-    force = body.mass * scene.gravity
-    sinusoids = [effect for effect in scene.effects
-                 if getattr(effect, 'effect_name', None) == 'sinusoidal_torque']
-    held = None if case.held_torque_body is None else np.array(case.held_torque_body)
-    pivot = scene.pivot
-    offset = None if pivot is None else -np.asarray(pivot.point, dtype=float)
+def _case_simulator(case):
+    """Return the case's Simulator with its held torque (its effects and wrench in one)."""
+    simulator = case.scene.simulator()
+    if case.held_torque_body is not None:
+        simulator.set_wrench(torque=case.held_torque_body, frame='body')
+    return simulator
 
-    def torque(rotation, time):
-        total = np.zeros(3)
-        for effect in sinusoids:
-            total = total + effect.torque(time)
-        if held is not None:
-            total = total + rotation @ held
-        if offset is not None:
-            total = total + np.cross(rotation @ offset, force)
-        return total
+
+def _torque_function(case):
+    """
+    Return torque(q, L, t) in N m, world: about the pivot for a pivot scene, else the COM.
+
+    The scene's own wrench (its effects' Python faces and the held torque,
+    Simulator.wrench_function) at the physical state of (q, L), its moment about the pivot
+    added under one: no effect is named here, so a new one is in the reference as it is.
+    """
+    simulator = _case_simulator(case)
+    wrench = simulator.wrench_function()
+    scene = case.scene
+    pivot = scene.pivot
+    constraint = None if pivot is None else pivot.constrain(scene.body)
+    anchor = np.zeros(3) if pivot is None else np.asarray(pivot.anchor, dtype=float)
+
+    def torque(quaternion, angular_momentum, time):
+        if wrench is None:
+            return np.zeros(3)
+        integrated = State._from_arrays(np.asarray(quaternion, dtype=float), anchor,
+                                        np.zeros(3), np.asarray(angular_momentum, dtype=float))
+        if constraint is None:
+            return wrench(integrated, time)[1]
+        force, moment = wrench(constraint.expand(integrated), time)
+        return moment + np.cross(integrated.rotation @ constraint.offset_body, force)
     return torque
 
 
@@ -173,7 +191,7 @@ def forced_reference(case, times, rtol=REFERENCE_RTOL):
         # (omega, 0) q, the Hamilton product in (x, y, z, w) storage.
         dq = 0.5 * np.array([ox * w + oy * z - oz * yq, oy * w - ox * z + oz * x,
                              oz * w + ox * yq - oy * x, -ox * x - oy * yq - oz * z])
-        return np.concatenate([dq, torque(rotation, time)])
+        return np.concatenate([dq, torque(q, y[4:], time)])
 
     y0 = np.concatenate([state.quaternion, momentum])
     scale = max(1.0, float(np.linalg.norm(momentum)))
@@ -255,10 +273,12 @@ class _Mujoco:
             forced_mjcf(case, MUJOCO_INTEGRATORS[integrator], dt))
         self.data = mujoco.MjData(self.model)
         scene = case.scene
-        self.sinusoids = [effect for effect in scene.effects
-                          if getattr(effect, 'effect_name', None) == 'sinusoidal_torque']
+        # The effects MuJoCo does not model itself (it has gravity and the ball joint of a
+        # pivot): applied each step through xfrc_applied, from their Python faces.
+        self.applied = [effect for effect in scene.effects
+                        if getattr(effect, 'effect_name', None) not in _NATIVE_TO_MUJOCO]
         self.held = None if case.held_torque_body is None else np.array(case.held_torque_body)
-        self.per_step = bool(self.sinusoids)
+        self.per_step = bool(self.applied)
         self.reset()
 
     def reset(self):
@@ -291,12 +311,28 @@ class _Mujoco:
             mujoco.mj_step(model, data, nstep=int(steps))
             return
         applied = data.xfrc_applied[1]
+        body = self.case.scene.body
         for _ in range(int(steps)):
-            torque = np.zeros(3)
-            for effect in self.sinusoids:
-                torque += effect.torque(data.time + 0.5 * self.dt)
-            applied[3:6] = torque
+            state = self._state()
+            force, torque = np.zeros(3), np.zeros(3)
+            for effect in self.applied:
+                part = effect.wrench(body, state, data.time + 0.5 * self.dt)
+                force, torque = force + part[0], torque + part[1]
+            applied[0:3], applied[3:6] = force, torque
             mujoco.mj_step(model, data)
+
+    def _state(self):
+        """Return MuJoCo's current physical state as a State (COM, momenta, world frame)."""
+        data, scene = self.data, self.case.scene
+        body = scene.body
+        quaternion = self._quaternion()
+        quaternion = quaternion / np.linalg.norm(quaternion)
+        if scene.pivot is None:
+            return State.from_velocity(body, rotation=quaternion, position=data.qpos[0:3],
+                                       velocity=data.qvel[0:3],
+                                       angular_velocity_body=data.qvel[3:6])
+        return scene.pivot.constrain(body).project(State.from_velocity(
+            body, rotation=quaternion, angular_velocity_body=data.qvel[0:3]))
 
     def rotation(self):
         if any(self.data.warning[i].number > 0 for i in range(len(self.data.warning))):

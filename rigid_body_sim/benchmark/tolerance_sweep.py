@@ -21,8 +21,8 @@ References (:func:`case_reference`):
 - torque-free rotation (no effect that turns the body: gravity acts at the COM, and an
   external_wrench without input does nothing; no forcing): the extended-precision Taylor
   solve of :mod:`.extended_reference`, independent of every integrator, taken at exactly
-  N ticks; its values for the built-in scenes are committed in
-  :mod:`.scene_reference_values` (``python -m rigid_body_sim.benchmark.tolerance_sweep``
+  N ticks (:func:`case_reference_keys`); its values for the built-in scenes are committed
+  (:func:`.extended_reference.committed_references`, ``benchmarks/regenerate_references.py``
   recomputes them, minutes), other problems are computed and cached;
 - otherwise a converged fine-step run: the classical ``rk4`` at REFERENCE_SUBSTEPS substeps
   per tick, its uncertainty the largest difference to the run at twice as many.
@@ -32,18 +32,11 @@ Errors below the reference's uncertainty are not resolved (the report marks them
 
 from dataclasses import dataclass
 import math
-import os
 import statistics
-import sys
 import time
 
 import numpy as np
 
-from .extended_reference import exact_time
-from .extended_reference import extended_reference
-from .extended_reference import format_values_module
-from .extended_reference import key_string
-from .extended_reference import problem_fingerprint
 from .extended_reference import reference_quaternions
 from .reference import MEASUREMENT_FLOOR
 from .reference import rotation_angle
@@ -54,7 +47,7 @@ from ..scenes import scene_names
 __all__ = ['SweepCase', 'scene_cases', 'case_reference', 'measure_case_run', 'advance',
            'tolerance_sweep', 'sweep_units', 'is_torque_free', 'SAMPLE_INTERVAL',
            'TOLERANCES', 'FIXED_SUBSTEPS', 'FIXED_METHODS', 'NATURAL_SPANS', 'SWEEP_SPAN',
-           'FINEST_ERROR', 'MOST_STEPS_PER_SECOND']
+           'FINEST_ERROR', 'MOST_STEPS_PER_SECOND', 'case_reference_keys']
 
 SAMPLE_INTERVAL = 0.5
 """Simulated time (s) between the samples at which the error is measured."""
@@ -172,6 +165,11 @@ def _sample_ticks(case):
     return list(range(every, case.ticks + 1, every))
 
 
+def case_reference_keys(case):
+    """Return the (N, dt) of each sample: N ticks of dt, the case's tick (s)."""
+    return [(mark, case.tick) for mark in _sample_ticks(case)]
+
+
 def advance(simulator, case, start, stop):
     """Take ticks start .. stop - 1 of the case (forced tick by tick)."""
     if case.forcing is None:
@@ -203,8 +201,8 @@ def case_reference(case):
     marks = _sample_ticks(case)
     scene = case.scene
     if is_torque_free(case):
-        keys = [(mark, case.tick) for mark in marks]
-        values, _, origin = reference_quaternions(scene.body, scene.state, keys)
+        values, _, origin = reference_quaternions(scene.body, scene.state,
+                                                  case_reference_keys(case))
         rotations = {mark: _double_rotation(values[(mark, case.tick)][0]) for mark in marks}
         uncertainty = max(values[key][1] for key in values)
         return rotations, max(uncertainty, MEASUREMENT_FLOOR), f'extended precision ({origin})'
@@ -295,39 +293,3 @@ def sweep_units(cases, tolerances=TOLERANCES, fixed_methods=FIXED_METHODS,
                 fixed_substeps=FIXED_SUBSTEPS):
     """Return an upper bound of the progress units tolerance_sweep reports."""
     return len(cases) * (1 + len(tolerances) + len(fixed_methods) * len(fixed_substeps))
-
-
-def _committed_entries():
-    """Return {fingerprint: (name, values, drift)} of the torque-free built-in scenes."""
-    entries = {}
-    for case in scene_cases(span=SWEEP_SPAN):
-        fingerprint = problem_fingerprint(case.scene.body, case.scene.state)
-        if not is_torque_free(case) or fingerprint in entries:
-            continue
-        print(f'{case.name}: {len(_sample_ticks(case))} times', file=sys.stderr, flush=True)
-        times = {key: exact_time(*key) for key in
-                 ((mark, case.tick) for mark in _sample_ticks(case))}
-        values, drift = extended_reference(case.scene.body.inertia, case.scene.state.quaternion,
-                                           case.scene.state.angular_momentum, times.values())
-        entries[fingerprint] = (case.name, {key_string(*key): (*values[time][0], values[time][1])
-                                            for key, time in times.items()}, drift)
-    return entries
-
-
-def main():
-    """Recompute the committed references of the torque-free built-in scenes; write them."""
-    entries = _committed_entries()
-    path = os.path.join(os.path.dirname(os.path.abspath(__file__)),
-                        'scene_reference_values.py')
-    with open(path, 'w') as module:
-        module.write(format_values_module(
-            entries, 'SCENE_REFERENCE_VALUES',
-            'Committed extended-precision references of the torque-free built-in scenes',
-            'python -m rigid_body_sim.benchmark.tolerance_sweep', digits=24,
-            detail="Every 0.5 s over 60 s at each scene's tick (tolerance_sweep.py)."))
-    print(f'wrote {path}', file=sys.stderr)
-    return 0
-
-
-if __name__ == '__main__':
-    sys.exit(main())

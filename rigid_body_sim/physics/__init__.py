@@ -1,11 +1,13 @@
 """
 The physics core: mass properties, world-frame state, integrators and the simulator.
 
-Pure numpy/scipy (and numba for the compiled fast paths): no ROS, no messages, no I/O.
+numpy and scipy, with numba for the compiled kernels (:mod:`.kernels`): no ROS, no
+messages, no I/O but numba's cache of compiled kernels.
 """
 
+from . import kernels  # noqa: F401  (first: drops cached kernels of changed sources)
+
 from .body import RigidBody
-from .integrators import FAST_KERNELS
 from .integrators import get_integrator
 from .integrators import INTEGRATORS
 from .integrators import register_integrator
@@ -21,7 +23,6 @@ __all__ = [
     'Simulator',
     'unresolved_rotation',
     'INTEGRATORS',
-    'FAST_KERNELS',
     'get_integrator',
     'register_integrator',
     'matrix_from_quaternion',

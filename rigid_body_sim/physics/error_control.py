@@ -67,16 +67,23 @@ at once after anything changes (the wrench, the state, the integrator, the toler
 lower bound: :func:`changed`).  The ticks between two estimates are one call of the run.
 
 The state of the controller lives in one float array (see :func:`new_control`), which the
-compiled kernels update in place; :func:`controlled_ticks` is compiled into a wrapper per
-integrator (each fast module wraps its run function) and runs as plain Python
-(``.py_func``) with the readable steps.
+compiled kernels update in place; :func:`controlled_ticks` is inlined into each integrator's
+``controlled`` kernel around its ``run`` (kernels/loop.py).
 """
 
-import functools
 import math
 
-import numba
 import numpy as np
+
+from .kernels import helper
+from .kernels import inline
+from .kernels.algebra import conjugate
+from .kernels.algebra import quaternion_product
+from .kernels.algebra import rotate_back
+from .kernels.layout import BODY_AXES
+from .kernels.layout import BODY_KIND
+from .kernels.layout import BODY_MOMENTS
+from .kernels.layout import inverse_inertia_times
 
 __all__ = ['new_control', 'controlled_ticks', 'next_substeps', 'step_difference',
            'set_tolerance', 'set_order', 'set_bounds', 'set_torque_free', 'changed', 'statistics',
@@ -84,15 +91,10 @@ __all__ = ['new_control', 'controlled_ticks', 'next_substeps', 'step_difference'
            'SAFETY', 'HOLD', 'DECREASE_FRACTION', 'OVERHEAD', 'MAX_TURN', 'MAX_SUBSTEPS',
            'ORBIT_EVERY', 'ESTIMATE_WORK']
 
-_jit = functools.partial(numba.njit, cache=True, nogil=True)
-
 # Slots of the control array.
 (TOLERANCE, ORDER, MIN_SUBSTEPS, CAP, SUBSTEPS, COUNTDOWN, HELD, SINCE, RATE,
  LAST, LOWEST, HIGHEST, STEPS, TICKS, ESTIMATES, REJECTED, HIGHEST_RATE, ORBIT_CONSTANT,
  ORBIT_COUNTDOWN, TORQUE_FREE, TAKEN, CONTROL_SIZE) = range(22)
-# Offsets in fast.py's packed body (fast.BODY_MOMENTS, BODY_AXES, BODY_KIND; tested equal):
-# importing fast here would be circular (its kernels wrap controlled_ticks).
-_BODY_MOMENTS, _BODY_AXES, _BODY_KIND = 10, 17, 26
 
 SAFETY = 0.5
 """The fraction of the tolerance a new substep count aims at (the dead band's width)."""
@@ -206,7 +208,7 @@ def statistics(control):
     }
 
 
-@_jit
+@helper
 def step_difference(a, b, body, h):
     """
     Return the difference (rad) of two packed states after the same span, h s a step.
@@ -214,33 +216,20 @@ def step_difference(a, b, body, h):
     The rotation angle between their orientations, 2 atan2(|vec(a^* b)|, |a^* b|_w), exact
     for tiny angles (the vector part is formed from products, not from a difference of
     near-equal angles), plus h |I_b^-1 R_a^T (L_a - L_b)|: the turn a momentum discrepancy
-    makes within one step (body: the packed body of fast.py, I_b^-1 first).
+    makes within one step (body: the packed body of kernels/layout.py).
     """
-    ax, ay, az, aw = a[0], a[1], a[2], a[3]
-    bx, by, bz, bw = b[0], b[1], b[2], b[3]
-    # a^* b, Hamilton product of the conjugate of a with b, (x, y, z, w).
-    vx = aw * bx - bw * ax - (ay * bz - az * by)
-    vy = aw * by - bw * ay - (az * bx - ax * bz)
-    vz = aw * bz - bw * az - (ax * by - ay * bx)
-    w = aw * bw + ax * bx + ay * by + az * bz
+    qa = (a[0], a[1], a[2], a[3])
+    vx, vy, vz, w = quaternion_product(conjugate(qa), (b[0], b[1], b[2], b[3]))
     angle = 2.0 * math.atan2(math.sqrt(vx * vx + vy * vy + vz * vz), abs(w))
     dx, dy, dz = a[10] - b[10], a[11] - b[11], a[12] - b[12]
     if dx == 0.0 and dy == 0.0 and dz == 0.0:
         return angle
-    # R_a^T dL, then I_b^-1 of it (row-major in body[0:9]).
-    mx = ((1.0 - 2.0 * (ay * ay + az * az)) * dx + 2.0 * (ax * ay + az * aw) * dy
-          + 2.0 * (ax * az - ay * aw) * dz)
-    my = (2.0 * (ax * ay - az * aw) * dx + (1.0 - 2.0 * (ax * ax + az * az)) * dy
-          + 2.0 * (ay * az + ax * aw) * dz)
-    mz = (2.0 * (ax * az + ay * aw) * dx + 2.0 * (ay * az - ax * aw) * dy
-          + (1.0 - 2.0 * (ax * ax + ay * ay)) * dz)
-    ox = body[0] * mx + body[1] * my + body[2] * mz
-    oy = body[3] * mx + body[4] * my + body[5] * mz
-    oz = body[6] * mx + body[7] * my + body[8] * mz
+    # R_a^T dL, then I_b^-1 of it.
+    ox, oy, oz = inverse_inertia_times(body, rotate_back(qa, (dx, dy, dz)))
     return angle + h * math.sqrt(ox * ox + oy * oy + oz * oz)
 
 
-@_jit
+@helper
 def next_substeps(control, substeps, rate, constant, tick):
     """
     Return the substep count after an estimate at `substeps` substeps of a `tick` s tick.
@@ -268,7 +257,7 @@ def next_substeps(control, substeps, rate, constant, tick):
     return substeps
 
 
-@_jit
+@helper
 def turning_points(state, body):
     """
     Return the body momenta (kg m^2/s, body frame) at the turning points of the polhode.
@@ -287,19 +276,12 @@ def turning_points(state, body):
     points = np.zeros((3, 3))
     if state[10] == 0.0 and state[11] == 0.0 and state[12] == 0.0:
         return points, 0
-    if body[_BODY_KIND] != 0.0:
+    if body[BODY_KIND] != 0.0:
         return points, 0
-    x, y, z, w = state[0], state[1], state[2], state[3]
-    lx, ly, lz = state[10], state[11], state[12]
-    momentum = np.empty(3)
-    momentum[0] = ((1.0 - 2.0 * (y * y + z * z)) * lx + 2.0 * (x * y + z * w) * ly
-                   + 2.0 * (x * z - y * w) * lz)
-    momentum[1] = (2.0 * (x * y - z * w) * lx + (1.0 - 2.0 * (x * x + z * z)) * ly
-                   + 2.0 * (y * z + x * w) * lz)
-    momentum[2] = (2.0 * (x * z + y * w) * lx + 2.0 * (y * z - x * w) * ly
-                   + (1.0 - 2.0 * (x * x + y * y)) * lz)
-    moments = body[_BODY_MOMENTS:_BODY_MOMENTS + 3]
-    axes = body[_BODY_AXES:_BODY_AXES + 9].reshape((3, 3))
+    momentum = rotate_back((state[0], state[1], state[2], state[3]),
+                           (state[10], state[11], state[12]))
+    moments = body[BODY_MOMENTS:BODY_MOMENTS + 3]
+    axes = body[BODY_AXES:BODY_AXES + 9].reshape((3, 3))
     principal = np.empty(3)
     for k in range(3):
         principal[k] = axes[0, k] * momentum[0] + axes[1, k] * momentum[1] \
@@ -323,24 +305,15 @@ def turning_points(state, body):
     return points, count
 
 
-@_jit
+@helper
 def _turn_rate(state, body):
     """Return |Omega| (rad/s) of a packed state: |I_b^-1 R^T L|."""
-    x, y, z, w = state[0], state[1], state[2], state[3]
-    lx, ly, lz = state[10], state[11], state[12]
-    mx = ((1.0 - 2.0 * (y * y + z * z)) * lx + 2.0 * (x * y + z * w) * ly
-          + 2.0 * (x * z - y * w) * lz)
-    my = (2.0 * (x * y - z * w) * lx + (1.0 - 2.0 * (x * x + z * z)) * ly
-          + 2.0 * (y * z + x * w) * lz)
-    mz = (2.0 * (x * z + y * w) * lx + 2.0 * (y * z - x * w) * ly
-          + (1.0 - 2.0 * (x * x + y * y)) * lz)
-    ox = body[0] * mx + body[1] * my + body[2] * mz
-    oy = body[3] * mx + body[4] * my + body[5] * mz
-    oz = body[6] * mx + body[7] * my + body[8] * mz
+    ox, oy, oz = inverse_inertia_times(body, rotate_back(
+        (state[0], state[1], state[2], state[3]), (state[10], state[11], state[12])))
     return math.sqrt(ox * ox + oy * oy + oz * oz)
 
 
-@_jit
+@helper
 def _ticks_between_estimates(substeps, tick, turn_rate):
     """Return the ticks to take without an estimate after one (see OVERHEAD, MAX_TURN)."""
     extra = (1.0 if substeps >= 2 else 2.0) + ESTIMATE_WORK
@@ -350,7 +323,7 @@ def _ticks_between_estimates(substeps, tick, turn_rate):
     return max(0.0, min(by_cost, by_turn))
 
 
-@_jit
+@helper
 def _record(control, substeps, steps, ticks=1):
     """Note `ticks` ticks of `substeps` substeps each that took `steps` integrator steps."""
     control[LAST] = substeps
@@ -361,41 +334,33 @@ def _record(control, substeps, steps, ticks=1):
     control[TICKS] += ticks
 
 
-# Inlined into each integrator's wrapper (numba IR inlining): a call with `run` as an argument
-# would pass the dispatcher object at run time, a pointer numba's cache refuses ("dynamic
-# globals"), so the wrappers would compile anew in every process.
-@numba.njit(inline='always', nogil=True)
-def controlled_ticks(run, state, wrench, body, method, damping, tick, ticks, control, clock):
+@inline
+def controlled_ticks(run, state, model, method, tick, ticks, time, control):
     """
-    Advance a packed state in place by `ticks` ticks of `tick` s under error control.
+    Advance a packed state in place by `ticks` ticks of `tick` s from `time` (s), controlled.
 
-    run: an integrator's run function (fast.py's signature); the other arguments up to
-    damping are passed on to it.  control: the control array (updated: n, the countdown,
-    the votes, the statistics).  clock: a (1,) array set before each call of `run` to the
-    time (s, from the tick's start) of that call's first step; the compiled runs ignore it,
-    the Simulator's readable run reads it.  Returns the integrator steps taken.
+    run: an integrator's run kernel (kernels/loop.py's signature); model and method are
+    passed on to it.  control: the control array (updated: n, the countdown, the votes, the
+    statistics).  Returns the integrator steps taken.
 
-    Compiled into a wrapper per integrator in its fast module (numba caches a function by
-    its own file: after editing this one, delete the integrators' cached kernels, as for
-    effects.dissipation; the tests compare compiled and readable control).
+    Inlined into each integrator's ``controlled`` kernel (kernels.inline): a call with `run`
+    as an argument would pass the kernel at run time, which numba refuses to cache.
     """
     order = control[ORDER]
     taken = 0
     start = state.copy()
     companion = state.copy()
     virtual = state.copy()
-    free = np.zeros((6, 3))
     done = 0
     while done < ticks:
         n = int(max(control[SUBSTEPS], control[MIN_SUBSTEPS]))
+        now = time + done * tick
         if control[COUNTDOWN] > 0.0:
             # The ticks up to the next estimate are steps of one h in a row: one call takes
             # them (a call per tick cost more than the step itself at a few substeps).
-            # The readable path asks one tick at a time, so its clock stays the tick's.
             merged = int(min(control[COUNTDOWN], ticks - done))
             control[COUNTDOWN] -= merged
-            clock[0] = 0.0
-            run(state, wrench, body, method, damping, tick / n, n * merged)
+            run(state, model, method, tick / n, n * merged, now)
             taken += n * merged
             control[SINCE] += tick * merged
             _record(control, n, n * merged, merged)
@@ -408,7 +373,7 @@ def controlled_ticks(run, state, wrench, body, method, damping, tick, ticks, con
             # The largest error constant r / h^q at the polhode's turning points, each a
             # virtual torque-free state (identity orientation, L = m there) stepped as a
             # pair of h and a companion of 2 h like the real state.
-            points, count = turning_points(state, body)
+            points, count = turning_points(state, model.body)
             h = tick / n
             largest = 0.0
             for index in range(count):
@@ -416,9 +381,10 @@ def controlled_ticks(run, state, wrench, body, method, damping, tick, ticks, con
                 virtual[3] = 1.0
                 virtual[10:13] = points[index]
                 companion[:] = virtual
-                run(virtual, free, body, method, 0.0, h, 2)
-                run(companion, free, body, method, 0.0, 2.0 * h, 1)
-                error = step_difference(virtual, companion, body, h) / (2.0 ** (order + 1) - 2.0)
+                run(virtual, model, method, h, 2, now)
+                run(companion, model, method, 2.0 * h, 1, now)
+                error = step_difference(virtual, companion, model.body, h) / (
+                    2.0 ** (order + 1) - 2.0)
                 largest = max(largest, error / h)
             control[ORBIT_CONSTANT] = largest / h ** order
             steps += 3 * count
@@ -429,21 +395,21 @@ def controlled_ticks(run, state, wrench, body, method, damping, tick, ticks, con
             if n >= 2:
                 # The last two substeps are the pair, one step of 2h from before them the
                 # companion: e(h) = |difference| / (2^(q+1) - 2).
-                clock[0] = 0.0
-                run(state, wrench, body, method, damping, h, n - 2)
+                run(state, model, method, h, n - 2, now)
                 companion[:] = state
-                clock[0] = (n - 2) * h
-                run(state, wrench, body, method, damping, h, 2)
-                run(companion, wrench, body, method, damping, 2.0 * h, 1)
-                error = step_difference(state, companion, body, h) / (2.0 ** (order + 1) - 2.0)
+                middle = now + (n - 2) * h
+                run(state, model, method, h, 2, middle)
+                run(companion, model, method, 2.0 * h, 1, middle)
+                error = step_difference(state, companion, model.body, h) / (
+                    2.0 ** (order + 1) - 2.0)
                 steps += n + 1
             else:
                 # One substep: the companion is two half steps, e(h) = |diff| / (1 - 2^-q).
                 companion[:] = state
-                clock[0] = 0.0
-                run(state, wrench, body, method, damping, h, 1)
-                run(companion, wrench, body, method, damping, 0.5 * h, 2)
-                error = step_difference(state, companion, body, h) / (1.0 - 2.0 ** -order)
+                run(state, model, method, h, 1, now)
+                run(companion, model, method, 0.5 * h, 2, now)
+                error = step_difference(state, companion, model.body, h) / (
+                    1.0 - 2.0 ** -order)
                 steps += 3
             rate = error / h
             # The count must also hold the polhode's worst point (see the module docstring).
@@ -467,5 +433,6 @@ def controlled_ticks(run, state, wrench, body, method, damping, tick, ticks, con
             # The turning points' constant was taken at the old step: take it anew.
             control[ORBIT_COUNTDOWN] = 0.0
         control[SUBSTEPS] = following
-        control[COUNTDOWN] = _ticks_between_estimates(following, tick, _turn_rate(state, body))
+        control[COUNTDOWN] = _ticks_between_estimates(following, tick,
+                                                      _turn_rate(state, model.body))
     return taken

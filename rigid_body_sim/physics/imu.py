@@ -23,9 +23,14 @@ Core only: numpy, no ROS.
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
+from .kernels import kernel
+from .kernels.algebra import cross
+from .kernels.algebra import quaternion_product
+from .kernels.algebra import rotate
+from .kernels.algebra import rotate_back
+from .kernels.layout import inverse_inertia_times
 from .rotations import matrix_from_quaternion
 
 
@@ -185,9 +190,9 @@ class Imu:
         self._gravity = np.asarray(gravity, dtype=float)
         self._pivot_offset = None if pivot_offset is None else np.asarray(pivot_offset, float)
         self._position = np.asarray(model.position, dtype=float)
+        # IMU to body, a unit quaternion.
         self._orientation = np.asarray(model.orientation, dtype=float)
-        # IMU to body.
-        self._mount_rotation = matrix_from_quaternion(self._orientation)
+        self._orientation = self._orientation / np.linalg.norm(self._orientation)
         seeds = np.random.SeedSequence(model.seed).spawn(2)
         self.gyro_noise = KalibrNoise(model.gyro_noise_density, model.gyro_random_walk,
                                       model.gyro_bias_sigma, seeds[0])
@@ -203,12 +208,11 @@ class Imu:
             pivot_inverse = np.linalg.inv(body.inertia + body.mass * (
                 offset @ offset * np.eye(3) - np.outer(offset, offset)))
             pivoted = 1.0
-        # Packed for the compiled kernel: I^-1, I_pivot^-1 (body), m, pivoted, d, r, the
-        # mount rotation (IMU to body), q_bi, g.
+        # Packed for the compiled kernel: I^-1, I_pivot^-1 (body), m, pivoted, d, r, q_bi
+        # (IMU to body), g.
         self._constants = np.concatenate([
             np.asarray(inverse).reshape(-1), pivot_inverse.reshape(-1),
-            [body.mass, pivoted], offset, self._position, self._mount_rotation.reshape(-1),
-            self._orientation, self._gravity])
+            [body.mass, pivoted], offset, self._position, self._orientation, self._gravity])
 
     def advance(self, dt):
         """Draw the noise of the next sample, dt s after the last (once per sample)."""
@@ -225,9 +229,9 @@ class Imu:
         :func:`accelerations` and :func:`specific_force_body` (tested to round-off), in one
         compiled call: simulate computes it every tick.
         """
-        values = _imu_truth(state.quaternion, state.rotation, state.angular_momentum,
-                            state.linear_momentum, np.asarray(force, dtype=float),
-                            np.asarray(torque, dtype=float), self._constants)
+        values = _imu_truth(state.quaternion, state.angular_momentum, state.linear_momentum,
+                            np.asarray(force, dtype=float), np.asarray(torque, dtype=float),
+                            self._constants)
         return values[0:4], values[4:7], values[7:10]
 
     def reading(self, state, force, torque):
@@ -236,42 +240,56 @@ class Imu:
         return orientation, omega + self._gyro_error, specific_force + self._accel_error
 
 
-@numba.njit(cache=True, nogil=True)
-def _imu_truth(quaternion, rotation, angular_momentum, linear_momentum, force, torque,
-               constants):
+@kernel
+def _imu_truth(quaternion, angular_momentum, linear_momentum, force, torque, constants):
     """Compiled :meth:`Imu.truth`: [q_world_imu (4), omega_imu (3), specific force (3)]."""
-    inverse = constants[0:9].reshape((3, 3))
-    pivot_inverse = constants[9:18].reshape((3, 3))
+    q = (quaternion[0], quaternion[1], quaternion[2], quaternion[3])
+    inverse, pivot_inverse = constants[0:9], constants[9:18]
     mass, pivoted = constants[18], constants[19]
-    offset, position = constants[20:23], constants[23:26]
-    mount = constants[26:35].reshape((3, 3))
-    mount_quaternion, gravity = constants[35:39], constants[39:42]
+    offset = (constants[20], constants[21], constants[22])
+    position = (constants[23], constants[24], constants[25])
+    mount = (constants[26], constants[27], constants[28], constants[29])
+    gravity = (constants[30], constants[31], constants[32])
+    momentum = (angular_momentum[0], angular_momentum[1], angular_momentum[2])
+    applied_force = (force[0], force[1], force[2])
+    applied_torque = (torque[0], torque[1], torque[2])
     # Omega = I^-1 R^T L (body), omega = R Omega.
-    omega_body = inverse @ (rotation.T @ angular_momentum)
-    omega = rotation @ omega_body
+    omega_body = inverse_inertia_times(inverse, rotate_back(q, momentum))
+    omega = rotate(q, omega_body)
     if pivoted == 0.0:
         # alpha = R I^-1 R^T (tau - omega x L), a = F / m.
-        alpha = rotation @ (inverse @ (rotation.T @ (
-            torque - np.cross(omega, angular_momentum))))
-        acceleration = force / mass
+        gyroscopic = cross(omega, momentum)
+        alpha_body = inverse_inertia_times(inverse, rotate_back(q, (
+            applied_torque[0] - gyroscopic[0], applied_torque[1] - gyroscopic[1],
+            applied_torque[2] - gyroscopic[2])))
+        acceleration = (applied_force[0] / mass, applied_force[1] / mass,
+                        applied_force[2] / mass)
     else:
         # About the pivot: tau_p = tau + r x F, L_p = L + r x p; the COM on its sphere.
-        r = rotation @ offset
-        momentum_pivot = angular_momentum + np.cross(r, linear_momentum)
-        alpha = rotation @ (pivot_inverse @ (rotation.T @ (
-            torque + np.cross(r, force) - np.cross(omega, momentum_pivot))))
-        acceleration = np.cross(alpha, r) + np.cross(omega, np.cross(omega, r))
-    alpha_body = rotation.T @ alpha
-    specific_force = rotation.T @ (acceleration - gravity) + np.cross(alpha_body, position) \
-        + np.cross(omega_body, np.cross(omega_body, position))
+        r = rotate(q, offset)
+        lever = cross(r, (linear_momentum[0], linear_momentum[1], linear_momentum[2]))
+        momentum_pivot = (momentum[0] + lever[0], momentum[1] + lever[1],
+                          momentum[2] + lever[2])
+        moment = cross(r, applied_force)
+        gyroscopic = cross(omega, momentum_pivot)
+        alpha_body = inverse_inertia_times(pivot_inverse, rotate_back(q, (
+            applied_torque[0] + moment[0] - gyroscopic[0],
+            applied_torque[1] + moment[1] - gyroscopic[1],
+            applied_torque[2] + moment[2] - gyroscopic[2])))
+        alpha = rotate(q, alpha_body)
+        tangential, centripetal = cross(alpha, r), cross(omega, cross(omega, r))
+        acceleration = (tangential[0] + centripetal[0], tangential[1] + centripetal[1],
+                        tangential[2] + centripetal[2])
+    translational = rotate_back(q, (acceleration[0] - gravity[0], acceleration[1] - gravity[1],
+                                    acceleration[2] - gravity[2]))
+    tangential = cross(alpha_body, position)
+    centripetal = cross(omega_body, cross(omega_body, position))
+    specific_force = (translational[0] + tangential[0] + centripetal[0],
+                      translational[1] + tangential[1] + centripetal[1],
+                      translational[2] + tangential[2] + centripetal[2])
     out = np.empty(10)
-    ax, ay, az, aw = quaternion[0], quaternion[1], quaternion[2], quaternion[3]
-    bx, by, bz, bw = mount_quaternion[0], mount_quaternion[1], mount_quaternion[2], \
-        mount_quaternion[3]
-    out[0] = aw * bx + ax * bw + ay * bz - az * by
-    out[1] = aw * by - ax * bz + ay * bw + az * bx
-    out[2] = aw * bz + ax * by - ay * bx + az * bw
-    out[3] = aw * bw - ax * bx - ay * by - az * bz
-    out[4:7] = mount.T @ omega_body
-    out[7:10] = mount.T @ specific_force
+    out[0], out[1], out[2], out[3] = quaternion_product(q, mount)
+    # IMU frame = mount^T body frame.
+    out[4], out[5], out[6] = rotate_back(mount, omega_body)
+    out[7], out[8], out[9] = rotate_back(mount, specific_force)
     return out

@@ -1,14 +1,19 @@
 """
-Rotations: skew matrices, the exponential map, quaternions (x, y, z, w) and matrices.
+Rotations on numpy arrays: skew matrices, the exponential map, quaternions and matrices.
 
 Conventions (see README): a rotation matrix R maps body coordinates to world coordinates,
 x_world = R x_body.  Quaternions are stored (x, y, z, w) as in geometry_msgs and compose
 with the Hamilton product, so that matrix_from_quaternion(a * b) = R(a) R(b).
+
+The algebra itself is written once, compiled, in :mod:`.kernels.algebra`; the functions
+here are its numpy faces (arrays in, arrays out) plus the checks and conversions that only
+Python code needs.
 """
 
-import math
-
 import numpy as np
+
+from .kernels import algebra
+
 
 __all__ = [
     'cross',
@@ -22,21 +27,10 @@ __all__ = [
     'check_quaternion',
 ]
 
-# Below this angle (rad) the Taylor series of sin(t)/t and (1 - cos t)/t^2 are used: at
-# t = 1e-4 the first omitted terms are ~t^4/120 ~ 1e-18, below double round-off.
-_SERIES_ANGLE = 1e-4
-
 
 def cross(a, b):
-    """
-    Return the cross product a x b of two 3-vectors.
-
-    Written out because numpy's general np.cross, which handles stacks and broadcasting,
-    costs ~10x more for one pair of 3-vectors, and the readable steps call it every step.
-    """
-    a0, a1, a2 = a
-    b0, b1, b2 = b
-    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+    """Return the cross product a x b of two 3-vectors (an array)."""
+    return np.array(algebra.cross(a, b))
 
 
 def skew(vector):
@@ -46,63 +40,30 @@ def skew(vector):
 
 
 def rotation_matrix_from_rotation_vector(rotation_vector):
-    """
-    Return exp([v]x) by Rodrigues' formula; v is the rotation axis times the angle (rad).
-
-    exp([v]x) = E + sin(t)/t [v]x + (1 - cos t)/t^2 [v]x^2 with t = |v|.
-    """
-    v = np.asarray(rotation_vector, dtype=float)
-    angle = np.sqrt(v @ v)
-    if angle < _SERIES_ANGLE:
-        a = 1.0 - angle * angle / 6.0
-        b = 0.5 - angle * angle / 24.0
-    else:
-        a = np.sin(angle) / angle
-        b = (1.0 - np.cos(angle)) / (angle * angle)
-    k = skew(v)
-    return np.eye(3) + a * k + b * (k @ k)
+    """Return exp([v]x), v the rotation axis times the angle (rad)."""
+    return matrix_from_quaternion(quaternion_from_rotation_vector(rotation_vector))
 
 
 def quaternion_from_rotation_vector(rotation_vector):
     """
     Return the unit quaternion (x, y, z, w) of the rotation exp([v]x).
 
-    q = (sin(t/2) v/t, cos(t/2)), t = |v|; any angle, including several turns, is exact.
+    q = (sin(t/2) v/t, cos(t/2)), t = |v|; any angle, including several turns, is exact
+    (:func:`.kernels.algebra.exp_map`).
     """
-    v = np.asarray(rotation_vector, dtype=float)
-    angle = np.sqrt(v @ v)
-    half = 0.5 * angle
-    if angle < _SERIES_ANGLE:
-        # sin(t/2)/t = 1/2 - t^2/48 + ...
-        s = 0.5 - angle * angle / 48.0
-    else:
-        s = np.sin(half) / angle
-    return np.array([s * v[0], s * v[1], s * v[2], np.cos(half)])
+    return np.array(algebra.exp_map(np.asarray(rotation_vector, dtype=float)))
 
 
 def quaternion_multiply(a, b):
     """Return the Hamilton product a * b of quaternions stored (x, y, z, w)."""
-    ax, ay, az, aw = a
-    bx, by, bz, bw = b
-    return np.array([
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-        aw * bw - ax * bx - ay * by - az * bz,
-    ])
+    return np.array(algebra.quaternion_product(np.asarray(a, dtype=float),
+                                               np.asarray(b, dtype=float)))
 
 
 def matrix_from_quaternion(quaternion):
     """Return the rotation matrix of a quaternion (x, y, z, w); it is normalised first."""
-    # Python floats: for one 3x3 matrix, scalar arithmetic beats numpy's per-call overhead.
-    x, y, z, w = (float(c) for c in quaternion)
-    norm = math.sqrt(x * x + y * y + z * z + w * w)
-    x, y, z, w = x / norm, y / norm, z / norm, w / norm
-    return np.array([
-        [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w)],
-        [2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w)],
-        [2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y)],
-    ])
+    unit = algebra.normalised(np.asarray(quaternion, dtype=float))
+    return np.array(algebra.rotation_matrix(unit)).reshape(3, 3)
 
 
 def quaternion_from_matrix(rotation):

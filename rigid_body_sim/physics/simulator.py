@@ -11,15 +11,16 @@ import math
 import numpy as np
 
 from . import error_control
-from .effects.dissipation import Dissipation
-from .integrators import FAST_KERNELS
+from .effects.registry import Effect
 from .integrators import get_integrator
-from .integrators.fast import body_values
-from .integrators.fast import LEVER_FORCE
-from .integrators.fast import packed_wrench
-from .integrators.fast import STATE_SIZE
-from .integrators.fast import TORQUE_BODY
-from .integrators.fast import TORQUE_WORLD
+from .kernels.layout import body_values
+from .kernels.layout import STATE_SIZE
+from .kernels.model import applied_wrench_of
+from .kernels.model import HELD_FORCE_BODY
+from .kernels.model import HELD_FORCE_WORLD
+from .kernels.model import HELD_TORQUE_BODY
+from .kernels.model import HELD_TORQUE_WORLD
+from .kernels.model import new_model
 from .state import State
 
 __all__ = ['Simulator', 'unresolved_rotation', 'RESOLVED_ROTATION']
@@ -29,14 +30,17 @@ RESOLVED_ROTATION = 0.5
 method's error per step is O(1) (the Taylor and Magnus series the methods truncate are in
 |omega| h), so the motion is not followed, whatever the method keeps conserved."""
 
+MAX_STEPS_PER_RUN = 10 ** 12
+"""The most outer steps one :meth:`Simulator.run` takes (duration / dt beyond it is refused:
+at ~0.05 us per step it would run for days)."""
+
 _FRAMES = ('world', 'body')
 # Steps per kernel call when a progress callback wants to hear about a long run.
 _PROGRESS_CHUNK = 20000
 
-# What takes the steps (Simulator._path), chosen once per configuration by _plan.
-COMPILED = 'compiled'  # one compiled run takes all the steps, a dissipation flow fused in
-KERNEL_AND_FLOWS = 'kernel+flows'  # single kernel steps, flows composed around them here
-READABLE = 'readable'  # the readable step functions, effects evaluated every step
+# What takes the steps (Simulator.path).
+COMPILED = 'compiled'  # the integrator's kernel, every effect compiled (kernels/model.py)
+READABLE = 'readable'  # the readable step functions and the effects' Python faces
 
 
 def _checked_vector(value, name):
@@ -70,19 +74,16 @@ class Simulator:
     integrator : str
         A name in :data:`INTEGRATORS` (default ``'buss'``).
     effects : sequence, optional
-        Objects with ``wrench(body, state, time) -> (force, torque)`` (world frame, N and
-        N m about the COM), optionally ``potential_energy(body, state)`` (J) and
-        ``momentum_dependent`` (bool); see :mod:`.effects.registry` for the whole protocol:
-        a ``constant_force(body)`` (uniform gravity) is folded into the held wrench, so the
-        compiled kernel still runs; a ``flow(body, state, dt)`` (dissipation) is composed
-        with each step as flow(dt/2), step(dt), flow(dt/2); ``constrain(body)`` (a pivot)
-        makes the simulator advance the constrained system and show its physical state.
-        Only these are evaluated: with none, and no held wrench, the motion is torque-free
-        and no force code runs.
+        Effects (:mod:`.effects.registry` gives the protocol): their compiled wrench terms
+        act through every integrator's kicks or stages, their flows are composed with each
+        step as flow(dt/2), step(dt), flow(dt/2), and a constraint (a pivot) makes the
+        simulator advance the constrained system and show its physical state.  Only these
+        are evaluated: with none, and no held wrench, the motion is torque-free and no force
+        code runs.
     fast : bool
-        Use the integrator's compiled kernel when the wrench is a held one (default True):
-        held and constant forces and torques, under a pivot too, and a dissipation flow
-        fused into the compiled loop.  The kernel equals the readable step to round-off.
+        Run the integrator's compiled kernel (default True, the only path the tools use).
+        False runs the readable step functions with the effects' Python faces instead: the
+        reference the tests hold the kernels to, ~1000x slower.
     tolerance : float, optional
         Error control (rad per simulated second): every outer step (``step(dt)``, and each
         ``dt`` of ``run(duration, dt)``) is split into as many equal substeps as keep the
@@ -97,11 +98,11 @@ class Simulator:
     linear momentum, angular momentum about the COM), and a state that is set is projected
     onto the constraint first (rotation and angular velocity kept).
 
-    The integrated state lives in one packed array (integrators/fast.py), advanced in place
-    by the compiled kernels between calls; the immutable :class:`State` is built from it
-    when :attr:`state` is read (step() and run() return it), so a step costs one kernel
-    call and one State, not a round trip through State objects.  Under error control one
-    compiled call takes all the outer steps of a run(), the controller included.
+    The integrated state lives in one packed array (kernels/layout.py), advanced in place by
+    the compiled kernel between calls; the immutable :class:`State` is built from it when
+    :attr:`state` is read (step() and run() return it), so a step costs one kernel call and
+    one State.  The body, the held wrench and the effects are one compiled
+    :class:`~.kernels.model.Model`, built once; the held wrench is written into it in place.
 
     """
 
@@ -113,39 +114,38 @@ class Simulator:
         self._time = 0.0
         self._time_compensation = 0.0
         self._effects = tuple(effects)
+        # The held wrench, rows kernels.model.HELD_*: shared with the compiled model.
+        self._held = np.zeros((4, 3))
         self._sort_effects()
-        # The error controller's state (error_control.new_control) and the clock it hands
-        # the readable steps.
+        # The error controller's state (error_control.new_control).
         self._control = error_control.new_control(2)
-        self._clock = np.zeros(1)
         self._tolerance = None
         # The integrated state, packed [q, x, p, L].
         self._values = np.zeros(STATE_SIZE)
         self.state = state
         self._fast = bool(fast)
-        self._held = tuple(np.zeros(3) for _ in range(4))
-        self._held_active = False
         self.integrator = integrator
         self.substeps = substeps
         self.tolerance = tolerance
 
     def _sort_effects(self):
-        """Sort the effects by what they do, once, so that a step runs only what is there."""
-        constant_force = np.zeros(3)
+        """Sort the effects by what they do and build the compiled model, once."""
         wrenches, flows, constraints = [], [], []
         for effect in self._effects:
-            if getattr(effect, 'constant_force', None) is not None:
-                constant_force = constant_force + _checked_vector(
-                    effect.constant_force(self._body), 'constant_force')
-            elif getattr(effect, 'wrench', None) is not None:
+            if getattr(effect, 'compiled_wrench', None) is not None:
                 wrenches.append(effect)
-            if getattr(effect, 'flow', None) is not None:
+            elif callable(getattr(effect, 'wrench', None)) and not isinstance(effect, Effect):
+                raise ValueError(
+                    f'effect {type(effect).__name__} has a Python wrench() but no '
+                    'compiled_wrench: write the wrench as a compiled term (decorate it with '
+                    'rigid_body_sim.physics.kernels.model.wrench_term, give its parameters '
+                    'with wrench_parameters(body); see physics/effects/registry.py)')
+            if getattr(effect, 'compiled_flow', None) is not None:
                 flows.append(effect)
             if getattr(effect, 'constrain', None) is not None:
                 constraints.append(effect)
         if len(constraints) > 1:
             raise ValueError(f'at most one constraint effect (pivot); got {len(constraints)}')
-        self._constant_force = constant_force
         self._pushing_effects = tuple(wrenches)
         self._flows = tuple(flows)
         self._constraint = constraints[0].constrain(self._body) if constraints else None
@@ -153,7 +153,17 @@ class Simulator:
         self._integrated_body = (self._body if self._constraint is None
                                  else self._constraint.body)
         body = self._integrated_body
-        self._kernel_body = body_values(body.inertia, body.inertia_inverse, body.mass)
+        constraint = self._constraint
+        self._model = new_model(
+            body_values(body.inertia, body.inertia_inverse, body.mass), self._held,
+            terms=[(effect.compiled_wrench, effect.wrench_parameters(self._body))
+                   for effect in wrenches],
+            flows=[(effect.compiled_flow, effect.flow_parameters(body)) for effect in flows],
+            constraint=None if constraint is None else (
+                constraint.expand_function, constraint.transmit_function,
+                constraint.parameters),
+            momentum_dependent=any(effect.momentum_dependent for effect in wrenches),
+            reads_state=any(effect.reads_state for effect in wrenches))
 
     # -- configuration
 
@@ -168,15 +178,18 @@ class Simulator:
         return self._effects
 
     @property
+    def path(self):
+        """Get what takes the steps: 'compiled' (the kernels) or 'readable' (fast=False)."""
+        return COMPILED if self._fast else READABLE
+
+    @property
     def integrator(self):
         """Name of the integrator in use; settable, an unknown name is a ValueError."""
-        return self._integrator_name
+        return self._integrator.name
 
     @integrator.setter
     def integrator(self, name):
-        self._step = get_integrator(name)
-        self._integrator_name = name
-        self._kernel = FAST_KERNELS.get(name) if self._fast else None
+        self._integrator = get_integrator(name)
         self._set_order()
         self._plan()
 
@@ -185,10 +198,9 @@ class Simulator:
         Give the controller the order of the steps as taken.
 
         The integrator's, at most 2 with a flow (flow(h/2) step(h) flow(h/2) is a Strang
-        composition: second order).  A step function without a registered order (a test's
-        spy) is taken as first order, the most cautious estimate.
+        composition: second order).
         """
-        order = getattr(self._step, 'order', 1)
+        order = self._integrator.order
         if self._flows:
             order = min(order, 2)
         error_control.set_order(self._control, order)
@@ -271,13 +283,10 @@ class Simulator:
             raise ValueError(f'frame must be one of {", ".join(_FRAMES)}; got {frame!r}')
         force = _checked_vector(force, 'force')
         torque = _checked_vector(torque, 'torque')
-        zero = np.zeros(3)
         if frame == 'world':
-            self._held = (force, torque, zero, zero.copy())
+            self._hold(force, torque, None, None)
         else:
-            self._held = (zero, zero.copy(), force, torque)
-        self._held_active = bool(np.any(force) or np.any(torque))
-        self._plan()
+            self._hold(None, None, force, torque)
 
     def hold_wrench(self, force_world=None, torque_world=None, force_body=None,
                     torque_body=None):
@@ -288,18 +297,22 @@ class Simulator:
         torque_world + R torque_body about it; the body parts turn with the body during the
         steps.  What is not given is zero.  Use it when inputs in both frames are active.
         """
-        parts = (_checked_vector(force_world, 'force_world'),
-                 _checked_vector(torque_world, 'torque_world'),
-                 _checked_vector(force_body, 'force_body'),
-                 _checked_vector(torque_body, 'torque_body'))
-        self._held = parts
-        self._held_active = any(bool(np.any(part)) for part in parts)
+        self._hold(_checked_vector(force_world, 'force_world'),
+                   _checked_vector(torque_world, 'torque_world'),
+                   _checked_vector(force_body, 'force_body'),
+                   _checked_vector(torque_body, 'torque_body'))
+
+    def _hold(self, force_world, torque_world, force_body, torque_body):
+        # Written in place: the compiled model holds this very array.
+        for row, part in ((HELD_FORCE_WORLD, force_world), (HELD_TORQUE_WORLD, torque_world),
+                          (HELD_FORCE_BODY, force_body), (HELD_TORQUE_BODY, torque_body)):
+            self._held[row] = 0.0 if part is None else part
         self._plan()
 
     @property
     def held_wrench(self):
         """Get the held wrench: (force_world, torque_world, force_body, torque_body)."""
-        return tuple(a.copy() for a in self._held)
+        return tuple(self._held[row].copy() for row in range(4))
 
     # -- state
 
@@ -366,35 +379,41 @@ class Simulator:
                 energy += potential(self._body, state)
         return energy
 
+    def applied_wrench(self):
+        """
+        Return (force N, torque N m) applied now: held plus effects, about the COM (world).
+
+        A constraint's reaction is not in it (the IMU's accelerations start from this).
+        """
+        values = np.concatenate(self.state._fields())
+        wrench = applied_wrench_of(values, self._time, self._model)
+        return np.array(wrench[:3]), np.array(wrench[3:])
+
     def wrench_function(self):
         """
         Return the total wrench as ``wrench(state, time)``, or None when nothing pushes.
 
-        It acts on physical states: the held wrench, the effects' constant forces and their
-        wrenches (force through the COM, torque about it; world frame).  A constraint's
-        reaction is not part of it.
+        It acts on physical states: the held wrench and the effects' wrenches (force through
+        the COM, torque about it; world frame).  A constraint's reaction is not part of it.
+        The readable steps take it (fast=False).
         """
-        held = self._held_active or bool(np.any(self._constant_force))
+        held = bool(np.any(self._held))
         effects = self._pushing_effects
         if not effects and not held:
             return None
-        force_world, torque_world, force_body, torque_body = self._held
-        force_world = force_world + self._constant_force
+        force_world, torque_world, force_body, torque_body = self.held_wrench
         body = self._body
 
         def wrench(state, time):
-            force = force_world + state.rotation @ force_body if held else np.zeros(3)
-            torque = torque_world + state.rotation @ torque_body if held else np.zeros(3)
+            force = force_world + state.rotation @ force_body
+            torque = torque_world + state.rotation @ torque_body
             for effect in effects:
                 effect_force, effect_torque = effect.wrench(body, state, time)
                 force = force + effect_force
                 torque = torque + effect_torque
             return force, torque
 
-        wrench.momentum_dependent = any(
-            getattr(effect, 'momentum_dependent', False) for effect in effects)
-        # Held and constant parts depend on the rotation alone (a pivot can skip expanding).
-        wrench.rotation_only = not effects
+        wrench.momentum_dependent = any(effect.momentum_dependent for effect in effects)
         return wrench
 
     # -- time stepping
@@ -423,8 +442,10 @@ class Simulator:
 
         Each outer step is as :meth:`step` takes it (one step, `substeps` steps, or under
         error control as many as needed).  If dt does not divide the duration, a last
-        shorter outer step ends exactly at it.  `progress`, if given, is called with the
-        fraction done (0..1) during long runs.
+        shorter outer step ends exactly at it (a duration shorter than dt is one such step).
+        `progress`, if given, is called with the fraction done (0..1) during long runs.
+        ValueError for a duration that is not finite and >= 0, and for more than
+        :data:`MAX_STEPS_PER_RUN` outer steps.
         """
         dt = _checked_positive(dt, 'dt')
         try:
@@ -433,9 +454,13 @@ class Simulator:
             raise ValueError(f'duration must be a number of seconds; got {duration!r}') from None
         if not math.isfinite(duration) or duration < 0.0:
             raise ValueError(f'duration must be finite and >= 0 s; got {duration!r}')
-        steps = int(round(duration / dt))
+        ratio = duration / dt
+        if not ratio <= MAX_STEPS_PER_RUN:
+            raise ValueError(f'duration / dt = {ratio:.3g} steps: more than the '
+                             f'{MAX_STEPS_PER_RUN:.0e} one run takes; raise dt or shorten it')
+        steps = int(round(ratio))
         if abs(steps * dt - duration) > 1e-9 * dt:
-            steps = int(math.floor(duration / dt))
+            steps = int(math.floor(ratio))
         remainder = duration - steps * dt
         done = 0
         controlled = self._tolerance is not None
@@ -450,7 +475,9 @@ class Simulator:
             done += count
             if progress is not None:
                 progress(done / steps)
-        if remainder > 1e-9 * dt:
+        # A remainder of round-off (duration a multiple of dt to 1e-9) is not a step; a
+        # duration shorter than dt is one.
+        if remainder > 1e-9 * dt or (steps == 0 and remainder > 0.0):
             if controlled:
                 self._controlled(remainder, 1)
             else:
@@ -460,67 +487,24 @@ class Simulator:
         return self.state
 
     def _plan(self):
-        """
-        Choose, once per configuration (integrator, held wrench), what takes the steps.
-
-        The compiled kernels take held wrenches only (fixed in the world or in the body,
-        and a world force at a body point under a pivot); an effect's wrench is evaluated
-        by the readable step functions.  A dissipation flow is fused into the compiled run;
-        other flows are composed here around single kernel steps.
-        """
-        kernel = self._kernel
-        self._wrench = self._packed_wrench()
-        self._run = None
-        # Something changed: the next outer step is estimated.  Torque-free (forces through
-        # the COM allowed) the controller also looks at the rest of the polhode.
-        wrench = self._wrench
-        error_control.set_torque_free(self._control, not (
-            self._pushing_effects or self._flows or np.any(wrench[TORQUE_WORLD])
-            or np.any(wrench[TORQUE_BODY]) or np.any(wrench[LEVER_FORCE])))
+        """Tell the error controller the configuration changed, and if it is torque-free."""
+        held = self._held
+        torque_free = not (self._flows or np.any(held[HELD_TORQUE_WORLD])
+                           or np.any(held[HELD_TORQUE_BODY])
+                           or any(effect.exerts_torque for effect in self._pushing_effects))
+        if self._constraint is not None:
+            # About a pivot every force has a moment.
+            torque_free = torque_free and not (self._pushing_effects or np.any(held))
+        error_control.set_torque_free(self._control, torque_free)
         error_control.changed(self._control)
-        if kernel is None or self._pushing_effects:
-            self._path = READABLE
-            return
-        self._method = kernel.method
-        flows = self._flows
-        if not flows:
-            self._damping = 0.0
-        elif len(flows) == 1 and type(flows[0]) is Dissipation:
-            self._damping = flows[0].damping
-        else:
-            self._path = KERNEL_AND_FLOWS
-            return
-        self._run = kernel.run
-        self._path = COMPILED
-
-    def _packed_wrench(self):
-        """
-        Return the held wrench and the constant forces packed for the kernels (fast.py).
-
-        Free body: as held, the constant forces added to the world force.  Under a pivot
-        the pivot system is stepped, whose origin is the pivot, and the reaction there takes
-        every force: a force at the COM acts only by its moment r x F about the pivot
-        (r = R d), so a world force becomes the lever force at the arm d, and a body-fixed
-        one the body-fixed torque d x F_b (R d x R F_b = R (d x F_b)).  A torque is the same
-        about any point.
-        """
-        force_world, torque_world, force_body, torque_body = self._held
-        force_world = force_world + self._constant_force
-        if self._constraint is None:
-            return packed_wrench(force_world, torque_world, force_body, torque_body)
-        arm = self._constraint.offset_body
-        return packed_wrench(torque_world=torque_world,
-                             torque_body=torque_body + np.cross(arm, force_body),
-                             lever_force=force_world, lever_arm=arm)
 
     def _advance(self, steps, dt, duration=None):
         """Take `steps` steps of dt s; the clock moves by `duration` (default steps x dt)."""
-        run = self._run
-        if run is not None:
-            run(self._values, self._wrench, self._kernel_body, self._method, self._damping,
-                dt, steps)
+        if self._fast:
+            integrator = self._integrator
+            integrator.run(self._values, self._model, integrator.method, dt, steps, self._time)
         else:
-            self._compose_on(self._values, steps, dt, self._time)
+            self._readable_run(self._values, self._model, None, dt, steps, self._time)
         self._integrated = self._state = None
         self._add_time(steps * dt if duration is None else duration)
 
@@ -528,49 +512,31 @@ class Simulator:
         """
         Take `ticks` outer steps of `tick` s under error control (error_control.py).
 
-        Compiled: one call of the integrator's controlled kernel takes them all.  Otherwise
-        the same controller, as Python, drives :meth:`_compose_on` one outer step at a time
-        (the readable steps need the time of each step).
+        Compiled: one call of the integrator's controlled kernel takes them all.  Readable:
+        the same controller, as Python, around the readable steps.
         """
-        kernel = self._kernel
-        if self._path == COMPILED and kernel.controlled is not None:
-            kernel.controlled(self._values, self._wrench, self._kernel_body, self._method,
-                              self._damping, tick, ticks, self._control, self._clock)
-            self._integrated = self._state = None
-            self._add_time(ticks * tick)
-            return
-        controlled = error_control.controlled_ticks.py_func
-        for _ in range(ticks):
-            start = self._time
-
-            def run(values, wrench, body, method, damping, dt, steps):
-                # The controller's clock: the time of this call's first step in the tick.
-                self._compose_on(values, steps, dt, start + self._clock[0])
-                return steps
-            controlled(run, self._values, self._wrench, self._kernel_body, None, None, tick, 1,
-                       self._control, self._clock)
-            self._integrated = self._state = None
-            self._add_time(tick)
-
-    def _compose_on(self, values, steps, dt, time):
-        """
-        Take the steps on the packed array `values` (in place) from `time` (s).
-
-        Each step is flow(dt/2), step(dt), flow(dt/2) with the flows run here; the step is
-        the readable one (effects evaluated every step) or, for flows the kernels do not
-        fuse, a single kernel step.
-        """
-        if self._path == COMPILED:
-            self._run(values, self._wrench, self._kernel_body, self._method, self._damping,
-                      dt, steps)
-            return
-        constraint, flows = self._constraint, self._flows
-        if self._path == READABLE:
-            step, wrench = self._step, self.wrench_function()
-            if constraint is not None:
-                wrench = constraint.wrench(wrench)
+        integrator = self._integrator
+        if self._fast:
+            integrator.controlled(self._values, self._model, integrator.method, tick, ticks,
+                                  self._time, self._control)
         else:
-            step, wrench = self._kernel_step, None
+            error_control.controlled_ticks.py_func(
+                self._readable_run, self._values, self._model, None, tick, ticks,
+                self._time, self._control)
+        self._integrated = self._state = None
+        self._add_time(ticks * tick)
+
+    def _readable_run(self, values, model, method, dt, steps, time):
+        """
+        Take the steps with the readable step function on the packed array `values`.
+
+        Each step is flow(dt/2), step(dt), flow(dt/2) with the effects' Python faces; the
+        same signature as the kernels' run (the controller drives either).
+        """
+        step, wrench = self._integrator.step, self.wrench_function()
+        constraint, flows = self._constraint, self._flows
+        if constraint is not None:
+            wrench = constraint.wrench(wrench)
         state = State._from_values(values)
         body, half = self._integrated_body, 0.5 * dt
         for k in range(steps):
@@ -580,12 +546,7 @@ class Simulator:
             for effect in reversed(flows):
                 state = effect.flow(body, state, half)
         np.concatenate(state._fields(), out=values)
-
-    def _kernel_step(self, body, state, time, dt, wrench):
-        # The step-function form of one kernel step; the held wrench is the kernel's own.
-        values = np.concatenate(state._fields())
-        self._kernel.run(values, self._wrench, self._kernel_body, self._method, 0.0, dt, 1)
-        return State._from_values(values)
+        return steps
 
     def _add_time(self, increment):
         # Kahan summation: keeps the clock exact to round-off over millions of ticks, where a

@@ -36,8 +36,9 @@ import numpy as np
 # tool's options from the defaults below at every start.
 
 __all__ = ['Animation', 'AnimationPlan', 'animate_bag', 'prepare_animation',
-           'render_animation', 'plan_frames', 'BodyShape', 'read_shape',
-           'axis_endpoints', 'DEFAULT_FPS', 'DEFAULT_SPEED', 'DEFAULT_MAX_BYTES']
+           'render_animation', 'plan_frames', 'BodyShape', 'BodyView', 'read_shape',
+           'shape_from_marker', 'trail_axis', 'axis_endpoints', 'DEFAULT_FPS',
+           'DEFAULT_SPEED', 'DEFAULT_MAX_BYTES']
 
 DEFAULT_FPS = 10.0
 DEFAULT_SPEED = 1.0
@@ -67,7 +68,8 @@ class BodyShape:
     colour : tuple of 4 floats
         (r, g, b, a).
     origin : str
-        Where the shape came from ('marker' or 'inertia-equivalent box').
+        Where the shape came from: 'marker', 'marker: inertia-equivalent box' (the node's
+        marker of a body given by its inertia alone) or 'inertia-equivalent box' (no marker).
 
     """
 
@@ -88,6 +90,19 @@ class BodyShape:
         else:
             polygons = _ellipsoid_faces(half)
         return [polygon @ self.orientation.T for polygon in polygons]
+
+    @property
+    def equivalent(self):
+        """Return True if this is a stand-in with the body's moments, not its shape."""
+        return 'inertia-equivalent' in self.origin
+
+    @property
+    def label(self):
+        """Return what the drawing is, for a legend: its shape and size, or a stand-in."""
+        size = ' x '.join(f'{value:.3g}' for value in self.scale)
+        if self.equivalent:
+            return f"inertia-equivalent {self.kind} {size} m\n(the body's moments, not its shape)"
+        return f'body: {self.kind} {size} m'
 
     @property
     def extent(self):
@@ -158,9 +173,53 @@ def _first_marker(bag, namespace):
     return None
 
 
+def shape_from_marker(marker, body_quaternion, equivalent=False):
+    """
+    Return the :class:`BodyShape` a visualization_msgs/Marker draws.
+
+    `body_quaternion` (x, y, z, w) is the body's orientation at the marker's stamp: the
+    drawing's axes in the body frame are R_body^T R_marker.  `equivalent` says that the
+    marker is the inertia-equivalent box of a body given by its inertia alone.
+
+    Raises
+    ------
+    ValueError
+        If the marker is not a CUBE, SPHERE or CYLINDER.
+
+    """
+    if marker.type not in _SHAPE_NAMES:
+        raise ValueError(f'the marker is of type {marker.type}; only CUBE, SPHERE and '
+                         'CYLINDER markers are drawn')
+    orientation = marker.pose.orientation
+    marker_rotation = _quaternion_matrix(np.array(
+        [orientation.x, orientation.y, orientation.z, orientation.w]))
+    body_rotation = _quaternion_matrix(np.asarray(body_quaternion, dtype=float))
+    colour = (marker.color.r, marker.color.g, marker.color.b, marker.color.a or 1.0)
+    return BodyShape(_SHAPE_NAMES[marker.type],
+                     (marker.scale.x, marker.scale.y, marker.scale.z),
+                     body_rotation.T @ marker_rotation, colour,
+                     'marker: inertia-equivalent box' if equivalent else 'marker')
+
+
+def _is_equivalent_box(shape, mass, inertia):
+    """Return True if a box marker has the edges of the body's inertia-equivalent box."""
+    if shape.kind != 'box' or mass is None or inertia is None:
+        return False
+    from ..physics import RigidBody
+    from ..ros.conversions import inertia_equivalent_box
+    edges, _ = inertia_equivalent_box(RigidBody(mass, inertia))
+    # The two longest edges decide: a lamina's zero edge is drawn as a thin slab.
+    drawn = np.sort(shape.scale)[1:]
+    return bool(np.allclose(drawn, np.sort(edges)[1:], rtol=1e-6, atol=0.0))
+
+
 def read_shape(bag, motion, namespace=''):
     """
     Return the :class:`BodyShape` to draw for a bag: its marker's, or the inertia box.
+
+    A box marker with the edges of the inertia-equivalent box of the mass and inertia an
+    offline bag names is labelled as that stand-in (the node draws a body given by its
+    inertia alone so).
 
     Raises
     ------
@@ -171,20 +230,15 @@ def read_shape(bag, motion, namespace=''):
     first = _first_marker(Path(bag), (namespace or '').rstrip('/'))
     if first is not None:
         stamp, marker = first
-        if marker.type not in _SHAPE_NAMES:
-            raise ValueError(f'{bag}: the marker is of type {marker.type}; animate draws '
-                             'CUBE, SPHERE and CYLINDER markers')
-        orientation = marker.pose.orientation
-        marker_rotation = _quaternion_matrix(np.array(
-            [orientation.x, orientation.y, orientation.z, orientation.w]))
-        # The drawing's axes in the body frame: R_body^T R_marker at the same stamp.
         index = int(np.searchsorted(motion.stamps, stamp))
         index = min(index, len(motion.stamps) - 1)
-        body_rotation = _quaternion_matrix(motion.quaternion[index])
-        colour = (marker.color.r, marker.color.g, marker.color.b, marker.color.a or 1.0)
-        return BodyShape(_SHAPE_NAMES[marker.type],
-                         (marker.scale.x, marker.scale.y, marker.scale.z),
-                         body_rotation.T @ marker_rotation, colour, 'marker')
+        try:
+            shape = shape_from_marker(marker, motion.quaternion[index])
+        except ValueError as error:
+            raise ValueError(f'{bag}: {error}') from None
+        if _is_equivalent_box(shape, motion.mass, motion.inertia):
+            shape.origin = 'marker: inertia-equivalent box'
+        return shape
     mass, inertia = motion.mass, motion.inertia
     if mass is None or inertia is None:
         raise ValueError(f'{bag}: no marker topic, and the bag does not name the mass and '
@@ -257,7 +311,7 @@ def axis_endpoints(quaternion, length):
     return length * _quaternion_matrix(np.asarray(quaternion, dtype=float)).T
 
 
-def _trail_axis(quaternions):
+def trail_axis(quaternions):
     """Return the body axis (0, 1, 2) whose world direction varies most over the motion."""
     rotations = np.array([_quaternion_matrix(q) for q in quaternions[::max(1, len(
         quaternions) // 400)]])
@@ -265,69 +319,80 @@ def _trail_axis(quaternions):
     return int(np.argmax(1.0 - np.linalg.norm(rotations.mean(axis=0), axis=0)))
 
 
-class _Scene3D:
-    """The matplotlib figure of one frame, updated in place from frame to frame."""
+class BodyView:
+    """
+    The body drawn in a 3D matplotlib axes, viewed from its COM, updated in place.
 
-    def __init__(self, shape, motion, title, pixels):
-        import matplotlib
+    Draws the shape, the body axes x, y, z (red, green, blue) reaching past the shape, the
+    direction of the world angular momentum L (dashed black) and a fading trail of the tip
+    of one body axis.  ``rigid-body-sim animate`` draws each frame with it, and
+    ``rigid-body-sim watch`` its live window.
+
+    Parameters
+    ----------
+    axes : mpl_toolkits.mplot3d.Axes3D
+        Where to draw; its limits, projection and view are set here.
+    shape : BodyShape
+        The shape, in the body frame.
+    trail_axis : int
+        The body axis (0, 1, 2) whose tip leaves the trail.
+    font_size : float
+        Points, of the tick and legend labels.
+
+    """
+
+    def __init__(self, axes, shape, trail_axis, font_size=7.0):
         import matplotlib.ticker
-        matplotlib.use('Agg')
-        import matplotlib.pyplot as plt
         from mpl_toolkits.mplot3d.art3d import Line3DCollection
         from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
+        self.axes = axes
         self.shape = shape
-        self.motion = motion
         self.body_faces = shape.faces()
-        reach = 1.25 * max(shape.extent, 1e-9)
-        self.axis_length = reach
-        dpi = 100
-        self.figure = plt.figure(figsize=(pixels / dpi, pixels / dpi), dpi=dpi)
-        self.axes = self.figure.add_subplot(projection='3d')
-        self.axes.set_proj_type('ortho')
-        limit = 1.1 * reach
-        for setter in (self.axes.set_xlim, self.axes.set_ylim, self.axes.set_zlim):
+        self.axis_length = 1.25 * max(shape.extent, 1e-9)
+        axes.set_proj_type('ortho')
+        limit = 1.1 * self.axis_length
+        for setter in (axes.set_xlim, axes.set_ylim, axes.set_zlim):
             setter(-limit, limit)
-        self.axes.set_box_aspect((1.0, 1.0, 1.0))
-        self.axes.view_init(elev=22.0, azim=-55.0)
-        self.axes.set_xlabel('x (m)', fontsize=7)
-        self.axes.set_ylabel('y (m)', fontsize=7)
-        self.axes.set_zlabel('z (m)', fontsize=7)
-        self.axes.tick_params(labelsize=6)
+        axes.set_box_aspect((1.0, 1.0, 1.0))
+        axes.view_init(elev=22.0, azim=-55.0)
+        axes.set_xlabel('world x (m)', fontsize=font_size)
+        axes.set_ylabel('world y (m)', fontsize=font_size)
+        axes.set_zlabel('world z (m)', fontsize=font_size)
+        axes.tick_params(labelsize=font_size - 1.0)
         # Plain white panes without a grid: fewer colours and edges that change between
-        # frames, so the GIF compresses several times better.
-        self.axes.grid(False)
-        for axis in (self.axes.xaxis, self.axes.yaxis, self.axes.zaxis):
+        # frames, so a GIF compresses several times better.
+        axes.grid(False)
+        for axis in (axes.xaxis, axes.yaxis, axes.zaxis):
             axis.set_pane_color((1.0, 1.0, 1.0, 0.0))
             axis.set_major_locator(matplotlib.ticker.MaxNLocator(3))
         self.polygons = Poly3DCollection(self.body_faces, facecolor=shape.colour[:3],
                                          edgecolor='0.25', linewidth=0.3,
                                          alpha=0.55 * shape.colour[3])
-        self.axes.add_collection3d(self.polygons, autolim=False)
-        self.axis_lines = [self.axes.plot([0, 0], [0, 0], [0, 0], color=colour, linewidth=2.0,
-                                          label=f'body {name}')[0]
+        axes.add_collection3d(self.polygons, autolim=False)
+        # A legend entry for the body that says what is drawn (its shape, or a stand-in).
+        axes.plot([], [], marker='s', linestyle='none', markersize=6,
+                  color=shape.colour[:3], alpha=0.7, label=shape.label)
+        self.axis_lines = [axes.plot([0, 0], [0, 0], [0, 0], color=colour, linewidth=2.0,
+                                     label=f'body {name}')[0]
                            for colour, name in zip(_AXIS_COLOURS, 'xyz')]
-        self.momentum_line = self.axes.plot([0, 0], [0, 0], [0, 0], color='black',
-                                            linewidth=1.5, linestyle='--',
-                                            label='L (world)')[0]
-        self.trail_axis = _trail_axis(motion.quaternion)
-        self.trail = Line3DCollection([np.zeros((2, 3))], colors=_AXIS_COLOURS[self.trail_axis],
+        self.momentum_line = axes.plot([0, 0], [0, 0], [0, 0], color='black',
+                                       linewidth=1.5, linestyle='--',
+                                       label='L (world)')[0]
+        self.trail_axis = trail_axis
+        self.trail = Line3DCollection([np.zeros((2, 3))], colors=_AXIS_COLOURS[trail_axis],
                                       linewidths=1.2)
-        self.axes.add_collection3d(self.trail, autolim=False)
+        axes.add_collection3d(self.trail, autolim=False)
         self.trail_points = []
-        self.axes.legend(loc='upper left', fontsize=6, frameon=False)
-        self.title = title
-        self.text = self.figure.text(0.02, 0.02, '', fontsize=7)
 
-    def draw(self, index, time):
-        """Show tick `index` (its orientation and L) at simulated `time` s."""
-        quaternion = self.motion.quaternion[index]
-        rotation = _quaternion_matrix(quaternion)
+    def show(self, quaternion, angular_momentum):
+        """Draw the body at `quaternion` (x, y, z, w) with L (world frame); extend the trail."""
+        rotation = _quaternion_matrix(np.asarray(quaternion, dtype=float))
         self.polygons.set_verts([face @ rotation.T for face in self.body_faces])
         tips = axis_endpoints(quaternion, self.axis_length)
         for line, tip in zip(self.axis_lines, tips):
             line.set_data_3d([0.0, tip[0]], [0.0, tip[1]], [0.0, tip[2]])
-        momentum = self.motion.angular_momentum[index]
+        momentum = np.asarray(angular_momentum, dtype=float)
         size = np.linalg.norm(momentum)
         direction = momentum / size * self.axis_length if size > 0.0 else np.zeros(3)
         self.momentum_line.set_data_3d([0.0, direction[0]], [0.0, direction[1]],
@@ -341,6 +406,37 @@ class _Scene3D:
             alphas = np.linspace(0.05, 0.9, len(segments))
             base = np.array(self.trail.get_edgecolor()[0][:3])
             self.trail.set_color([(*base, alpha) for alpha in alphas])
+        return size
+
+    def clear_trail(self):
+        """Forget the trail (after a reset: the body jumps back to its start)."""
+        self.trail_points.clear()
+        self.trail.set_segments([np.zeros((2, 3))])
+
+
+class _Scene3D:
+    """The matplotlib figure of one animation frame, updated in place from frame to frame."""
+
+    def __init__(self, shape, motion, title, pixels):
+        import matplotlib
+        matplotlib.use('Agg')
+        import matplotlib.pyplot as plt
+
+        self.motion = motion
+        dpi = 100
+        self.figure = plt.figure(figsize=(pixels / dpi, pixels / dpi), dpi=dpi)
+        self.axes = self.figure.add_subplot(projection='3d')
+        self.view = BodyView(self.axes, shape, trail_axis(motion.quaternion))
+        self.axis_lines = self.view.axis_lines
+        self.axis_length = self.view.axis_length
+        self.axes.legend(loc='upper left', fontsize=6, frameon=False)
+        self.title = title
+        self.text = self.figure.text(0.02, 0.02, '', fontsize=7)
+
+    def draw(self, index, time):
+        """Show tick `index` (its orientation and L) at simulated `time` s."""
+        size = self.view.show(self.motion.quaternion[index],
+                              self.motion.angular_momentum[index])
         self.axes.set_title(self.title, fontsize=8)
         self.text.set_text(f't = {time:6.2f} s   |L| = {size:.4g} kg m²/s')
 
@@ -363,7 +459,8 @@ def _title(motion, shape):
     parts = [f'scene {scene}' if scene else motion.name]
     if integrator:
         parts.append(integrator)
-    return ', '.join(parts) + f' ({shape.origin}; viewed from the COM)'
+    # What the body is drawn as is in the legend (its shape, or a stand-in).
+    return ', '.join(parts) + ', viewed from the COM'
 
 
 def _gif_bytes(images, fps):

@@ -14,7 +14,12 @@ Messages of the two topics are paired by their header stamp (each tick stamps al
 Time.  The time axis is simulated time from the scene's start: an offline bag names the
 stamp of simulated time 0 in its custom data, and the node's stamps with ``publish_clock``
 are simulated time already; so a 5 s run at 100 Hz shows ticks at 0.01 .. 5 s.  A live bag
-stamped with the wall clock is shown from its first message.
+stamped with the wall clock has its ticks arrive as the machine schedules them (under load
+0.2-90 ms apart at 100 Hz): when it holds the node's /diagnostics, whose reports say the
+simulated time and rate once a second in the tick of a state, each tick is timed from the
+last report before it plus one period per tick whose state moved (a paused tick adds none;
+a reset restarts at its report's time).  Without reports the wall-clock time from the first
+message is shown, and the panel titles say how irregular the stamps are.
 
 Conserved quantities.  What is conserved depends on the scene's effects.  An offline bag
 names them, their parameters and the body's mass and inertia in its custom data (keys
@@ -31,7 +36,10 @@ the panel says.
   along gravity (the weight's torque about the pivot is horizontal), all of it without
   gravity; and for a body symmetric about an axis e3 through the pivot (a Lagrange top,
   a wheel on its axle) L . e3 = I3 omega3, as the torque r x m g is normal to e3.
-- Drag: none.
+- Drag, a torque oscillating in time: none.
+
+Each effect's class declares what it conserves (``conserves``, ``keeps_pivot_invariants``:
+physics/effects/registry.py), so a new effect needs no case here.
 
 Each drift is relative to a physical scale: the energy's to the initial kinetic energy
 (the potential's zero is arbitrary), a momentum's to the initial |L| (a component may start
@@ -54,6 +62,7 @@ import numpy as np
 from rosbags.rosbag2 import Reader
 
 from .bag_writer import typestore
+from ..physics.effects import EFFECTS
 
 __all__ = [
     'BagMotion',
@@ -70,6 +79,7 @@ __all__ = [
 ]
 
 _ODOMETRY = 'nav_msgs/msg/Odometry'
+_DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 _VECTOR3_STAMPED = 'geometry_msgs/msg/Vector3Stamped'
 # The COM "moves" when its path spans more than this (m): below, it is at rest up to
 # round-off and its panel shows the polhode instead.
@@ -127,12 +137,13 @@ class BagMotion:
     """
 
     def __init__(self, stamps, quaternion, position, angular_velocity_body, angular_momentum,
-                 custom_data, name, velocity_body=None):
+                 custom_data, name, velocity_body=None, reports=()):
         self.stamps = np.asarray(stamps, dtype=np.int64)
         self.custom_data = dict(custom_data or {})
         origin, self.time_is_simulated = _time_origin(self.stamps, self.custom_data)
         # Division, not * 1e-9: correctly rounded, so tick 500 at 100 Hz reads 5.0 exactly.
         self.time = (self.stamps - origin) / 1e9
+        self.timed_by_reports = False
         self.quaternion = np.asarray(quaternion, dtype=float)
         self.position = np.asarray(position, dtype=float)
         self.angular_velocity_body = np.asarray(angular_velocity_body, dtype=float)
@@ -140,6 +151,25 @@ class BagMotion:
         self.velocity_body = (np.zeros_like(self.position) if velocity_body is None
                               else np.asarray(velocity_body, dtype=float))
         self.name = name
+        if not self.time_is_simulated and len(reports):
+            timed = simulated_time_from_reports(self.stamps, self._moved(), reports)
+            if timed is not None:
+                self.time, self.time_is_simulated, self.timed_by_reports = timed, True, True
+
+    def _moved(self):
+        """Return whether each tick's state differs from the one before (n,) bool."""
+        state = np.hstack((self.quaternion, self.angular_velocity_body, self.position))
+        moved = np.ones(len(state), dtype=bool)
+        moved[1:] = np.any(state[1:] != state[:-1], axis=1)
+        return moved
+
+    @property
+    def stamp_spacing(self):
+        """Return (least, largest) spacing of the header stamps in s, or None for one tick."""
+        if len(self.stamps) < 2:
+            return None
+        spacing = np.diff(self.stamps) / 1e9
+        return float(spacing.min()), float(spacing.max())
 
     @property
     def rotation(self):
@@ -213,6 +243,35 @@ class BagMotion:
         """Return L_p = L + m (x - p) x v in kg m^2/s about the world point `point`, (n, 3)."""
         arm = self.position - np.asarray(point, dtype=float)
         return self.angular_momentum + self.mass * np.cross(arm, self.velocity)
+
+
+def simulated_time_from_reports(stamps, moved, reports):
+    """
+    Return the simulated time (s) of live ticks from the node's reports, or None.
+
+    `stamps` (n,) are the ticks' header stamps (ns) and `moved` (n,) whether each tick's
+    state differs from the one before; `reports` are (stamp ns, simulated time s, rate Hz)
+    of the node's /diagnostics.  A report belongs to the latest tick stamped at or before it
+    (the node publishes a tick's state, then its report); a tick is timed from the last
+    report at or before it, plus one period per moving tick since; ticks before the first
+    report count back from it.  None if no report falls among the ticks.
+    """
+    reports = sorted(reports)
+    anchors = []  # (tick index, simulated time, rate)
+    for stamp, simulated, rate in reports:
+        index = int(np.searchsorted(stamps, stamp, side='right')) - 1
+        if 0 <= index < len(stamps) and rate > 0.0:
+            anchors.append((index, simulated, rate))
+    if not anchors:
+        return None
+    steps = np.cumsum(moved.astype(float))  # moving ticks up to and including each
+    time = np.empty(len(stamps))
+    first, first_time, first_rate = anchors[0]
+    time[:first] = first_time - (steps[first] - steps[:first]) / first_rate
+    bounds = [anchor[0] for anchor in anchors[1:]] + [len(stamps)]
+    for (index, simulated, rate), end in zip(anchors, bounds):
+        time[index:end] = simulated + (steps[index:end] - steps[index]) / rate
+    return time
 
 
 def _time_origin(stamps, custom_data):
@@ -298,25 +357,36 @@ def conserved_quantities(motion):
         return ('Drift of $T_{rot}$ and $|L|$ (conserved if torque-free about the COM; the '
                 'bag does not name the effects)', [rotational, magnitude])
     names = {effect['effect'] for effect in effects}
-    if 'drag' in names or ('pivot' in names and 'dissipation' in names):
-        for quantity in (rotational, magnitude):
-            quantity.conserved = False
-        return (f'$T_{{rot}}$ and $|L|$: not conserved here ({", ".join(sorted(names))})',
-                [rotational, magnitude])
+    # What each effect conserves, as its class declares it (physics/effects/registry.py); an
+    # effect this version does not know conserves nothing.
+    classes = {name: EFFECTS.get(name) for name in names}
     if 'pivot' in names:
         pivot = _effect(effects, 'pivot')
-        if motion.mass is None or 'anchor' not in pivot:
-            for quantity in (rotational, magnitude):
-                quantity.conserved = False
-            return ('$T_{rot}$ and $|L|$: not conserved here (the pivot torques the body; the '
-                    'bag lacks its parameters)', [rotational, magnitude])
-        return _pivot_quantities(motion, pivot, _effect(effects, 'gravity'))
-    if 'dissipation' in names:
-        rotational.conserved = False
-        return ('$|L|$ is conserved; internal dissipation drains $T_{rot}$',
+        kept = all(cls is not None and cls.keeps_pivot_invariants
+                   for name, cls in classes.items() if name != 'pivot')
+        if kept and motion.mass is not None and 'anchor' in pivot:
+            return _pivot_quantities(motion, pivot, _effect(effects, 'gravity'))
+        for quantity in (rotational, magnitude):
+            quantity.conserved = False
+        reason = (', '.join(sorted(names)) if not kept
+                  else 'the pivot torques the body; the bag lacks its parameters')
+        return (f'$T_{{rot}}$ and $|L|$: not conserved here ({reason})',
+                [rotational, magnitude])
+    conserved = {'angular_momentum', 'rotational_energy'}
+    for cls in classes.values():
+        conserved &= set(() if cls is None else cls.conserves)
+    rotational.conserved = 'rotational_energy' in conserved
+    magnitude.conserved = 'angular_momentum' in conserved
+    if rotational.conserved and magnitude.conserved:
+        return 'Conserved without torque about the COM: drift of $T_{rot}$ and $|L|$', \
+            [rotational, magnitude]
+    if magnitude.conserved:
+        changing = sorted(name for name, cls in classes.items()
+                          if cls is None or 'rotational_energy' not in cls.conserves)
+        return (f'$|L|$ is conserved; {", ".join(changing)} changes $T_{{rot}}$',
                 [magnitude, rotational])
-    return 'Conserved without torque about the COM: drift of $T_{rot}$ and $|L|$', \
-        [rotational, magnitude]
+    return (f'$T_{{rot}}$ and $|L|$: not conserved here ({", ".join(sorted(names))})',
+            [rotational, magnitude])
 
 
 def _pivot_quantities(motion, pivot, gravity):
@@ -391,15 +461,21 @@ def read_motion(bag, namespace=''):
     store = typestore()
     odometry = {}
     momentum = {}
+    reports = []
     try:
         with Reader(bag) as reader:
             odom = _find_topic(reader.connections, 'odom', _ODOMETRY, namespace)
             angular = _find_topic(reader.connections, 'angular_momentum', _VECTOR3_STAMPED,
                                   namespace)
-            for connection, _, raw in reader.messages(connections=[odom, angular]):
+            diagnostics = [c for c in reader.connections if c.msgtype == _DIAGNOSTIC_ARRAY]
+            node = f'{namespace}/'
+            for connection, _, raw in reader.messages(connections=[odom, angular,
+                                                                   *diagnostics]):
                 message = store.deserialize_cdr(raw, connection.msgtype)
                 stamp = message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
-                if connection.topic == odom.topic:
+                if connection.msgtype == _DIAGNOSTIC_ARRAY:
+                    reports.extend(_report(stamp, message, node))
+                elif connection.topic == odom.topic:
                     pose, twist = message.pose.pose, message.twist.twist
                     odometry[stamp] = (
                         (pose.orientation.x, pose.orientation.y, pose.orientation.z,
@@ -423,7 +499,22 @@ def read_motion(bag, namespace=''):
     rows = [odometry[stamp] for stamp in stamps]
     return BagMotion(stamps, [row[0] for row in rows], [row[1] for row in rows],
                      [row[2] for row in rows], [momentum[stamp] for stamp in stamps],
-                     custom, bag.name, velocity_body=[row[3] for row in rows])
+                     custom, bag.name, velocity_body=[row[3] for row in rows],
+                     reports=reports)
+
+
+def _report(stamp, message, node):
+    """Yield (stamp, simulated time, rate) of the node's status in a /diagnostics message."""
+    for status in message.status:
+        # The node's hardware_id is its fully qualified name: in the namespace asked for.
+        if not status.hardware_id.startswith(node) or '/' in status.hardware_id[len(node):]:
+            continue
+        values = {pair.key: pair.value for pair in status.values}
+        try:
+            yield (stamp, float(values['simulated time [s]']),
+                   float(values['requested rate [Hz]']))
+        except (KeyError, ValueError):
+            continue
 
 
 def oscillations(values):
@@ -446,29 +537,93 @@ def oscillations(values):
     return float(np.count_nonzero(np.diff(known))) / 2.0
 
 
-def _draw_series(axes, time, values, color, label):
-    """Draw a time series: a line, thin when it oscillates fast, an envelope when faster."""
-    cycles = oscillations(values)
+def _draw_series(axes, time, values, color, label, linestyle='-'):
+    """
+    Draw a time series: a line, thin when it oscillates fast, an envelope when faster.
+
+    The envelope (light fill between the running extremes) gets its running mean as a
+    line, so the slow motion under a fast oscillation reads at a glance.
+    """
+    cycles = max(oscillations(values), oscillations(_detrended(time, values)))
     if cycles <= _ENVELOPE_CYCLES:
         width = 0.6 if cycles > _THIN_CYCLES else 1.5
-        return axes.plot(time, values, color=color, linewidth=width, label=label)[0]
+        return axes.plot(time, values, color=color, linewidth=width, label=label,
+                         linestyle=linestyle)[0]
     # The envelope: the running minimum and maximum over three mean periods, so every
     # window holds whole cycles' extremes (and a beat of two frequencies does not make the
     # edges flicker); then one point per pixel column.
     from scipy.ndimage import maximum_filter1d
     from scipy.ndimage import minimum_filter1d
 
+    from scipy.ndimage import uniform_filter1d
+
     window = int(np.ceil(3.0 * len(values) / cycles))
-    upper = maximum_filter1d(values, window, mode='nearest')
-    lower = minimum_filter1d(values, window, mode='nearest')
+    # Reflected at the ends: a series starting at an extreme keeps its mean honest there.
+    upper = maximum_filter1d(values, window, mode='reflect')
+    lower = minimum_filter1d(values, window, mode='reflect')
+    mean = uniform_filter1d(values, window, mode='reflect')
     stride = max(1, len(values) // _ENVELOPE_BINS)
     picked = np.r_[np.arange(0, len(values), stride), len(values) - 1]
-    # Light fill and solid edges: two overlapping envelopes stay apart.
+    period = (time[-1] - time[0]) / cycles
+    # Light fill and thin edges: two overlapping envelopes stay apart; the mean is the line.
     for edge in (lower, upper):
-        axes.plot(time[picked], edge[picked], color=color, linewidth=0.8)
-    return axes.fill_between(time[picked], lower[picked], upper[picked], color=color,
-                             alpha=0.15, linewidth=0.0,
-                             label=f'{label}: {cycles:.0f} oscillations, envelope')
+        axes.plot(time[picked], edge[picked], color=color, linewidth=0.6, alpha=0.7)
+    axes.fill_between(time[picked], lower[picked], upper[picked], color=color, alpha=0.12,
+                      linewidth=0.0)
+    # The mean only where its window is whole: at the ends it would lean to one side.
+    half = window // 2
+    picked = picked[(picked >= half) & (picked < len(values) - half)]
+    return axes.plot(time[picked], mean[picked], color=color, linewidth=1.5,
+                     linestyle=linestyle,
+                     label=f'{label}\n({cycles:.0f} cycles of {period:.2g} s: mean; '
+                           'envelope shaded)')[0]
+
+
+def _detrended(time, values):
+    """
+    Return `values` less their straight-line fit, clipped to its 1st..99th percentiles.
+
+    A drift's oscillation around its trend, without the few outliers (a drift starts at
+    exactly 0 and jumps to its oscillation's mean at the first step) whose range would hide
+    the oscillation from :func:`oscillations`.
+    """
+    if len(values) < 3 or np.ptp(time) == 0.0:
+        return values
+    slope, intercept = np.polyfit(time - time[0], values, 1)
+    rest = values - (intercept + slope * (time - time[0]))
+    return np.clip(rest, *np.percentile(rest, (1.0, 99.0)))
+
+
+def _legend_above_data(axes, handles=None, row_height=0.065):
+    """
+    Put the legend in headroom above the data: the y range grows so no curve lies under it.
+
+    Each legend row takes about `row_height` of the axes' height (small font on a panel a
+    few hundred pixels tall).
+    """
+    if handles is None:
+        handles = axes.get_legend_handles_labels()[0]
+    rows = sum(handle.get_label().count('\n') + 1 for handle in handles)
+    fraction = min(0.6, row_height * rows + 0.03)
+    low, high = axes.get_ylim()
+    axes.set_ylim(low, high + (high - low) * fraction / (1.0 - fraction))
+    return axes.legend(handles=handles, loc='upper left', fontsize='small', framealpha=0.9)
+
+
+def _reference_value(values):
+    """
+    Return a round value to subtract from a series that varies in its far decimals, or 0.
+
+    150.00000010 .. 150.00000055 reads as 150 + (1.0 .. 5.5) x 10^-7, not as eight-decimal
+    tick labels: the reference keeps the digits the whole series shares.
+    """
+    values = np.asarray(values, dtype=float)
+    middle, spread = float(np.mean(values)), float(np.ptp(values))
+    if middle == 0.0 or spread >= 1e-3 * abs(middle):
+        return 0.0
+    # The digits common to the series: its middle rounded to the spread's decade, times 10.
+    decade = 10.0 ** np.floor(np.log10(max(spread, 1e-300) * 10.0))
+    return float(np.round(middle / decade) * decade)
 
 
 def _power_of_ten(values):
@@ -488,8 +643,7 @@ def plot_motion(motion, out):
 
     figure = pyplot.figure(figsize=(14.0, 11.0), layout='constrained')
     grid = figure.add_gridspec(2, 2)
-    time_label = 'simulated time [s]' if motion.time_is_simulated else \
-        'time since the first message [s]'
+    time_label = _time_label(motion)
     _angular_velocity_panel(figure, grid[0, 0], motion, time_label)
     _conserved_panel(figure.add_subplot(grid[0, 1]), motion, time_label)
     _orientation_panel(figure.add_subplot(grid[1, 0], projection='3d'), motion)
@@ -504,6 +658,18 @@ def plot_motion(motion, out):
     return out
 
 
+def _time_label(motion):
+    """Return the time axis's label: simulated time, and how it was told, or wall time."""
+    if motion.timed_by_reports:
+        return "simulated time [s] (live bag: timed by the node's /diagnostics reports)"
+    if motion.time_is_simulated:
+        return 'simulated time [s]'
+    spacing = motion.stamp_spacing
+    irregular = '' if spacing is None else \
+        f': stamps {1e3 * spacing[0]:.2g}-{1e3 * spacing[1]:.2g} ms apart, as received'
+    return f'wall-clock time since the first message [s]{irregular}'
+
+
 def _angular_velocity_panel(figure, cell, motion, time_label):
     time = motion.time
     omega = motion.angular_velocity_body
@@ -512,27 +678,50 @@ def _angular_velocity_panel(figure, cell, motion, time_label):
     # A fast spin about one axis would flatten the other two components to a line: it
     # gets an axes of its own below, with its own scale.
     dominant = order[2] if peaks[order[2]] > 10.0 * max(peaks[order[1]], 1e-300) else None
-    if dominant is None:
-        axes = figure.add_subplot(cell)
-        lower = None
-    else:
-        cells = cell.subgridspec(2, 1, height_ratios=(3, 1))
-        axes = figure.add_subplot(cells[0])
-        lower = figure.add_subplot(cells[1], sharex=axes)
+    fast = [k for k in range(3) if k != dominant
+            and oscillations(omega[:, k]) > _ENVELOPE_CYCLES]
+    # Panels: the components (shared time), the dominant spin on its own scale, and a zoom
+    # of the first cycles of components too fast for the pixels.
+    ratios = (3,) + ((1,) if dominant is not None else ()) + ((1.4,) if fast else ())
+    cells = cell.subgridspec(len(ratios), 1, height_ratios=ratios)
+    axes = figure.add_subplot(cells[0])
+    lower = None if dominant is None else figure.add_subplot(cells[1], sharex=axes)
+    zoom = figure.add_subplot(cells[len(ratios) - 1]) if fast else None
     handles = []
+    fast = []
     for k, (name, color) in enumerate(zip('xyz', _AXIS_COLORS)):
         label = f'$\\Omega_{name}$'
         if k == dominant:
-            lower.plot(time, omega[:, k], color=color, label=label)
-            lower.set_ylabel(f'$\\Omega_{name}$ [rad/s]')
-            # Its own scale, in plain numbers: no "+1.5e2" offset to add in one's head.
-            lower.ticklabel_format(axis='y', style='plain', useOffset=False)
+            # Its own scale; a spin constant to many digits is drawn as its change from a
+            # round value named in the label (150 + 1e-7 x ...), not as 150.00000024.
+            reference = _reference_value(omega[:, k])
+            shown = omega[:, k] - reference
+            name_shown = f'$\\Omega_{name}$' + (f' $-$ {reference:g}' if reference else '')
+            lower.plot(time, shown, color=color, label=name_shown)
+            lower.set_ylabel(f'{name_shown} [rad/s]')
+            lower.ticklabel_format(axis='y', style='sci', scilimits=(-2, 3), useOffset=False)
             lower.yaxis.set_major_locator(_ticker().MaxNLocator(4))
             lower.set_xlabel(time_label)
             lower.grid(True, alpha=0.3)
-            lower.legend(loc='best', fontsize='small')
+            continue
+        if oscillations(omega[:, k]) > _ENVELOPE_CYCLES:
+            fast.append(k)
             continue
         handles.append(_draw_series(axes, time, omega[:, k], color, label))
+    if len(fast) == 2:
+        # Two components turning with a fast spin (a top's Omega_x, Omega_y): each alone is
+        # a band between +-its amplitude; their magnitude, the rate about a transverse
+        # axis, is what changes (nutation), drawn as a series of its own.
+        a, b = fast
+        names = 'xyz'[a] + 'xyz'[b]
+        handles.append(_draw_series(
+            axes, time, np.hypot(omega[:, a], omega[:, b]), 'black',
+            f'$|\\Omega_{{{names}}}| = \\sqrt{{\\Omega_{names[0]}^2 + '
+            f'\\Omega_{names[1]}^2}}$'))
+    else:
+        for k in fast:
+            handles.append(_draw_series(axes, time, omega[:, k], _AXIS_COLORS[k],
+                                        f'$\\Omega_{"xyz"[k]}$'))
     title = 'Angular velocity in the body frame'
     if dominant is not None:
         title += f' ($\\Omega_{"xyz"[dominant]}$ below, on its own scale)'
@@ -540,8 +729,26 @@ def _angular_velocity_panel(figure, cell, motion, time_label):
     else:
         axes.set_xlabel(time_label)
     axes.set(title=title, ylabel='$\\Omega$ [rad/s]')
-    axes.legend(handles=handles, loc='best', fontsize='small')
+    _legend_above_data(axes, handles)
     axes.grid(True, alpha=0.3)
+    if fast:
+        _zoom_panel(figure, zoom, time, omega, fast, time_label)
+
+
+def _zoom_panel(figure, axes, time, omega, fast, time_label):
+    """Draw the first few cycles of the fast components as lines: their true shape."""
+    cycles = max(oscillations(omega[:, k]) for k in fast)
+    span = 4.0 * (time[-1] - time[0]) / cycles
+    shown = time <= time[0] + span
+    for k in fast:
+        axes.plot(time[shown], omega[shown, k], color=_AXIS_COLORS[k], linewidth=1.0,
+                  label=f'$\\Omega_{"xyz"[k]}$')
+    axes.set(title=f'The first {span:.2g} s of the fast components, every tick',
+             xlabel=time_label, ylabel='$\\Omega$ [rad/s]')
+    axes.title.set_fontsize('medium')
+    axes.grid(True, alpha=0.3)
+    axes.legend(loc='upper left', bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0,
+                fontsize='small')
 
 
 def _ticker():
@@ -564,12 +771,12 @@ def _conserved_panel(axes, motion, time_label):
                  f'drift / {quantity.scale_label}')
         if not quantity.conserved:
             label += ' (not conserved)'
-        axes.plot(motion.time, drift / 10.0**k, linestyle=style, color=color, label=label)
+        _draw_series(axes, motion.time, drift / 10.0**k, color, label, linestyle=style)
     scale = f' [$\\times 10^{{{k}}}$]' if k else ''
     axes.set(title=_wrapped(title), xlabel=time_label,
              ylabel=f'(X(t) $-$ X(first)) / scale{scale}')
     axes.ticklabel_format(axis='y', style='plain', useOffset=False)
-    axes.legend(loc='best', fontsize='small')
+    _legend_above_data(axes)
     axes.grid(True, alpha=0.3)
 
 
@@ -674,12 +881,13 @@ def _com_panel(figure, cell, motion, time_label):
     axes.set(title=f'COM path in the {names[first]}-{names[second]} plane\n'
                    f'({names[normal]} spans {spread:.3g} m)',
              xlabel=f'{names[first]} [m]', ylabel=f'{names[second]} [m]')
-    axes.legend(loc='best', fontsize='small')
+    axes.legend(loc='upper left', bbox_to_anchor=(0.0, -0.12), ncols=2, borderaxespad=0.0,
+                fontsize='small', frameon=False)
     axes.grid(True, alpha=0.3)
 
     axes = figure.add_subplot(cells[1])
     height = position[:, 2]
-    line = _draw_series(axes, time, height, 'tab:blue', 'z')
+    _draw_series(axes, time, height, 'tab:blue', 'z')
     apex = apex_index(motion)
     if apex is not None:
         # A throw's apex: where the vertical velocity changes sign.
@@ -689,9 +897,9 @@ def _com_panel(figure, cell, motion, time_label):
                       (time[apex], height[apex]), xytext=(0.5, 0.4),
                       textcoords='axes fraction', ha='center', va='center', fontsize='small',
                       arrowprops={'arrowstyle': '->', 'color': '0.4'})
-    if hasattr(line, 'get_paths'):
-        axes.legend(loc='best', fontsize='small')
     axes.set(title='COM height', xlabel=time_label, ylabel='z [m]')
+    if oscillations(height) > _ENVELOPE_CYCLES:
+        _legend_above_data(axes)
     axes.ticklabel_format(axis='y', style='plain', useOffset=False)
     axes.grid(True, alpha=0.3)
 

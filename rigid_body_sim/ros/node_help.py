@@ -32,6 +32,7 @@ published (relative names; QoS reliable, keep-last 1000 (1 s at 1 kHz), volatile
   angular_momentum  geometry_msgs/Vector3Stamped   L about the COM (world)
   odom              nav_msgs/Odometry              pose (world), twist (body frame)
   marker            visualization_msgs/Marker      the scene's drawing, for RViz
+  imu               sensor_msgs/Imu                the simulated IMU (frame imu_frame)
   /diagnostics      diagnostic_msgs/DiagnosticArray  1 Hz: rates, step time, drift
   /clock            rosgraph_msgs/Clock            only with publish_clock:=true
 subscribed (only with external_wrench; frame_id world or empty: world-fixed, body: body-fixed):
@@ -54,6 +55,7 @@ examples:
   rigid_body_node --ros-args -p body.shape:=box -p body.size:="[0.3, 0.2, 0.1]"
   ros2 topic pub --once /torque geometry_msgs/msg/Vector3Stamped "{{vector: {{z: 0.5}}}}"
   ros2 param set /rigid_body_sim integrator splitting
+  ros2 param set /rigid_body_sim tolerance 1.0e-6    (1e-6 would be read as a string)
 """
 
 

@@ -14,11 +14,14 @@ on an off-axis pivot, van Zon's body under an oscillating world torque and a box
 body-fixed torque, every integrator and error-controlled buss beside MuJoCo, against DOP853
 references, written as forces.md/.json/.csv and forces_work_precision.png.
 --quick: two bodies, three steps and horizons of 2 s and 10 s, a 2 s sweep of two scenes and
-two forced bodies over 0.5 s, for CI (seconds, not minutes).  --tolerance-sweep: the sweep
-alone; --forces: the forced benchmark alone.
+two forced bodies over 0.5 s, for CI (seconds, not minutes); it refuses to write into a
+directory that holds a full run's results.  --tolerance-sweep: the sweep alone; --forces: the
+forced benchmark alone.  The full run took 21.6 min on the 2-core reference machine (1.0 min
+work-precision, 13.0 min sweep, 7.6 min forced: the wall_seconds of docs/benchmark/*.json).
 """
 
 import os
+from pathlib import Path
 import sys
 import time
 
@@ -40,10 +43,10 @@ def add_arguments(parser):
     sweep = parser.add_mutually_exclusive_group()
     sweep.add_argument('--forces', action='store_true',
                        help='run only the forced benchmark (torques, gravity, a pivot; '
-                            'MuJoCo beside; ~10 min; with --quick: seconds)')
+                            'MuJoCo beside; 7.6 min on 2 cores; with --quick: seconds)')
     sweep.add_argument('--tolerance-sweep', action='store_true',
                        help='run only the tolerance sweep (error-controlled buss against '
-                            'fixed steps on the built-in scenes, ~20 min; with --quick: '
+                            'fixed steps on the built-in scenes, 13 min on 2 cores; with --quick: '
                             'seconds)')
     sweep.add_argument('--no-tolerance-sweep', action='store_true',
                        help='skip the tolerance sweep that follows the work-precision runs')
@@ -185,8 +188,42 @@ def run_forces_benchmark(args):
     return paths
 
 
+def _outputs(args):
+    """Return the JSON results this invocation writes (one per part it runs)."""
+    if getattr(args, 'forces', False):
+        return ['forces.json']
+    if args.tolerance_sweep:
+        return ['tolerance_sweep.json']
+    return ['results.json', 'forces.json'] + ([] if args.no_tolerance_sweep
+                                              else ['tolerance_sweep.json'])
+
+
+def refuse_quick_over_full_results(args):
+    """
+    Raise ValueError if a --quick run would overwrite full results in --out.
+
+    The committed results in docs/benchmark are full runs (tens of minutes); a quick run's
+    few-second figures must never replace them by a typo or a copied command.
+    """
+    import json
+
+    if not args.quick:
+        return
+    for name in _outputs(args):
+        path = Path(args.out) / name
+        try:
+            result = json.loads(path.read_text())
+        except (OSError, ValueError):
+            continue
+        if not result.get('config', {}).get('quick', True):
+            raise ValueError(f'{path} holds the results of a full run ({result.get("command")}'
+                             f'); a --quick run would overwrite them: give it another --out '
+                             'DIR (default ./bench-results)')
+
+
 def main(args):
     """Run the benchmark, write the outputs, print where they are; return 0."""
+    refuse_quick_over_full_results(args)
     if getattr(args, 'forces', False):
         for path in run_forces_benchmark(args).values():
             print(f'bench: wrote {path}')

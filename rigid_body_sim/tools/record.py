@@ -27,7 +27,7 @@ def add_arguments(parser):
     parser.add_argument('topics', nargs='*', metavar='TOPIC',
                         help='topics to record; relative names are under --namespace '
                              "(default: the node's pose, twist, angular_momentum, odom, "
-                             'marker, /diagnostics, /clock)')
+                             'marker, imu, /diagnostics, /clock)')
     parser.add_argument('--bag', help='bag directory to create (default: '
                                       'rigid_body_sim_<date>_<time>)')
     parser.add_argument('--storage', choices=STORAGES, default='mcap',
@@ -65,7 +65,14 @@ def main(args):
     bag = args.bag or f'rigid_body_sim_{datetime.now().strftime("%Y_%m_%d-%H_%M_%S")}'
     if Path(bag).exists():
         raise ValueError(f'{bag} exists already; give a new --bag directory')
-    summary = record(bag, topics=args.topics, storage=args.storage,
+    topics = args.topics
+    if not topics:
+        from ..recording.recorder import default_topics
+        # The node's topics, and its imu, whose type the recorder finds by discovery (what
+        # `simulate` writes, so a live bag holds the same topics).
+        namespace = '/' + args.namespace.strip('/') if args.namespace.strip('/') else ''
+        topics = [*default_topics(namespace), f'{namespace}/imu']
+    summary = record(bag, topics=topics, storage=args.storage,
                      namespace=args.namespace, depth=args.depth,
                      flush_period=args.flush_period, sync=not args.no_fsync,
                      use_sim_time=args.use_sim_time, duration=args.duration)

@@ -22,6 +22,10 @@ from ..scenes import load_scene
 from ..scenes import scene_names
 
 
+# Relative size below which a component is round-off (about 5000 ulp of its scale).
+_ROUND_OFF = 1e-12
+
+
 def add_arguments(parser):
     """Add the options of ``rigid-body-sim scenes``."""
     parser.add_argument('scene', nargs='?',
@@ -56,17 +60,22 @@ def _print_scenes():
 def _print_scene(scene):
     body, state = scene.body, scene.state
 
-    def vector(values):
-        return np.array2string(np.asarray(values), precision=6, separator=', ')
+    def vector(values, scale=None):
+        return np.array2string(without_round_off(values, scale), precision=6,
+                               separator=', ')
+    omega = state.angular_velocity_body(body)
 
     print(f'{scene.name}: {scene.description}')
     print(f'  source:      {scene.source}')
     print(f'  body:        mass {body.mass:g} kg, principal moments '
           f'{vector(body.principal_moments)} kg m^2')
     print(f'  orientation: {vector(state.quaternion)} (x, y, z, w)')
-    print(f'  omega body:  {vector(state.angular_velocity_body(body))} rad/s')
-    print(f'  position:    {vector(state.position)} m, velocity {vector(state.velocity(body))} '
-          'm/s')
+    print(f'  omega body:  {vector(omega)} rad/s')
+    # A pivot's COM velocity is omega x r: its round-off is relative to |omega| |r|.
+    speed = max(np.linalg.norm(state.velocity(body)),
+                np.linalg.norm(omega) * np.linalg.norm(state.position))
+    print(f'  position:    {vector(state.position)} m, velocity '
+          f'{vector(state.velocity(body), speed)} m/s')
     effects = ', '.join(repr(effect) for effect in scene.effects) or 'none (torque-free)'
     print(f'  effects:     {effects}')
     control = ('off' if scene.tolerance is None
@@ -78,6 +87,21 @@ def _print_scene(scene):
           f'{vector(drawing.color)}')
     print(f'  outside push (torque/wrench topics): '
           f'{"yes" if scene.accepts_external_wrench else "no"}')
+
+
+def without_round_off(values, scale=None):
+    """
+    Return `values` with the components below their round-off set to 0.
+
+    A component smaller than 1e-12 of `scale` (default: the largest component's magnitude)
+    is round-off of the computation that made the vector (a rotation of (0, 0, 150) rad/s
+    leaves ~1e-14 in its zero components), not a value: it prints as 0.
+    """
+    values = np.array(values, dtype=float)
+    if scale is None:
+        scale = float(np.max(np.abs(values))) if values.size else 0.0
+    values[np.abs(values) <= _ROUND_OFF * scale] = 0.0
+    return values + 0.0  # -0.0 prints as 0
 
 
 def _print_effects():

@@ -12,6 +12,7 @@ or the mcap tools, and plots with `rigid-body-sim plot`.
 Typical use:
   rigid-body-sim simulate --scene tennis_racket --duration 30
   rigid-body-sim simulate --scene default --duration 60 --rate 1000 --bag t_handle_1khz
+  rigid-body-sim simulate --scene default --duration 60 --bag t_handle_1khz --overwrite
   rigid-body-sim plot t_handle_1khz --out t_handle.png
 """
 
@@ -50,6 +51,9 @@ def add_arguments(parser):
                              "the scene's)")
     parser.add_argument('--bag',
                         help='bag directory to create (default: <scene>_<date>_<time>)')
+    parser.add_argument('--overwrite', action='store_true',
+                        help='replace the bag at --bag if there is one (a directory that is '
+                             'not a bag is never removed)')
     parser.add_argument('--storage', choices=STORAGES, default='mcap',
                         help='storage format (default: mcap)')
     parser.add_argument('--start-time', default='0',
@@ -89,6 +93,28 @@ def start_time_nanoseconds(text):
     return round(seconds * 1e9)
 
 
+def remove_bag(path):
+    """
+    Remove the bag directory `path` (for --overwrite).
+
+    Only a bag goes: a directory holding metadata.yaml, or only storage files (a killed
+    writer's); anything else is an error, so a mistyped --bag never deletes other files.
+    """
+    import shutil
+
+    storage = ('.mcap', '.db3', '.db3-journal', '.db3-wal', '.db3-shm')
+    if not path.is_dir():
+        raise ValueError(f'{path} exists and is not a bag directory; not replaced')
+    files = list(path.iterdir())
+    is_bag = (path / 'metadata.yaml').is_file() and all(
+        entry.is_file() for entry in files) or (files and all(
+            entry.is_file() and entry.name.endswith(storage) for entry in files))
+    if not is_bag:
+        raise ValueError(f'{path} exists and is not a bag (no metadata.yaml, or other '
+                         'files in it); not replaced: give a new --bag directory')
+    shutil.rmtree(path)
+
+
 def main(args):
     """
     Run the simulation into the bag and print what was written; return 0.
@@ -107,7 +133,10 @@ def main(args):
     if bag is None:
         bag = f'{scene.name}_{datetime.now().strftime("%Y_%m_%d-%H_%M_%S")}'
     if Path(bag).exists():
-        raise ValueError(f'{bag} exists already; give a new --bag directory')
+        if not args.overwrite:
+            raise ValueError(f'{bag} exists already; give a new --bag directory, or '
+                             '--overwrite to replace it')
+        remove_bag(Path(bag))
     start_time = start_time_nanoseconds(args.start_time)
     if not (math.isfinite(args.flush_period) and args.flush_period >= 0.0):
         raise ValueError(f'--flush-period must be a number of s >= 0; got {args.flush_period:g}')

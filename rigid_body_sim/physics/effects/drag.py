@@ -1,13 +1,40 @@
 """drag: linear and quadratic resistance of the surrounding fluid, on translation and rotation."""
 
+import math
+
 import numpy as np
 
 from .registry import check_number
 from .registry import Effect
 from .registry import register_effect
+from ..kernels.algebra import rotate
+from ..kernels.algebra import rotate_back
+from ..kernels.layout import inverse_inertia_times
+from ..kernels.model import wrench_term
 
-_NO_VECTOR = np.zeros(3)
-_NO_VECTOR.flags.writeable = False
+
+@wrench_term
+def fluid_resistance(state, time, parameters):
+    """
+    Return the drag force (N) and torque (N m), world frame, of a packed physical state.
+
+    parameters: c1, c2, k1, k2, 1/m, I_b^-1 (9, row-major).  F = -(c1 + c2 |v|) v with
+    v = p / m; tau = -(k1 + k2 |omega|) omega with omega = R I_b^-1 R^T L.  A part whose
+    coefficients are both zero is not computed.
+    """
+    fx = fy = fz = tx = ty = tz = 0.0
+    if parameters[0] != 0.0 or parameters[1] != 0.0:
+        vx, vy, vz = (state[7] * parameters[4], state[8] * parameters[4],
+                      state[9] * parameters[4])
+        scale = -(parameters[0] + parameters[1] * math.sqrt(vx * vx + vy * vy + vz * vz))
+        fx, fy, fz = scale * vx, scale * vy, scale * vz
+    if parameters[2] != 0.0 or parameters[3] != 0.0:
+        q = (state[0], state[1], state[2], state[3])
+        wx, wy, wz = rotate(q, inverse_inertia_times(parameters[5:14], rotate_back(
+            q, (state[10], state[11], state[12]))))
+        scale = -(parameters[2] + parameters[3] * math.sqrt(wx * wx + wy * wy + wz * wz))
+        tx, ty, tz = scale * wx, scale * wy, scale * wz
+    return fx, fy, fz, tx, ty, tz
 
 
 @register_effect('drag')
@@ -16,9 +43,9 @@ class Drag(Effect):
     Fluid drag: F = -(c1 + c2 |v|) v through the COM, tau = -(k1 + k2 |omega|) omega.
 
     v is the COM velocity and omega the angular velocity, both world frame.  The wrench
-    depends on the momenta, so it is marked ``momentum_dependent`` (the readable
-    integrators then keep their order); a part whose coefficients are zero is not computed,
-    so rotational drag alone never touches the translation.
+    depends on the momenta, so it is ``momentum_dependent`` (the kicks keep their order
+    for it); a part whose coefficients are zero is not computed, so rotational drag alone
+    never touches the translation.
 
     Parameters
     ----------
@@ -34,6 +61,10 @@ class Drag(Effect):
     """
 
     momentum_dependent = True
+    reads_state = True
+    compiled_wrench = staticmethod(fluid_resistance)
+    example = {'linear': 0.2, 'quadratic': 0.05, 'rotational_linear': 0.01,
+               'rotational_quadratic': 0.002}
 
     def __init__(self, linear=0.0, quadratic=0.0, rotational_linear=0.0,
                  rotational_quadratic=0.0):
@@ -43,19 +74,13 @@ class Drag(Effect):
                                               minimum=0.0)
         self.rotational_quadratic = check_number(rotational_quadratic, 'rotational_quadratic',
                                                  'N m s^2', minimum=0.0)
-        self._translational = self.linear > 0.0 or self.quadratic > 0.0
-        self._rotational = self.rotational_linear > 0.0 or self.rotational_quadratic > 0.0
-        if not (self._translational or self._rotational):
+        translational = self.linear > 0.0 or self.quadratic > 0.0
+        self.exerts_torque = self.rotational_linear > 0.0 or self.rotational_quadratic > 0.0
+        if not (translational or self.exerts_torque):
             raise ValueError('drag: every coefficient is zero; give one, or drop the effect')
 
-    def wrench(self, body, state, time):
-        """Return the drag force (N, world) and torque about the COM (N m, world)."""
-        force = torque = _NO_VECTOR
-        if self._translational:
-            velocity = state.linear_momentum / body.mass
-            force = -(self.linear + self.quadratic * np.sqrt(velocity @ velocity)) * velocity
-        if self._rotational:
-            omega = state.angular_velocity(body)
-            torque = -(self.rotational_linear
-                       + self.rotational_quadratic * np.sqrt(omega @ omega)) * omega
-        return force, torque
+    def wrench_parameters(self, body):
+        """Return c1, c2, k1, k2, 1/m and I_b^-1 (row-major) of `body`."""
+        return np.concatenate([[self.linear, self.quadratic, self.rotational_linear,
+                                self.rotational_quadratic, 1.0 / body.mass],
+                               body.inertia_inverse.reshape(9)])

@@ -30,6 +30,10 @@ class ExternalWrench(Effect):
     """
 
     accepts_external_wrench = True
+    # It computes nothing: what conserves depends on the inputs, none offline.
+    conserves = ('angular_momentum', 'rotational_energy')
+    keeps_pivot_invariants = True
+    example = {'max_force': 10.0, 'max_torque': 1.0}
 
     def __init__(self, max_force=None, max_torque=None):
         self.max_force = None if max_force is None else check_number(

@@ -17,17 +17,66 @@ The State the Simulator shows is this physical state, as everywhere: State.angul
 is about the COM.  :meth:`PivotConstraint.angular_momentum_about_pivot` gives
 L_pivot = L_com + r x p.  Energy needs no special case: |p|^2/(2m) + omega . L_com / 2 equals
 omega . L_pivot / 2 (Koenig), and gravity adds m g z_com.
+
+In the kernels (kernels/model.py) the pivot is a constraint of two compiled functions:
+:func:`expand` (the physical state of the pivot system's, for effects that read it) and
+:func:`transmit` (a wrench at the COM as the pivot system takes it: no force, the torque
+tau + r x F).
 """
 
-import numba
 import numpy as np
 
 from .registry import check_vector
 from .registry import Effect
 from .registry import register_effect
 from ..body import RigidBody
-from ..rotations import cross
+from ..kernels.algebra import cross
+from ..kernels.algebra import rotate
+from ..kernels.layout import inverse_inertia_times
+from ..kernels.model import expand_function
+from ..kernels.model import transmit_function
+from ..rotations import cross as cross_product
 from ..state import State
+
+
+@expand_function
+def expand(integrated, parameters, physical):
+    """
+    Write the physical state of a packed pivot-system state into `physical` (SI, world).
+
+    parameters: I_pivot^-1 (9, row-major), d (3, the COM from the pivot, body frame),
+    anchor (3), m.  omega = R I_pivot^-1 R^T L_pivot; r = R d; p = m omega x r;
+    x = anchor + r; L_com = L_pivot - r x p.
+    """
+    q = (integrated[0], integrated[1], integrated[2], integrated[3])
+    angular_momentum = (integrated[10], integrated[11], integrated[12])
+    conjugated = (-q[0], -q[1], -q[2], q[3])
+    omega = rotate(q, inverse_inertia_times(parameters[0:9],
+                                            rotate(conjugated, angular_momentum)))
+    r = rotate(q, (parameters[9], parameters[10], parameters[11]))
+    mass = parameters[15]
+    turning = cross(omega, r)
+    linear_momentum = (mass * turning[0], mass * turning[1], mass * turning[2])
+    moment = cross(r, linear_momentum)
+    for i in range(4):
+        physical[i] = integrated[i]
+    for i in range(3):
+        physical[4 + i] = parameters[12 + i] + r[i]
+        physical[7 + i] = linear_momentum[i]
+        physical[10 + i] = angular_momentum[i] - moment[i]
+
+
+@transmit_function
+def transmit(state, wrench, parameters):
+    """
+    Return the wrench about the pivot of one at the COM: (0, tau + r x F), r = R d (world).
+
+    The reaction at the pivot takes the force; its moment about the pivot stays.
+    """
+    q = (state[0], state[1], state[2], state[3])
+    r = rotate(q, (parameters[9], parameters[10], parameters[11]))
+    moment = cross(r, (wrench[0], wrench[1], wrench[2]))
+    return 0.0, 0.0, 0.0, wrench[3] + moment[0], wrench[4] + moment[1], wrench[5] + moment[2]
 
 
 @register_effect('pivot')
@@ -48,6 +97,8 @@ class Pivot(Effect):
         Where the pivot is held, m, world frame (default the origin).
 
     """
+
+    example = {'point': [0.02, -0.01, -0.05], 'anchor': [0.0, 0.0, 1.0]}
 
     def __init__(self, point, anchor=(0.0, 0.0, 0.0)):
         self.point = check_vector(point, 'point', 'm')
@@ -86,10 +137,12 @@ class PivotConstraint:
         self.anchor = np.array(anchor, dtype=float)
         self._physical_body = body
         self._mass = body.mass
-        # What the compiled expansion needs, in one array (one argument to pass per call):
-        # I_pivot^{-1} row-major (9), d (3), anchor (3), m.
-        self._expansion = np.concatenate([self.body.inertia_inverse.reshape(9), d,
+        # The parameters of the compiled expand and transmit: I_pivot^-1 row-major (9),
+        # d (3), anchor (3), m.
+        self.parameters = np.concatenate([self.body.inertia_inverse.reshape(9), d,
                                           self.anchor, [self._mass]])
+        self.expand_function = expand
+        self.transmit_function = transmit
 
     def project(self, state):
         """
@@ -100,7 +153,7 @@ class PivotConstraint:
         omega = state.angular_velocity(self._physical_body)
         r = state.rotation @ self.offset_body
         return State._from_arrays(np.array(state.quaternion), self.anchor + r,
-                                  self._mass * cross(omega, r),
+                                  self._mass * cross_product(omega, r),
                                   np.array(state.angular_momentum))
 
     def reduce(self, state):
@@ -114,92 +167,39 @@ class PivotConstraint:
 
     def expand(self, pivot_state):
         """Return the physical state (COM position and momenta) of a pivot-system state."""
-        rotation = pivot_state.rotation
-        omega = rotation @ (self.body.inertia_inverse
-                            @ (rotation.T @ pivot_state.angular_momentum))
-        r = rotation @ self.offset_body
-        linear_momentum = self._mass * cross(omega, r)
-        return State._from_arrays(np.array(pivot_state.quaternion), self.anchor + r,
-                                  linear_momentum,
-                                  pivot_state.angular_momentum - cross(r, linear_momentum))
+        return State._from_values(self.expand_values(np.concatenate(pivot_state._fields())))
 
     def expand_values(self, pivot_values):
-        """
-        Return the physical state of a packed pivot-system state, packed (compiled).
-
-        The same map as :meth:`expand` (tested to round-off) on the packed arrays of
-        integrators/fast.py [q, x, p, L]: the Simulator reads its state through it.
-        """
-        return _expanded_values(pivot_values, self._expansion)
+        """Return the physical state of a packed pivot-system state, packed (compiled)."""
+        physical = np.empty(13)
+        expand(pivot_values, self.parameters, physical)
+        return physical
 
     def angular_momentum_about_pivot(self, state):
         """Return L_pivot = L_com + r x p of a physical state, kg m^2/s, world frame."""
         r = state.rotation @ self.offset_body
-        return state.angular_momentum + cross(r, state.linear_momentum)
+        return state.angular_momentum + cross_product(r, state.linear_momentum)
 
     def wrench(self, wrench):
         """
         Return the pivot system's wrench: (0, tau + r x F) from the physical one.
 
         `wrench(state, time)` acts on physical states (force through the COM, torque about
-        it).  A wrench marked ``rotation_only`` (held and constant parts only) is evaluated
-        on the pivot state directly, which has the same rotation, saving the expansion.
+        it); the returned one on pivot-system states (the readable steps' form of the
+        compiled :func:`expand` and :func:`transmit`).
         """
         if wrench is None:
             return None
-        offset_body = self.offset_body
-        expand = None if getattr(wrench, 'rotation_only', False) else self.expand
-        no_force = np.zeros(3)
-        no_force.flags.writeable = False
+        parameters = self.parameters
 
         def pivot_wrench(state, time):
-            force, torque = wrench(state if expand is None else expand(state), time)
-            r = state.rotation @ offset_body
-            return no_force, torque + cross(r, force)
+            values = np.concatenate(state._fields())
+            physical = np.empty(13)
+            expand(values, parameters, physical)
+            force, torque = wrench(State._from_values(physical), time)
+            transmitted = transmit(values, (*map(float, force), *map(float, torque)),
+                                   parameters)
+            return np.zeros(3), np.array(transmitted[3:])
 
         pivot_wrench.momentum_dependent = getattr(wrench, 'momentum_dependent', False)
         return pivot_wrench
-
-
-@numba.njit(cache=True, nogil=True)
-def _expanded_values(values, expansion):
-    """Compiled :meth:`PivotConstraint.expand` on packed [q, x, p, L] arrays (SI, world)."""
-    pivot_inertia_inverse = expansion[0:9].reshape((3, 3))
-    offset_body, anchor, mass = expansion[9:12], expansion[12:15], expansion[15]
-    x, y, z, w = values[0], values[1], values[2], values[3]
-    rotation = np.empty((3, 3))
-    rotation[0, 0] = 1.0 - 2.0 * (y * y + z * z)
-    rotation[0, 1] = 2.0 * (x * y - z * w)
-    rotation[0, 2] = 2.0 * (x * z + y * w)
-    rotation[1, 0] = 2.0 * (x * y + z * w)
-    rotation[1, 1] = 1.0 - 2.0 * (x * x + z * z)
-    rotation[1, 2] = 2.0 * (y * z - x * w)
-    rotation[2, 0] = 2.0 * (x * z - y * w)
-    rotation[2, 1] = 2.0 * (y * z + x * w)
-    rotation[2, 2] = 1.0 - 2.0 * (x * x + y * y)
-    angular_momentum = values[10:13]
-    # omega = R I_pivot^{-1} R^T L_pivot; r = R d; p = m omega x r; L_com = L_pivot - r x p.
-    momentum_body = np.zeros(3)
-    for i in range(3):
-        for j in range(3):
-            momentum_body[i] += rotation[j, i] * angular_momentum[j]
-    omega_body = np.zeros(3)
-    for i in range(3):
-        for j in range(3):
-            omega_body[i] += pivot_inertia_inverse[i, j] * momentum_body[j]
-    omega, r = np.zeros(3), np.zeros(3)
-    for i in range(3):
-        for j in range(3):
-            omega[i] += rotation[i, j] * omega_body[j]
-            r[i] += rotation[i, j] * offset_body[j]
-    linear_momentum = mass * np.array([omega[1] * r[2] - omega[2] * r[1],
-                                       omega[2] * r[0] - omega[0] * r[2],
-                                       omega[0] * r[1] - omega[1] * r[0]])
-    physical = np.empty(13)
-    physical[0:4] = values[0:4]
-    physical[4:7] = anchor + r
-    physical[7:10] = linear_momentum
-    physical[10] = angular_momentum[0] - (r[1] * linear_momentum[2] - r[2] * linear_momentum[1])
-    physical[11] = angular_momentum[1] - (r[2] * linear_momentum[0] - r[0] * linear_momentum[2])
-    physical[12] = angular_momentum[2] - (r[0] * linear_momentum[1] - r[1] * linear_momentum[0])
-    return physical

@@ -1,38 +1,52 @@
 """
 The effect registry: one name -> one effect class, and the checks of effect parameters.
 
-An effect is a small object the Simulator consults while it steps a body.  What it does is
-told by which of these it has (all optional; frames world, units SI):
+An effect is a small object that says what acts on a body besides its own inertia.  What it
+does is told by which of these it has (all optional; frames world, units SI), each written
+once, as compiled code (kernels/model.py), so that every integrator runs it compiled:
 
-- ``wrench(body, state, time) -> (force, torque)``: a force through the COM (N) and a torque
-  about the COM (N m).  Evaluated inside every step (the readable integrators).
-- ``constant_force(body) -> force``: the effect is a force fixed in the world and in time
-  (uniform gravity).  The Simulator folds it into the held wrench, so the compiled fast path
-  still runs (under a pivot too, as the lever force of the packed wrench: its moment about
-  the pivot turns with the body), and does not call ``wrench`` at all.
-- ``momentum_dependent = True``: the wrench depends on the momenta (drag); the integrators
-  then keep their order for it (see ``integrators.common.kick``).
-- ``potential_energy(body, state)``: its potential energy in J, added by Simulator.energy().
-- ``flow(body, state, dt) -> State``: a change of the state that is not a wrench (internal
-  dissipation), composed with each integrator step symmetrically: flow(dt/2), step(dt),
-  flow(dt/2) (Strang).  The compiled kernels fuse the :class:`Dissipation` flow into their
-  loop; any other flow is composed by the Simulator around single kernel steps.
+- ``compiled_wrench``, a :func:`~rigid_body_sim.physics.kernels.model.wrench_term`
+  ``(state, time, parameters) -> (Fx, Fy, Fz, tx, ty, tz)``, with
+  ``wrench_parameters(body) -> array``: a force through the COM (N) and a torque about it
+  (N m) on the physical packed state at `time`.  Declare what it reads and does:
+  ``momentum_dependent = True`` if it depends on p or L (the kicks then keep their order
+  for it), ``reads_state = True`` if it reads more of the state than the orientation and
+  the time (a constrained body's full state is then expanded for it), ``exerts_torque =
+  False`` if it never exerts a torque about the COM (the error control can then treat
+  the motion as torque-free);
+- ``compiled_flow``, a :func:`~rigid_body_sim.physics.kernels.model.flow_function`
+  ``(state, parameters, duration)``, with ``flow_parameters(body) -> array`` (body: the
+  integrated one): a change of the state that is not a wrench (internal dissipation),
+  composed with each integrator step symmetrically: flow(dt/2), step(dt), flow(dt/2);
 - ``constrain(body) -> constraint``: a holonomic constraint (a pivot); see
-  :class:`rigid_body_sim.physics.effects.pivot.PivotConstraint` for what the Simulator uses.
+  :class:`rigid_body_sim.physics.effects.pivot.PivotConstraint` for what the Simulator uses;
+- ``potential_energy(body, state)``: its potential energy in J, added by Simulator.energy();
+- ``conserves``: which of 'angular_momentum' (|L| about the COM) and 'rotational_energy'
+  (T_rot) the effect leaves constant (default: neither), and ``keeps_pivot_invariants``:
+  under a pivot it keeps the pivot's (total energy, L about the pivot along gravity): the
+  plots show as conserved only what every effect of a scene conserves;
 - ``accepts_external_wrench = True``: the body may be pushed from outside (the node's
-  torque and wrench topics write the Simulator's held wrench).
+  torque and wrench topics write the Simulator's held wrench);
+- ``example``: a dict of typical parameters (required): the tests run every effect, built
+  from it, under every integrator, so a new effect is covered without editing them.
 
+The base class :class:`Effect` gives every effect its Python face from the compiled one:
+``wrench(body, state, time) -> (force, torque)`` and ``flow(body, state, dt) -> State``.
 Only what a scene names is computed: an effect that has none of these costs nothing.
+
 Adding an effect: one module with a class decorated by :func:`register_effect`, imported in
-``effects/__init__.py``.  Its keyword arguments are its scene parameters (the scene loader
-reads names, defaults and required ones from the signature); it checks their values with
-the ``check_*`` helpers here, which raise :class:`ParameterError` naming the parameter.
+``effects/__init__.py``; it runs compiled under every integrator without an edit anywhere
+else.  Its keyword arguments are its scene parameters (the scene loader reads names,
+defaults and required ones from the signature); it checks their values with the ``check_*``
+helpers here, which raise :class:`ParameterError` naming the parameter.
 """
 
 import inspect
 import math
 
 import numpy as np
+
+from ..state import State
 
 __all__ = [
     'EFFECTS',
@@ -115,7 +129,9 @@ def _effect_class(name):
 
 class Effect:
     """
-    Base of the built-in effects: the defaults of the protocol and a readable repr.
+    Base of the effects: the protocol's defaults, Python faces of the compiled code, a repr.
+
+    The faces: :meth:`wrench` and :meth:`flow` call the compiled wrench and flow.
 
     Subclasses keep each constructor argument as an attribute of the same name, so that the
     repr shows the parameters in force.
@@ -123,7 +139,36 @@ class Effect:
 
     effect_name = None
     momentum_dependent = False
+    reads_state = False
+    exerts_torque = True
     accepts_external_wrench = False
+    compiled_wrench = None
+    compiled_flow = None
+    example = None
+    conserves = ()
+    keeps_pivot_invariants = False
+
+    def wrench_parameters(self, body):
+        """Return the parameters (1-D float array) of the compiled wrench on `body`."""
+        raise NotImplementedError
+
+    def flow_parameters(self, body):
+        """Return the parameters (1-D float array) of the compiled flow on `body`."""
+        raise NotImplementedError
+
+    def wrench(self, body, state, time):
+        """Return (force N, torque N m) about the COM, world frame, at `state` and `time` s."""
+        values = np.concatenate(state._fields())
+        result = self.compiled_wrench(values, float(time), np.ascontiguousarray(
+            self.wrench_parameters(body), dtype=float))
+        return np.array(result[:3]), np.array(result[3:])
+
+    def flow(self, body, state, dt):
+        """Return the state after dt s of this effect's flow alone."""
+        values = np.concatenate(state._fields())
+        self.compiled_flow(values, np.ascontiguousarray(self.flow_parameters(body),
+                                                        dtype=float), float(dt))
+        return State._from_values(values)
 
     def __repr__(self):
         """Return ``Name(parameter=value, ...)`` with the parameters in force."""

@@ -8,6 +8,14 @@ from .registry import check_number
 from .registry import check_vector
 from .registry import Effect
 from .registry import register_effect
+from ..kernels.model import wrench_term
+
+
+@wrench_term
+def oscillating_torque(state, time, parameters):
+    """Return (0, A sin(omega t + phi)); parameters: A (3, N m), omega (rad/s), phi (rad)."""
+    s = math.sin(parameters[3] * time + parameters[4])
+    return 0.0, 0.0, 0.0, parameters[0] * s, parameters[1] * s, parameters[2] * s
 
 
 @register_effect('sinusoidal_torque')
@@ -16,8 +24,8 @@ class SinusoidalTorque(Effect):
     A torque about the COM, fixed in direction in the world, oscillating in time.
 
     tau(t) = amplitude sin(2 pi frequency t + phase), world frame; no force.  It depends on
-    time, not on the state, so the steps sample it where they kick (a time-varying wrench
-    runs the integrators' readable path).
+    time, not on the state: every integrator samples it at its own kick or stage times, so
+    each keeps its order.
 
     Parameters
     ----------
@@ -30,17 +38,19 @@ class SinusoidalTorque(Effect):
 
     """
 
+    compiled_wrench = staticmethod(oscillating_torque)
+    example = {'amplitude': [0.1, -0.2, 0.3], 'frequency': 0.5, 'phase': 0.2}
+
     def __init__(self, amplitude, frequency, phase=0.0):
         self.amplitude = check_vector(amplitude, 'amplitude', 'N m')
         self.frequency = check_number(frequency, 'frequency', 'Hz', positive=True)
         self.phase = check_number(phase, 'phase', 'rad')
-        self._no_force = np.zeros(3)
-        self._no_force.flags.writeable = False
+
+    def wrench_parameters(self, body):
+        """Return (A_x, A_y, A_z, 2 pi f, phase)."""
+        return np.array([*self.amplitude, 2.0 * math.pi * self.frequency, self.phase])
 
     def torque(self, time):
         """Return tau(t) in N m, world frame."""
-        return self.amplitude * math.sin(2.0 * math.pi * self.frequency * time + self.phase)
-
-    def wrench(self, body, state, time):
-        """Return (0, tau(t)): a pure torque about the COM."""
-        return self._no_force, self.torque(time)
+        values = oscillating_torque(np.zeros(13), float(time), self.wrench_parameters(None))
+        return np.array(values[3:])

@@ -1,5 +1,5 @@
 """
-Building blocks shared by the readable integrator definitions.
+Building blocks of the readable steps (State in, State out, a Python wrench callable).
 
 Frames: everything here is world frame unless a name ends in ``_body``.  Units SI.
 """

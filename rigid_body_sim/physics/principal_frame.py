@@ -11,7 +11,7 @@ import collections
 
 import numpy as np
 
-from ..rotations import quaternion_from_matrix
+from .rotations import quaternion_from_matrix
 
 __all__ = ['PrincipalFrame', 'principal_frame', 'ASYMMETRIC', 'SPHERICAL', 'PROLATE',
            'OBLATE']

@@ -1,0 +1,369 @@
+"""
+What pushes a body, as compiled code: the held wrench, the effects and a constraint.
+
+A :class:`Model` (MuJoCo's mjModel to the packed state's mjData) holds everything fixed
+between two changes of configuration: the packed body being integrated, the held wrench, and
+the scene's effects as first-class compiled functions with their parameters:
+
+- wrench terms, ``term(state, time, parameters) -> (Fx, Fy, Fz, tx, ty, tz)``: a force
+  through the COM (N) and a torque about it (N m), world frame, on the physical state
+  (a packed state of the COM: see :mod:`.layout`) at `time` (s);
+- flows, ``flow(state, parameters, duration)``: a change of the integrated state in place
+  that is not a wrench (internal dissipation), composed around each step;
+- a constraint (a pivot): ``expand(integrated, parameters, physical)`` writes the physical
+  state of the integrated one, ``transmit(state, wrench, parameters)`` returns the wrench
+  the integrated system takes from a physical one (about the pivot, the reaction taking
+  the force).
+
+The integrators' kernels are compiled once each, for the one type of a Model, and call the
+terms through the function pointers it holds: a combination of effects no kernel has seen
+runs compiled without compiling anything but the effects' own small functions, and a
+scene pays only for the terms it has (a loop over ``term_count`` entries).  Effects declare
+their functions with the decorators here (:func:`wrench_term`, :func:`flow_function`, ...),
+which compile them for the one signature each kind has.
+
+Numbers, per call of a kernel: unboxing a Model costs ~0.3 us (its function pointers were
+unboxed once, when it was built: ~50 us each); an indirect call ~2.5 ns more than an inlined
+one (benchmarks/effect_cost.py measures what each effect adds to a step).
+"""
+
+import collections
+import functools
+import warnings
+
+import numba
+from numba import types
+from numba.core.errors import NumbaExperimentalFeatureWarning
+from numba.experimental import structref
+import numpy as np
+
+from . import inline
+from . import kernel
+from .algebra import rotate
+from .borrow import borrowed
+from .layout import STATE_SIZE
+
+__all__ = ['Model', 'Forcing', 'MODEL_TYPE', 'new_model', 'unpacked', 'applied_wrench_of',
+           'wrench_term', 'flow_function', 'expand_function',
+           'transmit_function', 'MAX_TERMS', 'MAX_FLOWS', 'HELD_FORCE_WORLD',
+           'HELD_TORQUE_WORLD', 'HELD_FORCE_BODY', 'HELD_TORQUE_BODY', 'integrated_wrench',
+           'applied_wrench', 'impulse', 'kick', 'apply_flows', 'held_is_zero', 'no_term',
+           'no_flow', 'no_expand', 'no_transmit']
+
+MAX_TERMS = 8
+"""Most wrench terms a model holds (the tuple of function pointers has this fixed length,
+so that its type, and with it every kernel, is the same for every scene)."""
+MAX_FLOWS = 2
+"""Most flows a model holds."""
+
+# Rows of the held wrench (4, 3): fixed in the world or in the body (turning with it).
+HELD_FORCE_WORLD, HELD_TORQUE_WORLD, HELD_FORCE_BODY, HELD_TORQUE_BODY = range(4)
+
+_vector = types.float64[::1]
+_wrench = types.UniTuple(types.float64, 6)
+TERM_SIGNATURE = _wrench(_vector, types.float64, _vector)
+FLOW_SIGNATURE = types.none(_vector, _vector, types.float64)
+EXPAND_SIGNATURE = types.none(_vector, _vector, _vector)
+TRANSMIT_SIGNATURE = _wrench(_vector, _wrench, _vector)
+
+_signed = functools.partial(numba.njit, cache=True, nogil=True)
+
+
+def wrench_term(function):
+    """Compile `function` as a wrench term: ``(state, time, parameters) -> 6-tuple``."""
+    return _signed(TERM_SIGNATURE)(function)
+
+
+def flow_function(function):
+    """Compile `function` as a flow: ``(state, parameters, duration) -> None``, in place."""
+    return _signed(FLOW_SIGNATURE)(function)
+
+
+def expand_function(function):
+    """Compile `function` as a constraint's ``expand(integrated, parameters, physical)``."""
+    return _signed(EXPAND_SIGNATURE)(function)
+
+
+def transmit_function(function):
+    """Compile `function` as a constraint's ``transmit(state, wrench, parameters)``."""
+    return _signed(TRANSMIT_SIGNATURE)(function)
+
+
+@wrench_term
+def no_term(state, time, parameters):
+    """Fill the unused entries of the terms (never called)."""
+    return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+
+
+@flow_function
+def no_flow(state, parameters, duration):
+    """Fill the unused entries of the flows (never called)."""
+
+
+@expand_function
+def no_expand(integrated, parameters, physical):
+    """Stand for the expansion of an unconstrained body (never called)."""
+
+
+@transmit_function
+def no_transmit(state, wrench, parameters):
+    """Stand for the transmission of an unconstrained body (never called)."""
+    return wrench
+
+
+@structref.register
+class ModelType(types.StructRef):
+    """numba's type of a :class:`Model`."""
+
+    def preprocess_fields(self, fields):
+        """Drop literal types: every Model has the one type."""
+        return tuple((name, types.unliteral(kind)) for name, kind in fields)
+
+
+class Model(structref.StructRefProxy):
+    """
+    The fixed part of a simulation, compiled: body, held wrench, effects (see the module).
+
+    Build one with :func:`new_model`; its arrays are shared with the caller, so writing the
+    held wrench or a parameter array takes effect at the next kernel call.
+    """
+
+
+_TERM = types.FunctionType(TERM_SIGNATURE)
+_FLOW = types.FunctionType(FLOW_SIGNATURE)
+_FIELDS = (('body', _vector), ('held', types.float64[:, ::1]),
+           ('terms', types.UniTuple(_TERM, MAX_TERMS)), ('term_count', types.int64),
+           ('term_parameters', _vector), ('term_offsets', types.int64[::1]),
+           ('momentum_dependent', types.boolean),
+           ('flows', types.UniTuple(_FLOW, MAX_FLOWS)), ('flow_count', types.int64),
+           ('flow_parameters', _vector), ('flow_offsets', types.int64[::1]),
+           ('constrained', types.boolean), ('needs_physical', types.boolean),
+           ('reads_state', types.boolean),
+           ('expand', types.FunctionType(EXPAND_SIGNATURE)),
+           ('transmit', types.FunctionType(TRANSMIT_SIGNATURE)),
+           ('constraint_parameters', _vector),
+           ('physical', _vector), ('stage', _vector), ('midpoint', _vector), ('carry', _vector))
+_NAMES = tuple(name for name, _ in _FIELDS)
+structref.define_proxy(Model, ModelType, list(_NAMES))
+MODEL_TYPE = ModelType(list(_FIELDS))
+"""numba's type of every Model: one type, so each kernel compiles once."""
+
+# The Forcing adds what a call finds: whether the held wrench is not zero.
+Forcing = collections.namedtuple('Forcing', _NAMES + ('holding',))
+Forcing.__doc__ = """A Model's fields as one tuple of local values, unpacked once per kernel call.
+
+Reading a field of the Model in the hot loop costs a load through its reference each time
+(and a function pointer's ~10 ns); the kernels pass this tuple down instead (all inlined)."""
+
+
+@kernel(MODEL_TYPE(*(kind for name, kind in _FIELDS[:17])))
+def _new_model(body, held, terms, term_count, term_parameters, term_offsets,
+               momentum_dependent, flows, flow_count, flow_parameters, flow_offsets,
+               constrained, needs_physical, reads_state, expand, transmit,
+               constraint_parameters):
+    return Model(body, held, terms, term_count, term_parameters, term_offsets,
+                 momentum_dependent, flows, flow_count, flow_parameters, flow_offsets,
+                 constrained, needs_physical, reads_state, expand, transmit,
+                 constraint_parameters,
+                 np.zeros(STATE_SIZE), np.zeros(STATE_SIZE), np.zeros(STATE_SIZE),
+                 np.zeros(STATE_SIZE))
+
+
+@kernel
+def _body(model):
+    return model.body
+
+
+@kernel
+def _term_count(model):
+    return model.term_count
+
+
+@kernel
+def _term_parameters(model):
+    return model.term_parameters
+
+
+@kernel
+def _flow_count(model):
+    return model.flow_count
+
+
+@kernel
+def _constrained(model):
+    return model.constrained
+
+
+# What Python reads of a Model (numba gives a proxy no attribute of its own).
+Model.body = property(_body, doc='The packed body integrated (27,).')
+Model.term_count = property(_term_count, doc='The number of wrench terms.')
+Model.term_parameters = property(_term_parameters,
+                                 doc="The terms' parameters, concatenated (shared).")
+Model.flow_count = property(_flow_count, doc='The number of flows.')
+Model.constrained = property(_constrained, doc='True under a constraint.')
+
+
+@inline
+def unpacked(model):
+    """Return the :class:`Forcing` of a Model (its fields as values)."""
+    return Forcing(borrowed(model.body), borrowed(model.held), model.terms,
+                   model.term_count, borrowed(model.term_parameters),
+                   borrowed(model.term_offsets), model.momentum_dependent, model.flows,
+                   model.flow_count, borrowed(model.flow_parameters),
+                   borrowed(model.flow_offsets), model.constrained, model.needs_physical,
+                   model.reads_state, model.expand, model.transmit,
+                   borrowed(model.constraint_parameters), borrowed(model.physical),
+                   borrowed(model.stage), borrowed(model.midpoint), borrowed(model.carry),
+                   not held_is_zero(model.held))
+
+
+def _packed(functions, parameters, limit, filler, kind):
+    functions = tuple(functions)
+    if len(functions) > limit:
+        raise ValueError(f'at most {limit} {kind} can act on a body; got {len(functions)}')
+    arrays = [np.ascontiguousarray(p, dtype=float).reshape(-1) for p in parameters]
+    offsets = np.zeros(len(arrays) + 1, dtype=np.int64)
+    offsets[1:] = np.cumsum([a.size for a in arrays])
+    values = np.concatenate(arrays) if arrays else np.zeros(0)
+    return functions + (filler,) * (limit - len(functions)), len(functions), values, offsets
+
+
+def new_model(body, held, terms=(), flows=(), constraint=None, momentum_dependent=False,
+              reads_state=False):
+    """
+    Return a :class:`Model`.
+
+    body : (27,) the packed body integrated (layout.body_values); held : (4, 3) float array,
+    the held wrench (rows HELD_*), shared: written in place, it acts at the next call;
+    terms, flows : sequences of (compiled function, parameters array); constraint : None or
+    (expand, transmit, parameters); momentum_dependent : some term depends on p or L (the
+    kicks then take the midpoint rule, keeping their order); reads_state : some term reads
+    more of the state than the orientation (the methods then give it their stages' whole
+    state, and under the constraint the physical state is expanded for it; the
+    orientation is the same in both).
+    """
+    term_functions, term_count, term_parameters, term_offsets = _packed(
+        [f for f, _ in terms], [p for _, p in terms], MAX_TERMS, no_term, 'wrench terms')
+    flow_functions, flow_count, flow_parameters, flow_offsets = _packed(
+        [f for f, _ in flows], [p for _, p in flows], MAX_FLOWS, no_flow, 'flows')
+    if constraint is None:
+        expand, transmit, constraint_parameters = no_expand, no_transmit, np.zeros(0)
+    else:
+        expand, transmit, constraint_parameters = constraint
+    with warnings.catch_warnings():
+        # numba labels first-class functions experimental (stable since 0.49; tested here),
+        # and says so whenever it types a tuple of them: here, once per model.
+        warnings.simplefilter('ignore', NumbaExperimentalFeatureWarning)
+        return _new_model(np.ascontiguousarray(body, dtype=float), held, term_functions,
+                          term_count, term_parameters, term_offsets, bool(momentum_dependent),
+                          flow_functions, flow_count, flow_parameters, flow_offsets,
+                          constraint is not None, bool(reads_state and constraint is not None),
+                          bool(reads_state), expand, transmit,
+                          np.ascontiguousarray(constraint_parameters, dtype=float))
+
+
+@inline
+def held_is_zero(held):
+    """Return True if every entry of the held wrench (4, 3) is zero."""
+    total = 0.0
+    for row in range(4):
+        total += abs(held[row, 0]) + abs(held[row, 1]) + abs(held[row, 2])
+    return total == 0.0
+
+
+@inline
+def _held_wrench(q, held):
+    """Return the held wrench at orientation q: F_w + R F_b, tau_w + R tau_b (world)."""
+    # Entries read as scalars: a row view of the array would cost a reference count.
+    fx, fy, fz = rotate(q, (held[HELD_FORCE_BODY, 0], held[HELD_FORCE_BODY, 1],
+                            held[HELD_FORCE_BODY, 2]))
+    tx, ty, tz = rotate(q, (held[HELD_TORQUE_BODY, 0], held[HELD_TORQUE_BODY, 1],
+                            held[HELD_TORQUE_BODY, 2]))
+    return (held[HELD_FORCE_WORLD, 0] + fx, held[HELD_FORCE_WORLD, 1] + fy,
+            held[HELD_FORCE_WORLD, 2] + fz, held[HELD_TORQUE_WORLD, 0] + tx,
+            held[HELD_TORQUE_WORLD, 1] + ty, held[HELD_TORQUE_WORLD, 2] + tz)
+
+
+@inline
+def applied_wrench(physical, time, forcing):
+    """
+    Return the applied wrench on a physical state: held plus terms, about the COM (world).
+
+    A constraint's reaction is not in it.  The IMU's accelerations start from it.
+    """
+    wrench = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    if forcing.holding:
+        wrench = _held_wrench((physical[0], physical[1], physical[2], physical[3]),
+                              forcing.held)
+    terms, offsets, parameters = forcing.terms, forcing.term_offsets, forcing.term_parameters
+    for i in range(forcing.term_count):
+        term = terms[i](physical, time, parameters[offsets[i]:offsets[i + 1]])
+        wrench = (wrench[0] + term[0], wrench[1] + term[1], wrench[2] + term[2],
+                  wrench[3] + term[3], wrench[4] + term[4], wrench[5] + term[5])
+    return wrench
+
+
+@inline
+def integrated_wrench(state, time, forcing):
+    """
+    Return the wrench the integrated system takes at the packed `state` and `time`.
+
+    Free body: the applied wrench.  Constrained: the applied wrench on the physical state
+    (expanded only if a term reads more than the orientation), transmitted to the
+    integrated system (about a pivot: no force, the torque tau + r x F).
+    """
+    physical = state
+    if forcing.needs_physical:
+        forcing.expand(state, forcing.constraint_parameters, forcing.physical)
+        physical = forcing.physical
+    wrench = applied_wrench(physical, time, forcing)
+    if forcing.constrained:
+        return forcing.transmit(state, wrench, forcing.constraint_parameters)
+    return wrench
+
+
+@inline
+def impulse(state, time, duration, forcing):
+    """
+    Return (h F, h tau), 6 numbers, of the wrench over a kick of `duration` s from `state`.
+
+    The kick changes p and L with the configuration (R, x) fixed: for a wrench of the
+    configuration and time it is exact; for one that depends on the momenta (drag) the
+    explicit midpoint rule keeps it second order, so kick-drift-kick stays second order.
+    """
+    wrench = integrated_wrench(state, time, forcing)
+    if forcing.momentum_dependent:
+        midpoint = forcing.midpoint
+        midpoint[:] = state
+        half = 0.5 * duration
+        for i in range(3):
+            midpoint[7 + i] += half * wrench[i]
+            midpoint[10 + i] += half * wrench[3 + i]
+        wrench = integrated_wrench(midpoint, time, forcing)
+    return (duration * wrench[0], duration * wrench[1], duration * wrench[2],
+            duration * wrench[3], duration * wrench[4], duration * wrench[5])
+
+
+@inline
+def kick(state, time, duration, forcing):
+    """Kick the momenta of the packed state in place: p += h F, L += h tau (see impulse)."""
+    change = impulse(state, time, duration, forcing)
+    for i in range(3):
+        state[7 + i] += change[i]
+        state[10 + i] += change[3 + i]
+
+
+@inline
+def apply_flows(state, forcing, duration, reverse):
+    """Apply the flows to the packed state in place for `duration` s, in order or reversed."""
+    count = forcing.flow_count
+    offsets, parameters = forcing.flow_offsets, forcing.flow_parameters
+    for k in range(count):
+        i = count - 1 - k if reverse else k
+        forcing.flows[i](state, parameters[offsets[i]:offsets[i + 1]], duration)
+
+
+@kernel
+def applied_wrench_of(physical, time, model):
+    """Return :func:`applied_wrench` of a Model (the entry point for Python)."""
+    return applied_wrench(physical, time, unpacked(model))

@@ -1,0 +1,138 @@
+"""
+Watch a running rigid_body_node live: a window, or a terminal view without a display.
+
+Finds the node over DDS by what it publishes (any name or namespace; --node and
+--namespace choose among several), from this venv alone: no ROS installation, no rviz2.
+The window draws the body as `rigid-body-sim animate` does (its shape, the body axes x, y,
+z in red, green, blue, the direction of L dashed, a trail), strip charts of the body
+angular velocity and of the drift of what the scene conserves, and the node's live cost
+and state from /diagnostics.  Without a display (or with --terminal) a terminal view
+refreshes in place: simulated time, omega, |L|, energy drift, flips so far, substeps,
+ticks per second.  Both follow a reset, a pause and an integrator switch, and say so while
+no node is found.  Ctrl-C (or closing the window) ends it.
+
+Typical use (the node in another terminal: make run):
+  rigid-body-sim watch                        the window, or the terminal view without one
+  rigid-body-sim watch --terminal             the terminal view
+  rigid-body-sim watch --namespace /robot1    the node in namespace /robot1
+  rigid-body-sim watch --timeout 10           give up (exit 1) if no node shows in 10 s
+"""
+
+import math
+import signal
+import sys
+import time
+
+
+def add_arguments(parser):
+    """Add the options of ``rigid-body-sim watch``."""
+    parser.add_argument('--node', help='the node to watch: its name or /namespace/name '
+                                       '(default: the first found)')
+    parser.add_argument('--namespace', help='only nodes in this namespace (default: any)')
+    parser.add_argument('--terminal', action='store_true',
+                        help='the terminal view even where a window could open')
+    parser.add_argument('--history', type=float, default=20.0, metavar='S',
+                        help='simulated seconds the strip charts show (default 20)')
+    parser.add_argument('--timeout', type=float, default=math.inf, metavar='S',
+                        help='exit with 1 if no node is found within S s (default: keep '
+                             'looking)')
+    parser.add_argument('--interval', type=float, default=0.5, metavar='S',
+                        help='seconds between refreshes of the terminal view (default 0.5)')
+
+
+class _Stop:
+    """SIGINT and SIGTERM end the watch cleanly (a window closes, the context shuts down)."""
+
+    def __init__(self):
+        self.signal = None
+        self.timed_out = False
+
+    def __enter__(self):
+        self._previous = {number: signal.signal(number, self._handle)
+                          for number in (signal.SIGINT, signal.SIGTERM)}
+        return self
+
+    def _handle(self, number, frame):
+        self.signal = signal.Signals(number)
+
+    def __exit__(self, *exc):
+        for number, handler in self._previous.items():
+            signal.signal(number, handler)
+        return False
+
+    def __call__(self):
+        return self.signal is not None or self.timed_out
+
+
+def main(args):
+    """Watch until Ctrl-C, the window's closing or the timeout; return the exit code."""
+    for name in ('history', 'interval'):
+        value = getattr(args, name)
+        if not (math.isfinite(value) and value > 0.0):
+            raise ValueError(f'--{name} must be a number of s > 0; got {value:g}')
+    if math.isnan(args.timeout) or args.timeout <= 0.0:
+        raise ValueError(f'--timeout must be a number of s > 0; got {args.timeout:g}')
+    from ..watch.listener import new_state_and_listener
+    from ..watch.window import display_problem
+
+    problem = None if args.terminal else display_problem()
+    if problem is not None:
+        print(f'rigid-body-sim watch: {problem}: the terminal view (--terminal says so '
+              'without this note)', file=sys.stderr)
+    state, listener = new_state_and_listener(args.history, args.node, args.namespace)
+    with _Stop() as stop:
+        listener.start()
+        try:
+            if args.terminal or problem is not None:
+                _terminal(state, listener, args, stop)
+            else:
+                _window(state, listener, args, stop)
+        finally:
+            listener.close()
+    if stop.timed_out:
+        return 1
+    return 0 if stop.signal in (None, signal.SIGTERM) else 128 + stop.signal
+
+
+def _no_node_for(listener, timeout, stop):
+    """Note a timeout (and say so) if no node has shown for `timeout` s; return True then."""
+    if listener.watched is not None or time.monotonic() - listener.searching_since < timeout:
+        return False
+    from ..watch.terminal import waiting_lines
+    stop.timed_out = True
+    print(waiting_lines(listener, timeout)[0].replace('still looking (Ctrl-C stops)',
+                                                      'giving up (--timeout)'),
+          file=sys.stderr)
+    return True
+
+
+def _terminal(state, listener, args, stop):
+    from ..watch.terminal import render_lines
+    from ..watch.terminal import TerminalView
+    from ..watch.terminal import waiting_lines
+
+    view = TerminalView(sys.stdout, in_place=sys.stdout.isatty())
+    while not stop():
+        if _no_node_for(listener, args.timeout, stop):
+            return
+        snapshot = state.snapshot()
+        if snapshot.node is None:
+            waited = time.monotonic() - listener.searching_since
+            # Whole seconds: the block is rewritten (or appended) once a second.
+            view.show(waiting_lines(listener, math.floor(waited)))
+        else:
+            view.show(render_lines(snapshot))
+        time.sleep(args.interval)
+
+
+def _window(state, listener, args, stop):
+    from ..watch.window import WatchWindow
+
+    def should_stop():
+        return stop() or _no_node_for(listener, args.timeout, stop)
+
+    def drawn(snapshot):
+        # One line when the body and both charts are on screen: scripts and the tests wait
+        # for it.
+        print(f'rigid-body-sim watch: window shows {snapshot.node}', flush=True)
+    WatchWindow(state, listener, args.history, should_stop, on_drawn=drawn).run()

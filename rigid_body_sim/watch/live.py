@@ -1,0 +1,457 @@
+"""
+What ``rigid-body-sim watch`` knows of a running node: its ticks, its reports, its changes.
+
+Plain numbers in, no rclpy here (the listener converts the messages): each tick's state
+from ``odom`` and ``angular_momentum`` (paired by their header stamp), each /diagnostics
+report of the node, and each parameter change the node announces.
+
+Simulated time.  The state messages are stamped with the node's clock (the wall clock
+unless it publishes /clock), so their stamps are not simulated time; /diagnostics says the
+simulated time once a second, in the same tick as that tick's state.  A report is paired
+with the latest state whose stamp is at or before the report's (the node publishes a tick's
+state, then its report), and every later tick whose state moved adds one period 1/rate
+(a paused tick publishes the same state and adds nothing).  A report whose time is behind
+the count by more than half a tick is a ``reset`` (time restarts at 0); the ticks since the
+reset are re-timed from the report, and everything before it is forgotten.  Ticks that
+come before the first report wait for it (at most a second).
+"""
+
+from collections import deque
+import math
+import threading
+
+import numpy as np
+
+from ..physics import matrix_from_quaternion
+
+__all__ = ['LiveState', 'Tick', 'DIAGNOSTICS_KEYS', 'format_number']
+
+# The /diagnostics keys the view reads (the node's own names, docs/node.md).
+DIAGNOSTICS_KEYS = {
+    'scene': 'scene',
+    'effects': 'effects',
+    'integrator': 'integrator',
+    'rate': 'requested rate [Hz]',
+    'real_time_factor': 'real-time factor',
+    'achieved_rate': 'achieved rate [Hz]',
+    'achieved_real_time_factor': 'achieved real-time factor',
+    'missed_ticks': 'missed ticks',
+    'tolerance': 'tolerance [rad/s]',
+    'substeps': 'substeps',
+    'substeps_min': 'substeps min',
+    'substeps_max': 'substeps max',
+    'step_p50': 'step time p50 [ms]',
+    'tick_p50': 'tick duration p50 [ms]',
+    'tick_p99': 'tick duration p99 [ms]',
+    'cpu_per_simulated_second': 'integration CPU per simulated s [s]',
+    'simulated_time': 'simulated time [s]',
+    'paused': 'paused',
+    'wrench_active': 'external wrench active',
+    'energy': 'energy [J]',
+    'energy_drift': 'energy drift since last input',
+    'momentum': '|L| [kg m^2/s]',
+    'momentum_drift': '|L| drift since last input',
+    # Not a key of the node's: the status's message ('running', 'paused', 'falling behind').
+    'status': '(status message)',
+}
+# Effects under which the rotational energy 1/2 Omega . R^T L and |L| about the COM are
+# conserved (no torque about the COM) while no outside input acts.
+_TORQUE_FREE_EFFECTS = {'external_wrench', 'gravity'}
+# Ticks kept while the first report is awaited (a second at 10 kHz).
+_PENDING_TICKS = 10000
+# A Dzhanibekov flip: the component of Omega the spin started about changes sign, counted
+# when it swings from below -_FLIP_LEVEL to above +_FLIP_LEVEL of its first magnitude or
+# back (a Schmitt trigger: no count for ripples around zero).
+_FLIP_LEVEL = 0.5
+
+
+def format_number(value, digits=9, signed=True):
+    """
+    Return `value` as the view prints it: `digits` significant digits, trailing zeros kept.
+
+    The terminal view and its test format a message's numbers with this one function.
+    """
+    if value is None or not math.isfinite(value):
+        return f'{value}'
+    return f'{value:{"+" if signed else ""}#.{digits}g}'
+
+
+class Tick:
+    """
+    One tick of the node as its messages tell it.
+
+    Attributes
+    ----------
+    stamp : int
+        Header stamp in ns (the node's clock).
+    quaternion : ndarray (4,)
+        Orientation (x, y, z, w), body to world (odom's pose).
+    position : ndarray (3,)
+        COM position in m, world frame.
+    angular_velocity_body : ndarray (3,)
+        Omega in rad/s, body frame (odom's twist).
+    angular_momentum : ndarray (3,)
+        L about the COM in kg m^2/s, world frame.
+    moved : bool
+        Whether the state differs from the tick before (False while paused).
+    time : float or None
+        Simulated time in s, once a report has told it.
+
+    """
+
+    __slots__ = ('stamp', 'quaternion', 'position', 'angular_velocity_body',
+                 'angular_momentum', 'moved', 'time')
+
+    def __init__(self, stamp, quaternion, position, angular_velocity_body, angular_momentum):
+        self.stamp = int(stamp)
+        self.quaternion = np.asarray(quaternion, dtype=float)
+        self.position = np.asarray(position, dtype=float)
+        self.angular_velocity_body = np.asarray(angular_velocity_body, dtype=float)
+        self.angular_momentum = np.asarray(angular_momentum, dtype=float)
+        self.moved = True
+        self.time = None
+
+    @property
+    def rotational_energy(self):
+        """Return T_rot = 1/2 Omega . (R^T L) in J (needs no inertia)."""
+        rotation = matrix_from_quaternion(self.quaternion / np.linalg.norm(self.quaternion))
+        return 0.5 * float(self.angular_velocity_body @ (rotation.T @ self.angular_momentum))
+
+    @property
+    def momentum_magnitude(self):
+        """Return |L| in kg m^2/s."""
+        return float(np.linalg.norm(self.angular_momentum))
+
+
+class LiveState:
+    """
+    The node's recent motion and reports, fed from the listener's thread, read by a view.
+
+    Every method takes the lock; the views read a consistent :meth:`snapshot`.
+
+    Parameters
+    ----------
+    history : float
+        Simulated seconds of ticks kept for the strip charts.
+
+    """
+
+    def __init__(self, history=20.0):
+        self.history = float(history)
+        self._lock = threading.Lock()
+        self._odometry = {}
+        self._momentum = {}
+        self._ticks = deque()
+        self._pending_report = None
+        self.node = None
+        self.diagnostics = {}
+        self.events = deque(maxlen=50)
+        self.ticks_received = 0
+        self.resets_seen = 0
+        self._marker = None
+        self.marker = None
+        self._reset_motion()
+
+    def _reset_motion(self):
+        self._ticks.clear()
+        self._reference = None
+        self._reference_after = -math.inf
+        self._flip_axis = None
+        self._flip_sign = 0
+        self.flips = 0
+
+    # -- input (the listener's thread)
+
+    def set_node(self, name):
+        """Say which node is watched (its fully qualified name), or None while none is."""
+        with self._lock:
+            if name != self.node:
+                self._odometry.clear()
+                self._momentum.clear()
+                self._pending_report = None
+                self.diagnostics = {}
+                self._marker = self.marker = None
+                self._reset_motion()
+            self.node = name
+
+    def add_marker(self, stamp, marker):
+        """Take a marker message (stamp ns): the drawing, paired with its tick's orientation."""
+        with self._lock:
+            if self.marker is None:
+                self._marker = (int(stamp), marker)
+                self._match_marker()
+
+    @property
+    def wants_marker(self):
+        """Return True until a marker has been paired with its tick."""
+        return self.marker is None
+
+    def _match_marker(self):
+        if self._marker is None:
+            return
+        stamp, marker = self._marker
+        for tick in reversed(self._ticks):
+            if tick.stamp == stamp:
+                # (marker, the body's orientation at the marker's stamp)
+                self.marker = (marker, tick.quaternion)
+                self._marker = None
+                return
+
+    def add_odometry(self, stamp, quaternion, position, angular_velocity_body):
+        """Take one odom message (stamp ns; pose in the world, Omega in the body frame)."""
+        with self._lock:
+            self._odometry[stamp] = (quaternion, position, angular_velocity_body)
+            self._pair(stamp)
+
+    def add_angular_momentum(self, stamp, angular_momentum):
+        """Take one angular_momentum message (stamp ns, L in kg m^2/s, world frame)."""
+        with self._lock:
+            self._momentum[stamp] = angular_momentum
+            self._pair(stamp)
+
+    def add_diagnostics(self, stamp, values):
+        """Take the node's /diagnostics status: its stamp (ns) and {key: value}."""
+        with self._lock:
+            previous = self.diagnostics
+            self.diagnostics = dict(values)
+            if previous.get('integrator') not in (None, values.get('integrator')):
+                self._note_change('integrator', values.get('integrator'))
+            if previous.get(DIAGNOSTICS_KEYS['paused']) != values.get(
+                    DIAGNOSTICS_KEYS['paused']) and previous:
+                paused = values.get(DIAGNOSTICS_KEYS['paused']) == 'True'
+                self._note_change('paused' if paused else 'running', None)
+            active = DIAGNOSTICS_KEYS['wrench_active']
+            if previous.get(active) == 'True' and values.get(active) == 'False':
+                # The input ended: the conserved quantities hold again from here.
+                self._reference = None
+                last = self._ticks[-1] if self._ticks else None
+                if last is not None and last.time is not None:
+                    self._reference_after = last.time
+            self._pending_report = (int(stamp), self._float('simulated_time'),
+                                    self._float('rate'))
+            self._resolve_report()
+
+    def add_parameter_change(self, name, value):
+        """Take a parameter the node announces it changed (/parameter_events)."""
+        with self._lock:
+            if name in ('integrator', 'tolerance', 'substeps', 'real_time_factor'):
+                self._note_change(name, value)
+
+    def _note_change(self, name, value):
+        last = self._ticks[-1] if self._ticks else None
+        time = None if last is None else last.time
+        self.events.append((time, name, value))
+
+    def _float(self, key):
+        try:
+            return float(self.diagnostics[DIAGNOSTICS_KEYS[key]])
+        except (KeyError, ValueError):
+            return None
+
+    def _pair(self, stamp):
+        if stamp not in self._odometry or stamp not in self._momentum:
+            # The two topics of a tick arrive apart: keep the unpaired ones a while.
+            if len(self._odometry) > 64 or len(self._momentum) > 64:
+                oldest = sorted(set(self._odometry) | set(self._momentum))[:-32]
+                for key in oldest:
+                    self._odometry.pop(key, None)
+                    self._momentum.pop(key, None)
+            return
+        quaternion, position, omega = self._odometry.pop(stamp)
+        tick = Tick(stamp, quaternion, position, omega, self._momentum.pop(stamp))
+        self.ticks_received += 1
+        last = self._ticks[-1] if self._ticks else None
+        if last is not None:
+            tick.moved = not (np.array_equal(tick.quaternion, last.quaternion)
+                              and np.array_equal(tick.angular_velocity_body,
+                                                 last.angular_velocity_body)
+                              and np.array_equal(tick.position, last.position))
+            rate = self._float('rate')
+            if last.time is not None and rate:
+                tick.time = last.time + (1.0 / rate if tick.moved else 0.0)
+        self._ticks.append(tick)
+        self._count_flip(tick)
+        self._match_marker()
+        self._resolve_report()
+        self._forget_old()
+
+    def _resolve_report(self):
+        """Pair the waiting report with its tick, once a later tick shows which that is."""
+        if self._pending_report is None or not self._ticks:
+            return
+        stamp, simulated, rate = self._pending_report
+        if simulated is None or not rate:
+            self._pending_report = None
+            return
+        if self._ticks[-1].stamp <= stamp:
+            return  # the report's own tick, or a later one, may still come
+        self._pending_report = None
+        ticks = self._ticks
+        index = len(ticks) - 1
+        while index > 0 and ticks[index].stamp > stamp:
+            index -= 1
+        if ticks[index].stamp > stamp:
+            return  # the report's tick came before the first one kept
+        expected = ticks[index].time
+        period = 1.0 / rate
+        if expected is not None and abs(expected - simulated) <= 0.5 * period:
+            return
+        reset = expected is not None and simulated < expected - 0.5 * period
+        # Re-time from the report: backwards to the first tick, forwards to the last.
+        ticks[index].time = simulated
+        for k in range(index - 1, -1, -1):
+            ticks[k].time = ticks[k + 1].time - (period if ticks[k + 1].moved else 0.0)
+        for k in range(index + 1, len(ticks)):
+            ticks[k].time = ticks[k - 1].time + (period if ticks[k].moved else 0.0)
+        if reset:
+            self.resets_seen += 1
+            # The ticks before the reset come out at or before time 0: forget them and all
+            # that was counted on them.  A running node steps in the tick that resets, so
+            # its first state after a reset is at one period and the one at 0 is the last
+            # before it; a paused one publishes the initial state itself, at 0, and the
+            # ticks after it did not move.
+            kept = [tick for k, tick in enumerate(ticks) if tick.time > 0.5 * period or (
+                tick.time > -0.5 * period and tick.moved
+                and (k + 1 == len(ticks) or not ticks[k + 1].moved))]
+            self._reset_motion()
+            self._ticks.extend(kept)
+            for tick in kept:
+                self._count_flip(tick)
+            self.events.append((0.0, 'reset', None))
+
+    def _forget_old(self):
+        last = self._ticks[-1]
+        if last.time is None:
+            while len(self._ticks) > _PENDING_TICKS:
+                self._ticks.popleft()
+            return
+        while self._ticks and (self._ticks[0].time is None
+                               or self._ticks[0].time < last.time - self.history):
+            self._ticks.popleft()
+
+    def _count_flip(self, tick):
+        omega = tick.angular_velocity_body
+        if self._flip_axis is None:
+            if not np.any(omega):
+                return
+            self._flip_axis = int(np.argmax(np.abs(omega)))
+            self._flip_level = _FLIP_LEVEL * abs(float(omega[self._flip_axis]))
+            self._flip_sign = 1 if omega[self._flip_axis] > 0 else -1
+            return
+        value = float(omega[self._flip_axis])
+        if self._flip_sign > 0 and value < -self._flip_level:
+            self._flip_sign, self.flips = -1, self.flips + 1
+        elif self._flip_sign < 0 and value > self._flip_level:
+            self._flip_sign, self.flips = 1, self.flips + 1
+
+    # -- output (a view's thread)
+
+    def snapshot(self):
+        """Return a :class:`Snapshot` of what is known now (copies, safe to read)."""
+        with self._lock:
+            timed = [tick for tick in self._ticks if tick.time is not None]
+            latest = self._ticks[-1] if self._ticks else None
+            if self._reference is None:
+                first = next((tick for tick in timed if tick.time >= self._reference_after),
+                             None)
+                if first is not None:
+                    self._reference = (first.rotational_energy, first.momentum_magnitude,
+                                       first.time)
+            return Snapshot(
+                node=self.node, latest=latest, timed=timed, diagnostics=dict(self.diagnostics),
+                flips=self.flips, flip_axis=self._flip_axis, events=list(self.events),
+                reference=self._reference, ticks_received=self.ticks_received,
+                marker=self.marker, resets_seen=self.resets_seen)
+
+
+class Snapshot:
+    """
+    What a view draws: the latest tick, the timed ticks of the chart window, the reports.
+
+    Attributes
+    ----------
+    node : str or None
+        The watched node's fully qualified name.
+    latest : Tick or None
+        The newest tick.
+    time, angular_velocity_body, momentum_magnitude : arrays (n,), (n, 3), (n,)
+        The timed ticks (simulated s; rad/s, body frame; kg m^2/s).
+    rotational_energy : ndarray (n,)
+        T_rot = 1/2 Omega . R^T L in J.
+    diagnostics : dict
+        The node's last /diagnostics report, {key: value}.
+    flips : int
+        Sign changes seen of the Omega component the spin started about.
+    flip_axis : int or None
+        That component (0, 1, 2).
+    events : list of (time or None, name, value)
+        Resets, pauses, integrator and tolerance switches, in order.
+    reference : (T_rot, |L|, time) or None
+        The values the drifts are counted from: the first timed tick after the start, a
+        reset or the end of an outside input.
+    ticks_received : int
+        Ticks received since the watch started.
+    marker : (Marker, ndarray (4,)) or None
+        The node's marker message and the body's orientation at its stamp.
+    resets_seen : int
+        Resets seen since the watch started.
+
+    """
+
+    def __init__(self, node, latest, timed, diagnostics, flips, flip_axis, events,
+                 reference, ticks_received, marker=None, resets_seen=0):
+        self.node = node
+        self.marker = marker
+        self.resets_seen = resets_seen
+        self.latest = latest
+        self.time = np.array([tick.time for tick in timed])
+        self.angular_velocity_body = np.array(
+            [tick.angular_velocity_body for tick in timed]).reshape(-1, 3)
+        self.momentum_magnitude = np.array([tick.momentum_magnitude for tick in timed])
+        self.rotational_energy = np.array([tick.rotational_energy for tick in timed])
+        self.diagnostics = diagnostics
+        self.flips = flips
+        self.flip_axis = flip_axis
+        self.events = events
+        self.reference = reference
+        self.ticks_received = ticks_received
+
+    def value(self, key):
+        """Return the report's value of a :data:`DIAGNOSTICS_KEYS` key, or None."""
+        return self.diagnostics.get(DIAGNOSTICS_KEYS[key])
+
+    def number(self, key):
+        """Return the report's value of a key as a float, or None."""
+        try:
+            return float(self.value(key))
+        except (TypeError, ValueError):
+            return None
+
+    @property
+    def current_time(self):
+        """Return the simulated time of the newest tick (s), or None before a report."""
+        return None if self.latest is None else self.latest.time
+
+    @property
+    def torque_free(self):
+        """Return True if the scene's effects leave T_rot and |L| conserved (no input)."""
+        effects = self.value('effects')
+        if effects is None:
+            return False
+        names = {name.strip() for name in effects.split(',')} - {'none', ''}
+        return names <= _TORQUE_FREE_EFFECTS
+
+    def drifts(self):
+        """
+        Return (time, T_rot drift, |L| drift) since the reference, relative, of the window.
+
+        Only the ticks at or after the reference; empty arrays before a report.
+        """
+        if self.reference is None or not len(self.time):
+            empty = np.zeros(0)
+            return empty, empty, empty
+        energy0, momentum0, start = self.reference
+        after = self.time >= start
+        energy = (self.rotational_energy[after] - energy0) / (abs(energy0) or 1.0)
+        momentum = (self.momentum_magnitude[after] - momentum0) / (momentum0 or 1.0)
+        return self.time[after], energy, momentum

@@ -1,0 +1,116 @@
+"""
+The terminal view of ``rigid-body-sim watch``: a few lines refreshed in place.
+
+On a terminal the block is rewritten where it stands (ANSI cursor movement); piped into a
+file or another program, each changed block is printed after the last, so a log reads
+top to bottom.  Every number of the node is printed as its message has it: the state's
+with :func:`.live.format_number`, the report's strings unchanged.
+"""
+
+
+from .live import format_number
+
+__all__ = ['render_lines', 'TerminalView', 'waiting_lines']
+
+_AXES = 'xyz'
+
+
+def waiting_lines(listener, waited):
+    """Return the lines that say no node is watched yet, and why, after `waited` s."""
+    domain = listener.domain_id
+    others = ', '.join(candidate.fully_qualified_name for candidate in listener.candidates)
+    asked = ''
+    if listener.wanted_node or listener.wanted_namespace:
+        asked = ' named ' + ' in namespace '.join(
+            part for part in (listener.wanted_node, listener.wanted_namespace) if part)
+    lines = [f'rigid-body-sim watch: no rigid_body_sim node{asked} found on ROS domain '
+             f'{domain} for {waited:.0f} s; still looking (Ctrl-C stops).']
+    if others:
+        lines.append(f'  nodes that publish its topics: {others} (choose one with --node)')
+    else:
+        lines.append('  start one: make run, or .venv/bin/rigid_body_node (same ROS_DOMAIN_ID '
+                     'and ROS_AUTOMATIC_DISCOVERY_RANGE as here)')
+    return lines
+
+
+def render_lines(snapshot):
+    """Return the view's lines for a :class:`.live.Snapshot` of a watched node."""
+    value = snapshot.value
+    status = value('status') or 'waiting for its first report (/diagnostics, once a second)'
+    lines = [f'rigid-body-sim watch: {snapshot.node}: {status}']
+    if snapshot.diagnostics:
+        lines.append(f'  scene         {value("scene")} (effects: {value("effects")}), '
+                     f'integrator {value("integrator")} at {value("rate")} Hz')
+    latest = snapshot.latest
+    if latest is None:
+        lines.append('  waiting for its state (odom, angular_momentum)')
+        return lines
+    time = latest.time
+    lines.append('  time          ' + (
+        '(known at the first report)' if time is None else f'{time:.6f} s simulated'))
+    lines.append('  omega body    ' + '  '.join(
+        format_number(component) for component in latest.angular_velocity_body) + ' rad/s')
+    magnitude = format_number(latest.momentum_magnitude, signed=False)
+    lines.append(f'  |L|           {magnitude} kg m^2/s')
+    if snapshot.diagnostics:
+        lines.append(f'  energy drift  {value("energy_drift")} (total energy, since the last '
+                     "input; the node's report)")
+    axis = snapshot.flip_axis
+    flipped = '' if axis is None else f' (sign changes of Omega_{_AXES[axis]})'
+    lines.append(f'  flips         {snapshot.flips}{flipped}')
+    if snapshot.diagnostics:
+        tolerance = value('tolerance')
+        control = 'fixed' if tolerance == 'off' else f'tolerance {tolerance} rad/s'
+        lines.append(f'  substeps      {value("substeps")} per tick ({control})')
+        lines.append(f'  ticks/s       {value("achieved_rate")} (requested {value("rate")} x '
+                     f'real-time factor {value("real_time_factor")}); tick p50 '
+                     f'{value("tick_p50")} ms, p99 {value("tick_p99")} ms')
+    changes = [_event_text(event) for event in snapshot.events[-3:]]
+    if changes:
+        lines.append('  changes       ' + '; '.join(changes))
+    return lines
+
+
+def _event_text(event):
+    time, name, value = event
+    when = '' if time is None else f' at {time:.2f} s'
+    if name == 'reset':
+        return 'reset (time 0)'
+    if value is None:
+        return f'{name}{when}'
+    return f'{name} {value}{when}'
+
+
+class TerminalView:
+    """
+    Writes the lines to a stream: in place on a terminal, appended otherwise.
+
+    Parameters
+    ----------
+    stream : file
+        Where to write (stdout).
+    in_place : bool
+        Rewrite the block where it stands (a terminal) rather than append it.
+
+    """
+
+    def __init__(self, stream, in_place):
+        self.stream = stream
+        self.in_place = in_place
+        self._shown = 0
+        self._last = None
+
+    def show(self, lines):
+        """Show the block `lines` (the same block twice is written once)."""
+        if lines == self._last:
+            return
+        self._last = list(lines)
+        if self.in_place:
+            # Up to the block's first line, rewrite each line, clear what is left below.
+            text = (f'\x1b[{self._shown}F' if self._shown else '') + ''.join(
+                f'\x1b[2K{line}\n' for line in lines) + '\x1b[J'
+            self._shown = len(lines)
+        else:
+            text = '\n'.join(lines) + '\n\n'
+        self.stream.write(text)
+        self.stream.flush()

@@ -1,0 +1,311 @@
+"""
+The window of ``rigid-body-sim watch``: the body turning, strip charts, the node's cost.
+
+matplotlib with its TkAgg backend (Tk comes with CPython; see docs/dependencies.md): the
+body as ``rigid-body-sim animate`` draws it (:class:`..recording.animate.BodyView`: its
+shape, the body axes, the direction of L, a trail), a strip chart of the body angular
+velocity, one of the drift of what the scene conserves, and the node's live cost and state
+from /diagnostics as text.  A timer redraws it a few times a second from a
+:class:`.live.Snapshot`; the ROS side runs in the listener's thread.
+"""
+
+import time
+
+import numpy as np
+
+from .live import format_number
+from .terminal import waiting_lines
+
+__all__ = ['display_problem', 'WatchWindow']
+
+_AXIS_COLOURS = ('tab:red', 'tab:green', 'tab:blue')
+# Redraws per second: the 3D body costs tens of ms a frame on a loaded 2-core machine.
+_REDRAW_PERIOD_MS = 200
+# Simulated seconds in the charts before the window counts as showing the node.
+_SHOWN_SPAN = 2.0
+# Points per strip-chart line: about the chart's width in pixels.
+_CHART_POINTS = 800
+
+
+def display_problem():
+    """Return why no window can open here (a sentence), or None if one can."""
+    import os
+    if not (os.environ.get('DISPLAY') or os.environ.get('WAYLAND_DISPLAY')):
+        return 'no display (DISPLAY is not set)'
+    try:
+        import tkinter
+    except ImportError:
+        return ('this Python has no tkinter, which the window needs (Debian: apt install '
+                'python3-tk; pyenv: build Python with tk-dev installed)')
+    try:
+        root = tkinter.Tk()
+    except tkinter.TclError as error:
+        return f'Tk cannot open the display: {error}'
+    root.destroy()
+    return None
+
+
+def _drawing_is_equivalent_box(scene_name):
+    """Return True if the scene draws a body given by its inertia as its equivalent box."""
+    from ..scenes import load_scene
+    try:
+        scene = load_scene(scene_name)
+    except (ValueError, OSError):
+        return False
+    return 'shape' not in scene.data.get('body', {}) and scene.drawing.derived
+
+
+class WatchWindow:
+    """
+    The figure and its timer.
+
+    Parameters
+    ----------
+    state : LiveState
+        What to draw (its snapshots).
+    listener : Listener
+        Who feeds it (for the waiting message).
+    history : float
+        Simulated seconds shown by the strip charts.
+    should_stop : callable
+        Returns True when the watch must end (a signal, a timeout): the window closes.
+    on_drawn : callable, optional
+        Called once, with the snapshot, after the first redraw that showed the body and
+        2 simulated seconds of data in both charts.
+
+    """
+
+    def __init__(self, state, listener, history, should_stop, on_drawn=None):
+        import warnings
+
+        import matplotlib
+        matplotlib.use('TkAgg')
+        import matplotlib.pyplot as plt
+
+        # Before Tk has sized the window, its first draw is too small to lay out.
+        warnings.filterwarnings('ignore', message='constrained_layout not applied')
+
+        self.state = state
+        self.listener = listener
+        self.history = history
+        self.should_stop = should_stop
+        self.on_drawn = on_drawn
+        self.plt = plt
+        self.figure = plt.figure(figsize=(13.0, 7.5), layout='constrained')
+        self.figure.canvas.manager.set_window_title('rigid-body-sim watch')
+        grid = self.figure.add_gridspec(3, 2, width_ratios=(1.0, 1.25),
+                                        height_ratios=(1.0, 1.0, 0.62))
+        self.body_axes = self.figure.add_subplot(grid[0:2, 0], projection='3d')
+        self.omega_axes = self.figure.add_subplot(grid[0, 1])
+        self.drift_axes = self.figure.add_subplot(grid[1, 1], sharex=self.omega_axes)
+        self.text_axes = self.figure.add_subplot(grid[2, :])
+        self.text_axes.axis('off')
+        self.text = self.text_axes.text(0.0, 1.0, '', va='top', ha='left', family='monospace',
+                                        fontsize=9, transform=self.text_axes.transAxes)
+        self.body_view = None
+        self.resets_seen = 0
+        self.omega_lines = [self.omega_axes.plot([], [], color=colour, linewidth=1.2,
+                                                 label=f'$\\Omega_{name}$')[0]
+                            for colour, name in zip(_AXIS_COLOURS, 'xyz')]
+        self.omega_axes.set(title='Body angular velocity', ylabel='$\\Omega$ [rad/s]')
+        # Legends in one row in headroom above the data (see _autoscale_y): never on a curve.
+        self.omega_axes.legend(loc='upper left', ncols=3, fontsize='small')
+        self.omega_axes.tick_params(labelbottom=False)
+        self.energy_line, = self.drift_axes.plot([], [], color='tab:orange', linewidth=1.2,
+                                                 label='$T_{rot}$ drift')
+        self.momentum_line, = self.drift_axes.plot([], [], color='tab:purple',
+                                                   linestyle='--', linewidth=1.2,
+                                                   label='$|L|$ drift')
+        self.report_line, = self.drift_axes.plot([], [], color='black', marker='o',
+                                                 linestyle='none', markersize=4,
+                                                 label='energy,\nnode report')
+        self.drift_axes.set(xlabel='simulated time [s]', ylabel='relative drift')
+        self.legend_torque_free = None
+        self.reports = []
+        for axes in (self.omega_axes, self.drift_axes):
+            axes.grid(True, alpha=0.3)
+            axes.ticklabel_format(axis='y', style='sci', scilimits=(-3, 4), useOffset=True)
+        self.event_artists = []
+        self.drawn_once = False
+        self.timer = self.figure.canvas.new_timer(interval=_REDRAW_PERIOD_MS)
+        self.timer.add_callback(self._redraw)
+
+    def run(self):
+        """Show the window until it is closed or the watch must stop."""
+        self.timer.start()
+        self._redraw()
+        self.plt.show()
+
+    def close(self):
+        """Close the window (ends :meth:`run`)."""
+        self.timer.stop()
+        self.plt.close(self.figure)
+
+    # -- drawing
+
+    def _redraw(self):
+        if self.should_stop():
+            self.close()
+            return
+        snapshot = self.state.snapshot()
+        if snapshot.node is None:
+            self.figure.suptitle('rigid-body-sim watch: no node')
+            waited = time.monotonic() - self.listener.searching_since
+            self.text.set_text('\n'.join(waiting_lines(self.listener, waited)))
+            self.figure.canvas.draw_idle()
+            return
+        status = snapshot.value('status') or 'waiting for its first report'
+        self.figure.suptitle(f'rigid-body-sim watch: {snapshot.node} \u2014 {status}')
+        if self.body_view is None:
+            self._make_body_view(snapshot)
+        if snapshot.resets_seen != self.resets_seen:
+            self.resets_seen = snapshot.resets_seen
+            self.reports = []
+            if self.body_view is not None:
+                self.body_view.clear_trail()
+        charted = self._draw_charts(snapshot)
+        if self.body_view is not None and snapshot.latest is not None:
+            self.body_view.show(snapshot.latest.quaternion, snapshot.latest.angular_momentum)
+        self.text.set_text(self._text(snapshot))
+        self.figure.canvas.draw_idle()
+        if charted and self.body_view is not None and not self.drawn_once:
+            self.drawn_once = True
+            self.figure.canvas.flush_events()
+            if self.on_drawn is not None:
+                self.on_drawn(snapshot)
+
+    def _make_body_view(self, snapshot):
+        from ..recording.animate import BodyView
+        from ..recording.animate import shape_from_marker
+
+        if snapshot.marker is None or len(snapshot.time) < 2:
+            self.body_axes.set_title('the body: waiting for its marker', fontsize=9)
+            return
+        marker, quaternion = snapshot.marker
+        scene = snapshot.value('scene')
+        try:
+            shape = shape_from_marker(marker, quaternion,
+                                      scene is not None and _drawing_is_equivalent_box(scene))
+        except ValueError as error:
+            self.body_axes.set_title(f'the body: {error}', fontsize=9)
+            return
+        # The trail follows the axis the spin started about: it flips over (a T-handle) or
+        # precesses (a top), while the axes spinning about it would only paint a ring.
+        self.body_view = BodyView(self.body_axes, shape,
+                                  2 if snapshot.flip_axis is None else snapshot.flip_axis)
+        self.body_axes.set_title('The body, viewed from its COM', fontsize=10)
+        self.body_axes.legend(loc='upper left', fontsize=7, frameon=False)
+
+    def _draw_charts(self, snapshot):
+        """Update the strip charts; return True if both show data."""
+        times = snapshot.time
+        if len(times) < 2:
+            return False
+        end = times[-1]
+        stride = max(1, len(times) // _CHART_POINTS)
+        picked = np.r_[np.arange(0, len(times), stride), len(times) - 1]
+        for k, line in enumerate(self.omega_lines):
+            line.set_data(times[picked], snapshot.angular_velocity_body[picked, k])
+        start = max(times[0], end - self.history)
+        self.omega_axes.set_xlim(start, max(end, start + 1e-3))
+        _autoscale_y(self.omega_axes, snapshot.angular_velocity_body)
+
+        drift_time, energy, momentum = snapshot.drifts()
+        torque_free = snapshot.torque_free
+        report, reported_at = snapshot.number('energy_drift'), snapshot.number('simulated_time')
+        if report is not None and reported_at is not None and (
+                not self.reports or self.reports[-1][0] != reported_at):
+            self.reports.append((reported_at, report))
+        self.reports = [(t, value) for t, value in self.reports if start <= t <= end]
+        if torque_free and len(drift_time):
+            every = max(1, len(drift_time) // _CHART_POINTS)
+            self.energy_line.set_data(drift_time[::every], energy[::every])
+            self.momentum_line.set_data(drift_time[::every], momentum[::every])
+            title = 'Drift of what the scene conserves (torque-free about the COM)'
+        else:
+            self.energy_line.set_data([], [])
+            self.momentum_line.set_data([], [])
+            title = ("Drift of the total energy, from the node's reports\n(effects "
+                     f'{snapshot.value("effects")}: $T_{{rot}}$, $|L|$ not conserved)')
+        if self.legend_torque_free != torque_free:
+            # The legend names what is drawn: the drifts computed here, or the reports.
+            self.legend_torque_free = torque_free
+            handles = [self.energy_line, self.momentum_line] if torque_free else \
+                [self.report_line]
+            self.drift_axes.legend(handles=handles, loc='upper left', fontsize='small',
+                                   ncols=len(handles))
+        if self.reports and not torque_free:
+            # Only where no drift is computed here: the report counts from the node's last
+            # input, not from the chart's start, and the two would disagree by an offset.
+            self.report_line.set_data(*zip(*self.reports))
+        else:
+            self.report_line.set_data([], [])
+        if snapshot.value('wrench_active') == 'True':
+            title += '\nan outside input acts: drifts count from its end'
+        self.drift_axes.set_title(title, fontsize=10)
+        shown = [values for values in (energy, momentum) if torque_free and len(values)]
+        if not torque_free:
+            shown.append(np.array([value for _, value in self.reports]))
+        _autoscale_y(self.drift_axes, np.concatenate([np.ravel(v) for v in shown]))
+        self._draw_events(snapshot, start)
+        # "Shown" once the charts hold a stretch worth looking at, not their first points.
+        return end - times[0] >= _SHOWN_SPAN and bool(
+            len(drift_time) if torque_free else self.reports)
+
+    def _draw_events(self, snapshot, start):
+        for artist in self.event_artists:
+            artist.remove()
+        self.event_artists = []
+        for moment, name, value in snapshot.events:
+            if moment is None or moment < start or name == 'reset':
+                continue
+            label = name if value is None else f'{name} {value}'
+            for axes in (self.omega_axes, self.drift_axes):
+                self.event_artists.append(axes.axvline(moment, color='0.4', linestyle=':',
+                                                       linewidth=1.0))
+            self.event_artists.append(self.omega_axes.annotate(
+                label, (moment, 1.0), xycoords=('data', 'axes fraction'), xytext=(2, -2),
+                textcoords='offset points', va='top', fontsize=8, color='0.3'))
+
+    def _text(self, snapshot):
+        value = snapshot.value
+        latest = snapshot.latest
+        lines = []
+        if latest is not None:
+            now = 'not yet known' if latest.time is None else f'{latest.time:.3f} s'
+            omega = ' '.join(format_number(w, 6) for w in latest.angular_velocity_body)
+            magnitude = format_number(latest.momentum_magnitude, signed=False)
+            lines.append(f'simulated time {now}   omega body [{omega}] rad/s   '
+                         f'|L| {magnitude} kg m^2/s   flips {snapshot.flips}')
+        if snapshot.diagnostics:
+            tolerance = value('tolerance')
+            control = 'fixed step' if tolerance == 'off' else f'tolerance {tolerance} rad/s'
+            lines.append(f'scene {value("scene")} (effects: {value("effects")})   integrator '
+                         f'{value("integrator")}   {control}   substeps {value("substeps")} '
+                         f'({value("substeps_min")}-{value("substeps_max")} over the last '
+                         'report)')
+            lines.append(f'cost: {value("achieved_rate")} ticks/s of {value("rate")} Hz x '
+                         f'{value("real_time_factor")}; tick p50 {value("tick_p50")} ms, p99 '
+                         f'{value("tick_p99")} ms; step p50 {value("step_p50")} ms; '
+                         f'integration CPU per simulated s {value("cpu_per_simulated_second")}'
+                         f' s; missed ticks {value("missed_ticks")}')
+            lines.append(f'energy {value("energy")} J (drift since the last input '
+                         f'{value("energy_drift")}); |L| {value("momentum")} (drift '
+                         f'{value("momentum_drift")}); node report of t = '
+                         f'{value("simulated_time")} s')
+        else:
+            lines.append("waiting for the node's first /diagnostics report (once a second)")
+        return '\n'.join(lines)
+
+
+def _autoscale_y(axes, values):
+    """Fit the y range to the values, with a fifth of the height free on top for the legend."""
+    values = np.asarray(values, dtype=float)
+    values = values[np.isfinite(values)]
+    if not values.size:
+        return
+    low, high = float(values.min()), float(values.max())
+    span = high - low
+    margin = 0.06 * span if span > 0.0 else max(abs(high) * 0.1, 1e-12)
+    low, high = low - margin, high + margin
+    axes.set_ylim(low, high + 0.25 * (high - low))

@@ -1,0 +1,213 @@
+"""
+Every shell and Python example of the README and docs/ runs as written, so no page goes stale.
+
+The examples are the ```sh and ```python blocks of README.md and docs/*.md, taken from the
+pages at test time.  Each shell command runs verbatim with bash in a scratch copy of the
+places the pages write to (the working directory: a fresh clone's root with .venv, config,
+benchmarks and a copy of docs/), after the one activation step the README states
+(``. .venv/bin/activate``); each Python block runs whole.  A command that cannot run here
+says why and is checked as far as it can be:
+
+- ``ros2``, ``rviz2``: skipped with a reason where the ros2 CLI is absent (the pip-only
+  venv has none), run where it is (only their ``--help`` side is safe: they talk to a node);
+- ``make run`` / ``make test``: the node until Ctrl-C, and this very suite: not run;
+- a ROS 2 workspace (``colcon build`` in ~/ros2_ws): test_colcon_build.py builds it;
+- ``rigid-body-sim bench`` without ``--quick`` (21.6 min), ``record`` and ``watch`` (until
+  Ctrl-C, with a node): their arguments are parsed by the real parser (an option that no
+  longer exists fails), not run; their ``--help`` runs.
+
+Also here: the help texts and lists the pages promise (every integrator on
+docs/physics_api.md, imu in ``rigid_body_node --help``, the README's figures as
+docs/benchmark.md has them) and every script in benchmarks/ answering ``--help``.
+"""
+
+from pathlib import Path
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+
+import pytest
+from rigid_body_sim.cli import build_parser
+
+ROOT = Path(__file__).resolve().parent.parent
+PAGES = [ROOT / 'README.md', *sorted((ROOT / 'docs').glob('*.md'))]
+VENV = ROOT / '.venv'
+_BLOCK = re.compile(r'```(sh|python)\n(.*?)```', re.S)
+# Shell commands of the pages whose run would take too long, need a running node or would
+# never end; their arguments are parsed instead, by the tool's own parser.
+_PARSED_ONLY = {
+    'bench': 'the full benchmark takes 21.6 min on 2 cores (--quick runs in test_bench.py)',
+    'record': 'records a running node until Ctrl-C (test_recorder.py runs it)',
+    'watch': 'shows a running node until Ctrl-C (test_watch.py runs it)',
+}
+
+
+def _examples():
+    """Yield (page, index, language, text) of every example block."""
+    for page in PAGES:
+        for index, match in enumerate(_BLOCK.finditer(page.read_text()), 1):
+            yield page.relative_to(ROOT), index, match.group(1), match.group(2)
+
+
+EXAMPLES = list(_examples())
+
+
+def _commands(text):
+    """Return the block's commands: continuation lines joined, comment lines dropped."""
+    commands = []
+    for line in text.replace('\\\n', ' ').splitlines():
+        if line.strip() and not line.lstrip().startswith('#'):
+            commands.append(line.strip())
+    return commands
+
+
+def _words(command):
+    """Return the command's words without its trailing comment."""
+    return shlex.split(command, comments=True)
+
+
+def _reason_not_run(command):
+    """Return why a command is not run (None: run it), and whether to parse it instead."""
+    words = _words(command)
+    if not words:
+        return None, False
+    program = words[0]
+    if program in ('ros2', 'rviz2'):
+        if shutil.which('ros2') is None:
+            return 'the ros2 CLI is not installed here (the pip-only venv has none)', False
+        return 'talks to a running node (the ros2 CLI is here, no node is)', False
+    if program == 'make':
+        return 'make run starts the node until Ctrl-C; make test is this suite', False
+    if program in ('mkdir', 'cd', 'colcon', 'source', 'git') or '~/ros2_ws' in command:
+        return 'sets up a ROS 2 workspace (test_colcon_build.py builds the package)', False
+    if program.endswith('rigid-body-sim') and len(words) > 1:
+        tool = words[1]
+        if tool in _PARSED_ONLY and not (tool == 'bench' and '--quick' in words) \
+                and '--help' not in words:
+            return _PARSED_ONLY[tool], True
+    return None, False
+
+
+@pytest.fixture(scope='module')
+def scratch(tmp_path_factory):
+    """Return a working directory laid out as a fresh clone's root for the examples."""
+    if not (VENV / 'bin' / 'activate').exists():
+        pytest.skip('no .venv in the package root (make venv builds it)')
+    directory = tmp_path_factory.mktemp('docs_examples')
+    for name in ('.venv', 'config', 'benchmarks', 'rigid_body_sim', 'test'):
+        (directory / name).symlink_to(ROOT / name)
+    # The pages write into docs/ (an animation): a copy, so the committed files stay.
+    shutil.copytree(ROOT / 'docs', directory / 'docs')
+    return directory
+
+
+@pytest.mark.parametrize('page, index, language, text', EXAMPLES,
+                         ids=[f'{page}#{index}' for page, index, _, _ in EXAMPLES])
+def test_every_example_of_the_pages_runs_as_written(scratch, page, index, language, text):
+    if language == 'python':
+        result = subprocess.run([str(VENV / 'bin' / 'python'), '-c', text], cwd=scratch,
+                                capture_output=True, text=True, timeout=600)
+        assert result.returncode == 0, f'{page} block {index}:\n{text}\n{result.stderr}'
+        return
+    skipped = []
+    for command in _commands(text):
+        reason, parse = _reason_not_run(command)
+        if parse:
+            # The tool's own parser: an option the pages name that no longer exists fails.
+            try:
+                build_parser().parse_args(_words(command)[1:])
+            except SystemExit as error:
+                pytest.fail(f'{page}: {command!r} does not parse ({error})')
+            continue
+        if reason is not None:
+            skipped.append(f'{command!r}: {reason}')
+            continue
+        result = subprocess.run(['bash', '-c', f'set -e; . .venv/bin/activate; {command}'],
+                                cwd=scratch, capture_output=True, text=True, timeout=900)
+        assert result.returncode == 0, (f'{page} block {index}: {command!r} exited '
+                                        f'{result.returncode}:\n{result.stdout}\n'
+                                        f'{result.stderr}')
+    if skipped:
+        pytest.skip('; '.join(skipped))
+
+
+def test_the_pages_have_examples_to_run():
+    # A change of the block syntax must not silently leave nothing to check.
+    assert len(EXAMPLES) >= 12
+    assert any(language == 'python' for _, _, language, _ in EXAMPLES)
+
+
+def test_physics_api_names_every_integrator():
+    from rigid_body_sim.physics import INTEGRATORS
+    text = (ROOT / 'docs' / 'physics_api.md').read_text()
+    missing = [name for name in INTEGRATORS if f'`{name}`' not in text]
+    assert not missing, f'docs/physics_api.md does not name {missing}'
+
+
+def test_the_node_help_lists_every_published_topic():
+    from rigid_body_sim.ros.node_help import help_text
+    text = help_text()
+    for topic in ('pose', 'twist', 'angular_momentum', 'odom', 'marker', 'imu',
+                  '/diagnostics', '/clock'):
+        assert re.search(rf'^  {re.escape(topic)} ', text, re.M), topic
+
+
+def test_the_readme_quotes_the_benchmark_page_figures():
+    # Ranges the README gives as "within A-Bx of MuJoCo RK4's error" must be the page's.
+    readme = (ROOT / 'README.md').read_text()
+    benchmark = (ROOT / 'docs' / 'benchmark.md').read_text()
+    ranges = re.findall(r'within (\d+(?:\.\d+)?-\d+(?:\.\d+)?x) of\s+MuJoCo', readme)
+    assert ranges, 'the README no longer quotes the rk4 range'
+    for figure in ranges:
+        assert figure in benchmark, f'README says {figure}; docs/benchmark.md does not'
+
+
+@pytest.mark.parametrize('script', sorted(p.name for p in (ROOT / 'benchmarks').glob('*.py')))
+def test_every_benchmark_script_answers_help(script):
+    result = subprocess.run([sys.executable, str(ROOT / 'benchmarks' / script), '--help'],
+                            capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert result.returncode == 0 and result.stdout.startswith('usage:'), result.stderr
+
+
+def test_scene_theory_runs_and_every_check_holds():
+    result = subprocess.run([sys.executable, str(ROOT / 'benchmarks' / 'scene_theory.py')],
+                            capture_output=True, text=True, timeout=600, cwd=ROOT)
+    assert result.returncode == 0, result.stdout[-2000:] + result.stderr
+    assert result.stdout.rstrip().endswith(' 0 failing')
+
+
+# -- the traps a newcomer met (issue 23)
+
+
+def test_a_quick_bench_refuses_to_overwrite_a_full_runs_results(tmp_path, capsys):
+    from rigid_body_sim.cli import main
+    # The committed full run's results, in a copy (a failing guard must not overwrite them).
+    shutil.copy(ROOT / 'docs' / 'benchmark' / 'results.json', tmp_path / 'results.json')
+    assert main(['bench', '--quick', '--no-mujoco', '--out', str(tmp_path)]) == 2
+    error = capsys.readouterr().err
+    assert 'holds the results of a full run' in error and error.count('\n') == 1
+
+
+def test_simulate_overwrite_replaces_a_bag_and_never_another_directory(tmp_path, capsys):
+    from rigid_body_sim.cli import main
+    bag = tmp_path / 'runs' / 'flip'
+    arguments = ['simulate', '--duration', '0.05', '--quiet', '--bag', str(bag)]
+    assert main(arguments) == 0
+    assert main(arguments) == 2 and '--overwrite' in capsys.readouterr().err
+    assert main(arguments + ['--overwrite']) == 0
+    other = tmp_path / 'notes'
+    other.mkdir()
+    (other / 'keep.txt').write_text('mine')
+    arguments[-1] = str(other)
+    assert main(arguments + ['--overwrite']) == 2
+    assert (other / 'keep.txt').read_text() == 'mine'
+
+
+def test_scenes_prints_round_off_as_zero(capsys):
+    from rigid_body_sim.cli import main
+    assert main(['scenes', 'heavy_top']) == 0
+    out = capsys.readouterr().out
+    omega = next(line for line in out.splitlines() if 'omega body' in line)
+    assert 'e-' not in omega and '150' in omega, omega

@@ -1,0 +1,308 @@
+"""
+rigid-body-sim watch: the live view shows what the node publishes, and follows its changes.
+
+The timing model (simulated time from the reports, resets, pauses, flips) is checked on
+made-up ticks; the terminal view against a real node's messages over DDS, paused so that
+every number is fixed; the window for real, under Xvfb, by the pixels of a screenshot.
+"""
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+from node_harness import Client
+from node_harness import DISCOVERY_TIMEOUT
+from node_harness import isolate_ros_environment
+from node_harness import NodeProcess
+from node_harness import PACKAGE_ROOT
+from node_harness import unique_namespace
+import numpy as np
+import pytest
+from rigid_body_sim.watch.live import DIAGNOSTICS_KEYS
+from rigid_body_sim.watch.live import format_number
+from rigid_body_sim.watch.live import LiveState
+
+RATE = 100.0
+PERIOD_NS = 10_000_000
+
+
+def _feed(state, stamps, omega=lambda k: (0.0, 2.0, 0.0), moving=True):
+    for k in stamps:
+        angle = 0.001 * k if moving else 0.0
+        quaternion = (0.0, np.sin(angle), 0.0, np.cos(angle))
+        stamp = 1_700_000_000_000_000_000 + k * PERIOD_NS
+        state.add_odometry(stamp, quaternion, (0.0, 0.0, 0.0), omega(k))
+        state.add_angular_momentum(stamp, (0.0, 4.0, 0.0))
+
+
+def _report(state, k, simulated, paused=False, extra=None):
+    values = {DIAGNOSTICS_KEYS['simulated_time']: f'{simulated:.6f}',
+              DIAGNOSTICS_KEYS['rate']: f'{RATE:g}', DIAGNOSTICS_KEYS['integrator']: 'buss',
+              DIAGNOSTICS_KEYS['paused']: str(paused),
+              DIAGNOSTICS_KEYS['effects']: 'external_wrench'}
+    values.update(extra or {})
+    # The node stamps its report just after the tick's state, in the same tick.
+    state.add_diagnostics(1_700_000_000_000_000_000 + k * PERIOD_NS + 50_000, values)
+
+
+def test_ticks_get_simulated_time_from_the_report_of_their_tick():
+    state = LiveState(history=100.0)
+    _feed(state, range(1, 60))
+    assert state.snapshot().current_time is None  # no report yet
+    _report(state, 50, 7.5)  # the node has run 7.5 s when the watch joins
+    _feed(state, range(60, 80))
+    snapshot = state.snapshot()
+    np.testing.assert_allclose(snapshot.time, 7.5 + (np.arange(1, 80) - 50) / RATE,
+                               atol=1e-9)
+
+
+def test_a_report_behind_the_count_is_a_reset_and_forgets_what_came_before():
+    state = LiveState(history=100.0)
+    flips = iter([2.0] * 30 + [-2.0] * 40 + [2.0] * 100)
+    _feed(state, range(1, 71), omega=lambda k: (0.0, next(flips), 0.0))
+    _report(state, 20, 0.2)
+    assert state.snapshot().flips == 1
+    # Reset at tick 71 (time 0, the state restarts): the report of tick 75 says 0.05 s.
+    _feed(state, range(71, 80), omega=lambda k: (0.0, next(flips), 0.0))
+    _report(state, 75, 0.05)
+    _feed(state, range(80, 82), omega=lambda k: (0.0, next(flips), 0.0))
+    snapshot = state.snapshot()
+    assert snapshot.resets_seen == 1 and snapshot.flips == 0
+    np.testing.assert_allclose(snapshot.time, (np.arange(71, 82) - 70) / RATE, atol=1e-9)
+    assert ('reset' in [name for _, name, _ in snapshot.events])
+
+
+def test_paused_ticks_do_not_advance_simulated_time():
+    state = LiveState(history=100.0)
+    _feed(state, range(1, 21))
+    _report(state, 10, 0.1)
+    _feed(state, range(21, 41), moving=False)  # the same state, tick after tick
+    snapshot = state.snapshot()
+    assert snapshot.current_time == pytest.approx(0.21, abs=1e-9)
+
+
+def test_an_integrator_switch_is_noted_at_its_time():
+    state = LiveState(history=100.0)
+    _feed(state, range(1, 21))
+    _report(state, 10, 0.1)
+    state.add_parameter_change('integrator', 'rk4')
+    time_of_switch, name, value = state.snapshot().events[-1]
+    assert (name, value) == ('integrator', 'rk4')
+    assert time_of_switch == pytest.approx(0.2, abs=1e-9)
+
+
+# -- over DDS: the node, the watch as a subprocess
+
+
+class _Watch:
+    """`rigid-body-sim watch` as a subprocess; its stdout collected in blocks."""
+
+    def __init__(self, arguments, environment=None):
+        self.process = subprocess.Popen(
+            [sys.executable, '-m', 'rigid_body_sim.cli', 'watch', *arguments],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=PACKAGE_ROOT,
+            env=dict(os.environ, PYTHONUNBUFFERED='1', **(environment or {})))
+        self.blocks = []
+        self.lines = []
+        self._lock = threading.Lock()
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self):
+        block = []
+        for line in self.process.stdout:
+            line = line.rstrip('\n')
+            with self._lock:
+                self.lines.append(line)
+                if line:
+                    block.append(line)
+                elif block:
+                    self.blocks.append(block)
+                    block = []
+
+    def wait_for(self, condition, what, timeout=DISCOVERY_TIMEOUT):
+        """Wait until condition(blocks, lines) returns something true; return it."""
+        deadline = time.monotonic() + timeout
+        while True:
+            with self._lock:
+                found = condition(list(self.blocks), list(self.lines))
+            if found:
+                return found
+            if self.process.poll() is not None or time.monotonic() > deadline:
+                self.stop()
+                raise AssertionError(f'watch: no {what}; it printed:\n'
+                                     + '\n'.join(self.lines) + self.process.stderr.read())
+            time.sleep(0.02)  # waits-for: poll interval of the output reader
+
+    def stop(self, signal_number=signal.SIGINT, timeout=20.0):
+        """Stop it with a signal (None: let it end); return its exit code and stderr."""
+        if self.process.poll() is None and signal_number is not None:
+            self.process.send_signal(signal_number)
+        try:
+            self.process.wait(timeout)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait(5.0)
+        self._reader.join(5.0)
+        return self.process.returncode, self.process.stderr.read()
+
+
+def _fields(block):
+    """Return {label: text} of a terminal block's lines '  label   text'."""
+    fields = {}
+    for line in block[1:]:
+        label, _, text = line.strip().partition('  ')
+        fields[label] = text.strip()
+    return fields
+
+
+@pytest.fixture(scope='module')
+def node(tmp_path_factory):
+    """Start the default scene at 100 Hz in a namespace of its own; yield a client."""
+    isolate_ros_environment()
+    namespace = unique_namespace()
+    process = NodeProcess(tmp_path_factory.mktemp('watch') / 'node.log', namespace=namespace,
+                          parameters={'rate': RATE})
+    client = Client(namespace)
+    try:
+        client.wait_until_connected()
+    except AssertionError as error:
+        client.close()
+        process.stop()
+        raise AssertionError(f'{error}; node output:\n{process.output()}') from None
+    yield client
+    client.close()
+    process.stop()
+
+
+def _paused_reports(client, since):
+    """Return the {key: value} of the reports after `since` that say paused."""
+    return [client.diagnostics_values(message)
+            for message in client.messages('/diagnostics', since)
+            if client.diagnostics_values(message)['paused'] == 'True']
+
+
+def _frozen_state(client):
+    """Pause the node; return (when, reports while paused, last odom, last L)."""
+    client.pause(True)
+    since = time.monotonic()
+    # Two paused reports: every state after the first one is the frozen one.
+    client.wait_for(lambda: len(_paused_reports(client, since)) >= 2, DISCOVERY_TIMEOUT,
+                    'two paused reports')
+    return (since, _paused_reports(client, since), client.messages('odom')[-1],
+            client.messages('angular_momentum')[-1])
+
+
+@pytest.mark.xdist_group('node')
+def test_the_terminal_view_prints_the_nodes_numbers(node):
+    since, reports, odom, momentum = _frozen_state(node)
+    watch = _Watch(['--terminal', '--namespace', node.namespace, '--interval', '0.1'])
+    try:
+        time_text = f'{float(reports[-1]["simulated time [s]"]):.6f} s simulated'
+
+        def paused_block(blocks, lines):
+            return next((block for block in reversed(blocks) if block[0].endswith('paused')
+                         and _fields(block).get('time') == time_text), None)
+        block = watch.wait_for(paused_block, f'block at {time_text}')
+        fields = _fields(block)
+        angular = odom.twist.twist.angular
+        assert fields['omega body'] == '  '.join(
+            format_number(w) for w in (angular.x, angular.y, angular.z)) + ' rad/s'
+        vector = momentum.vector
+        magnitude = float(np.linalg.norm([vector.x, vector.y, vector.z]))
+        assert fields['|L|'] == f'{format_number(magnitude, signed=False)} kg m^2/s'
+        # The report's own strings, of one of the paused reports (the client may receive
+        # the one the watch shows a little later).
+
+        def shown(report):
+            return (fields['energy drift'].startswith(report['energy drift since last input'])
+                    and fields['substeps'].startswith(report['substeps'] + ' per tick')
+                    and fields['ticks/s'].startswith(report['achieved rate [Hz]'] + ' '))
+        node.wait_for(lambda: any(shown(report) for report in _paused_reports(node, since)),
+                      DISCOVERY_TIMEOUT, f'a report with the numbers of {fields}')
+        assert fields['flips'].startswith('0 (sign changes of Omega_y)')
+
+        # A reset shows as time 0 at the next report; a switch of integrator at once.
+        node.reset()
+        watch.wait_for(lambda blocks, lines: _fields(blocks[-1]).get('time')
+                       == '0.000000 s simulated', 'time 0 after the reset')
+        assert node.set_parameter('integrator', 'rk4').successful
+        watch.wait_for(lambda blocks, lines: 'integrator rk4' in _fields(blocks[-1]).get(
+            'changes', ''), 'the switch to rk4')
+        node.pause(False)
+        watch.wait_for(lambda blocks, lines: blocks[-1][0].endswith(': running')
+                       and 'integrator rk4 at 100 Hz' in blocks[-1][1], 'running under rk4')
+    finally:
+        code, errors = watch.stop()
+        node.pause(False)
+        node.set_parameter('integrator', 'buss')
+    assert code == 128 + signal.SIGINT and 'Traceback' not in errors, errors
+
+
+def test_no_node_found_is_said_and_a_timeout_exits_with_1(tmp_path):
+    isolate_ros_environment()
+    watch = _Watch(['--terminal', '--namespace', unique_namespace(), '--timeout', '1.5'])
+    watch.wait_for(lambda blocks, lines: any('no rigid_body_sim node named' in line
+                                             for line in lines), 'no-node message')
+    code, errors = watch.stop(signal_number=None, timeout=DISCOVERY_TIMEOUT)
+    assert code == 1 and 'giving up (--timeout)' in errors and 'Traceback' not in errors
+
+
+# -- the window, under Xvfb
+
+
+def _start_xvfb():
+    """Start Xvfb on a free display; return (process, ':N'), or skip if it is missing."""
+    xvfb = shutil.which('Xvfb')
+    if xvfb is None:
+        pytest.skip('Xvfb is not installed (apt install xvfb; .ci/run installs it)')
+    read, write = os.pipe()
+    # -s 0: no screen saver blanking the screen under the test.
+    process = subprocess.Popen([xvfb, '-displayfd', str(write), '-screen', '0', '1400x900x24',
+                                '-nolisten', 'tcp', '-s', '0'], pass_fds=(write,),
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    os.close(write)
+    # Xvfb writes the display number once it accepts clients: the event to wait for.
+    with os.fdopen(read) as pipe:
+        number = pipe.readline().strip()
+    if not number:
+        process.kill()
+        pytest.fail('Xvfb did not start')
+    return process, f':{number}'
+
+
+@pytest.mark.xdist_group('node')
+def test_the_window_shows_the_body_and_both_charts(node, tmp_path):
+    pytest.importorskip('tkinter', reason='this Python has no tkinter (the window needs it)')
+    from PIL import ImageGrab
+    xvfb, display = _start_xvfb()
+    watch = _Watch(['--namespace', node.namespace], environment={'DISPLAY': display})
+    try:
+        watch.wait_for(lambda blocks, lines: any('window shows' in line for line in lines),
+                       'window drawn')
+        screen = ImageGrab.grab(xdisplay=display)
+        screen.save(tmp_path / 'watch.png')
+    finally:
+        code, errors = watch.stop()
+        xvfb.terminate()
+        xvfb.wait(10.0)
+    assert code == 128 + signal.SIGINT and 'Traceback' not in errors, errors
+    pixels = np.asarray(screen.convert('RGB')).astype(int)
+    width = pixels.shape[1]
+    body, charts = pixels[:, :int(0.38 * width)], pixels[:, int(0.38 * width):]
+
+    def near(region, colour, tolerance=30):
+        return int((np.abs(region - np.array(colour)).max(axis=2) <= tolerance).sum())
+    # The default scene's body (orange, 0.85 0.55 0.15, shaded and half transparent): a
+    # plate of thousands of pixels on the left.
+    red, green, blue = body[..., 0], body[..., 1], body[..., 2]
+    orange = (red > 180) & (green > 110) & (green < 200) & (blue < 130)
+    assert orange.sum() > 2000, f'body: {orange.sum()} orange pixels ({tmp_path})'
+    # The strip charts: Omega_x, _y, _z in tab red, green, blue, and the drift in orange.
+    for name, colour in (('Omega_x', (214, 39, 40)), ('Omega_y', (44, 160, 44)),
+                         ('Omega_z', (31, 119, 180)), ('T_rot drift', (255, 127, 14))):
+        assert near(charts, colour) > 200, f'{name}: {near(charts, colour)} pixels'
