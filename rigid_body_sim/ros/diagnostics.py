@@ -116,6 +116,7 @@ def status_values(scene, simulator, rate, real_time_factor, figures, clock_secon
     clock_seconds : float, optional
         The /clock time published, if any.
     paused, wrench_active : bool
+        Whether the simulation is paused, and whether an external wrench is held.
     reference_energy, reference_momentum : float
         Energy (J) and |L| (kg m^2/s) at the last input (or start, or reset).
     rejected, limited : int

@@ -327,10 +327,16 @@ class RigidBodyNode(Node):
         """(Re)start the tick timer at the current pace, the next tick one period after."""
         if self._timer is not None:
             self.destroy_timer(self._timer)
-        self._last_tick = last_tick
-        self._next_due = last_tick + self._wall_period
+        self._restart_schedule(last_tick)
         self._timer = self.create_timer(self._wall_period, self._timer_callback,
                                         clock=self._steady_clock)
+
+    def _restart_schedule(self, last_tick):
+        # The next tick is due one period after last_tick; the timer keeps its phase (a
+        # callback half a period early or more waits for the next), so the ticks follow
+        # the new deadlines one per period.
+        self._last_tick = last_tick
+        self._next_due = last_tick + self._wall_period
 
     def _timer_callback(self):
         # Deadlines on the steady clock at whole periods: the rate is exact on average
@@ -513,6 +519,10 @@ class RigidBodyNode(Node):
 
     def _reset_callback(self, request, response):
         self._simulator.reset(self._initial_state, time=0.0)
+        if self._timer is not None:
+            # Simulated time 0 is now: ticks still due from before the reset (a late
+            # node's backlog) belonged to the run it ended, and are not run after it.
+            self._restart_schedule(time.monotonic())
         self._inputs = dict.fromkeys(_INPUT_TOPICS)
         self._hold_inputs(None)
         response.success = True
