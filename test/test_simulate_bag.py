@@ -34,6 +34,7 @@ import pytest
 from rclpy.serialization import deserialize_message
 from rigid_body_sim.cli import main as cli_main
 from rigid_body_sim.physics import RigidBody
+from rigid_body_sim.physics.effects import EFFECTS
 from rigid_body_sim.physics import State
 from rigid_body_sim.recording.bag_writer import INFINITE_DURATION
 from rigid_body_sim.recording.bag_writer import offered_qos
@@ -245,6 +246,23 @@ def test_angular_momentum_read_from_the_bag_is_constant_in_torque_free_scenes(tm
         # Exact: a torque-free step adds h * 0 to L.
         np.testing.assert_array_equal(momenta, np.tile(scene.state.angular_momentum,
                                                        (len(momenta), 1)), err_msg=name)
+
+
+def test_the_imu_rows_take_the_compiled_wrench_and_no_effect_runs_in_python(tmp_path,
+                                                                           monkeypatch):
+    """simulate's imu messages come from Simulator.applied_wrench, one compiled call a tick."""
+    faces = []
+    for name, effect_class in EFFECTS.items():
+        if hasattr(effect_class, 'wrench'):
+            def python_face(self, *arguments, original=effect_class.wrench, name=name):
+                faces.append(name)
+                return original(self, *arguments)
+            monkeypatch.setattr(effect_class, 'wrench', python_face)
+    scene = load_scene('heavy_top')  # gravity through a pivot: its wrench is not zero
+    simulate_to_bag(scene, tmp_path / 'imu', 0.2, rate=100.0)
+    _, messages = read_rosbags(tmp_path / 'imu')
+    assert len(messages['/imu']) == 20
+    assert faces == [], f'Python faces ran: {sorted(set(faces))}'
 
 
 def test_each_message_is_the_nodes_serialisation_of_the_simulated_state(van_zon_bag):

@@ -348,7 +348,6 @@ class _ImuRows:
     def __init__(self, imu, simulator, frame_id, period):
         self._imu = imu
         self._simulator = simulator
-        self._wrench = simulator.wrench_function()  # offline: the effects only
         self._period = period
         self._values = []
         self._stamps = []
@@ -367,12 +366,10 @@ class _ImuRows:
         """Add the reading of the simulator's state, stamped `stamp` (ns)."""
         imu = self._imu
         imu.advance(self._period)
-        state = self._simulator.state
-        if self._wrench is None:
-            force = torque = _NO_VECTOR
-        else:
-            force, torque = self._wrench(state, self._simulator.time)
-        self._values.append(np.concatenate(imu.reading(state, force, torque)))
+        simulator = self._simulator
+        # The wrench on the state now (offline: the effects only), in one compiled call.
+        force, torque = simulator.applied_wrench()
+        self._values.append(np.concatenate(imu.reading(simulator.state, force, torque)))
         self._stamps.append(stamp)
 
     def take(self):
@@ -387,10 +384,6 @@ class _ImuRows:
         for index, offset in enumerate(self._offsets):
             _column(data, offset, '<f8')[:] = values[:, index]
         return data
-
-
-_NO_VECTOR = np.zeros(3)
-_NO_VECTOR.flags.writeable = False
 
 
 def _clock_rows(stamps):

@@ -101,8 +101,6 @@ __all__ = ['RigidBodyNode', 'ConfigurationError', 'NODE_NAME', 'MAX_LAG',
            'WORK_PER_CALLBACK']
 
 _INPUT_TOPICS = ('torque', 'wrench')
-_NO_VECTOR = np.zeros(3)
-_NO_VECTOR.flags.writeable = False
 _CLOCK_TOPIC = '/clock'
 _DIAGNOSTICS_PERIOD = 1.0  # s
 _WARNING_PERIOD = 1.0  # s between two warnings of the same kind
@@ -201,7 +199,6 @@ class RigidBodyNode(Node):
         self._imu_message = imu_message(imu_frame, self._imu, self._period)
         self._imu_subscribed = False
         self._imu_noisy = self._imu.model.noisy
-        self._wrench = self._simulator.wrench_function()
         self._diagnostics_publisher = self.create_publisher(
             DiagnosticArray, '/diagnostics', DIAGNOSTICS_QOS)
         # Simulated time: _clock_ticks whole periods since start-up, counted on through
@@ -415,14 +412,11 @@ class RigidBodyNode(Node):
         self._last_stamp = stamp
 
     def _publish_imu(self, stamp):
-        # The accelerations at the published state, from the wrench acting on it now.
+        # The accelerations at the published state, from the wrench acting on it now (held
+        # inputs and effects, in one compiled call).
         simulator = self._simulator
-        state = simulator.state
-        if self._wrench is None:
-            force = torque = _NO_VECTOR
-        else:
-            force, torque = self._wrench(state, simulator.time)
-        reading = self._imu.reading(state, force, torque)
+        force, torque = simulator.applied_wrench()
+        reading = self._imu.reading(simulator.state, force, torque)
         self._imu_publisher.publish(fill_imu_message(self._imu_message, stamp, *reading))
 
     def _simulated_nanoseconds(self):
@@ -475,7 +469,6 @@ class RigidBodyNode(Node):
                                     torque_world=parts['world'][1],
                                     force_body=parts['body'][0],
                                     torque_body=parts['body'][1])
-        self._wrench = self._simulator.wrench_function()
         self._set_drift_reference()
         self._inputs_changed = False
 
