@@ -34,8 +34,8 @@ import pytest
 from rclpy.serialization import deserialize_message
 from rigid_body_sim.cli import main as cli_main
 from rigid_body_sim.physics import RigidBody
-from rigid_body_sim.physics.effects import EFFECTS
 from rigid_body_sim.physics import State
+from rigid_body_sim.physics.effects import EFFECTS
 from rigid_body_sim.recording.bag_writer import INFINITE_DURATION
 from rigid_body_sim.recording.bag_writer import offered_qos
 from rigid_body_sim.recording.bag_writer import qos_from_profile
@@ -248,9 +248,9 @@ def test_angular_momentum_read_from_the_bag_is_constant_in_torque_free_scenes(tm
                                                        (len(momenta), 1)), err_msg=name)
 
 
-def test_the_imu_rows_take_the_compiled_wrench_and_no_effect_runs_in_python(tmp_path,
-                                                                           monkeypatch):
-    """simulate's imu messages come from Simulator.applied_wrench, one compiled call a tick."""
+def test_the_imu_rows_take_the_compiled_wrench_and_no_effect_runs_in_python(
+        tmp_path, monkeypatch):
+    """The imu messages of simulate come from Simulator.applied_wrench, one compiled call a tick."""
     faces = []
     for name, effect_class in EFFECTS.items():
         if hasattr(effect_class, 'wrench'):
