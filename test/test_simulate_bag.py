@@ -250,7 +250,7 @@ def test_angular_momentum_read_from_the_bag_is_constant_in_torque_free_scenes(tm
 
 def test_the_imu_rows_take_the_compiled_wrench_and_no_effect_runs_in_python(
         tmp_path, monkeypatch):
-    """The imu messages of simulate come from Simulator.applied_wrench, one compiled call a tick."""
+    """The imu messages of simulate come from Simulator.applied_wrench (compiled, once a tick)."""
     faces = []
     for name, effect_class in EFFECTS.items():
         if hasattr(effect_class, 'wrench'):
