@@ -11,6 +11,7 @@ from node_harness import NODE_NAME
 from node_harness import NodeProcess
 from node_harness import unique_namespace
 import pytest
+from rcl_interfaces.msg import Log
 from rcl_interfaces.msg import Parameter as ParameterMessage
 from rcl_interfaces.msg import ParameterType
 from rcl_interfaces.msg import ParameterValue
@@ -18,7 +19,13 @@ from rcl_interfaces.srv import GetParameters
 from rcl_interfaces.srv import ListParameters
 from rcl_interfaces.srv import SetParameters
 from rcl_interfaces.srv import SetParametersAtomically
+from rclpy.qos import DurabilityPolicy
+from rclpy.qos import QoSProfile
+from rclpy.qos import ReliabilityPolicy
 from rigid_body_sim.ros.parameters import PARAMETERS
+from rigid_body_sim.ros.qos import SERVICE_QOS
+from std_srvs.srv import SetBool
+from std_srvs.srv import Trigger
 
 pytestmark = pytest.mark.xdist_group('node')
 
@@ -146,4 +153,52 @@ def test_an_atomic_request_with_one_bad_parameter_sets_none(peer):
     values = peer.call(peer.clients[GetParameters],
                        GetParameters.Request(names=['input_timeout'])).values
     assert values[0].double_value != 0.25
+    assert_alive_and_ticking(peer)
+
+
+def test_a_burst_of_1000_asynchronous_reset_and_pause_requests_is_answered_whole(peer):
+    """
+    1,000 requests sent at once, none awaited: every one gets its answer.
+
+    rclpy's default service queue (keep last 10) dropped all but the last few silently
+    (38 answers of 1,000 in 15 s); the node's reset and pause services hold 1,000 requests
+    (SERVICE_QOS).  A client sending bursts needs a queue as deep for its answers: these
+    clients have the same QoS.
+    """
+    reset = peer.node.create_client(Trigger, 'reset', qos_profile=SERVICE_QOS)
+    pause = peer.node.create_client(SetBool, 'pause', qos_profile=SERVICE_QOS)
+    peer.wait_for(lambda: reset.service_is_ready() and pause.service_is_ready(), 60.0,
+                  'the reset and pause services')
+    futures = []
+    for index in range(1000):
+        if index % 3 == 0:
+            futures.append(reset.call_async(Trigger.Request()))
+        else:
+            # Paused and running in turn, the last one running.
+            futures.append(pause.call_async(SetBool.Request(data=index % 3 == 1)))
+    try:
+        # A failure detector: 1,000 answers take well under a second on an idle machine.
+        peer.wait_for(lambda: all(future.done() for future in futures), 120.0,
+                      f'1000 answers ({sum(f.done() for f in futures)} came)')
+    finally:
+        peer.call(pause, SetBool.Request(data=False))
+    assert all(future.result().success for future in futures)
+    assert_alive_and_ticking(peer)
+
+
+def test_a_megabyte_frame_id_reaches_the_log_and_rosout_as_one_short_line(peer):
+    """A 1 MB frame_id with control characters: the warning quotes 200 characters, escaped."""
+    logs = []
+    # Transient local, as rcl's /rosout publisher: a warning logged before the match comes.
+    peer.node.create_subscription(
+        Log, '/rosout', lambda message: logs.append(message) if 'frame_id' in message.msg
+        else None, QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                              durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    peer.publish_torque((1.0, 0.0, 0.0), '\x1b[2J' + 'f' * 1_000_000)
+    peer.wait_for(lambda: logs, 60.0, 'the warning on /rosout')
+    warning = logs[0].msg
+    assert 'unknown frame_id' in warning and len(warning) < 500, warning[:1000]
+    assert warning.isprintable()
+    printed = [line for line in peer.process.output().splitlines() if 'unknown frame_id' in line]
+    assert printed and all(len(line) < 600 for line in printed)
     assert_alive_and_ticking(peer)

@@ -27,6 +27,7 @@ from rclpy.serialization import serialize_message
 from sensor_msgs.msg import Imu
 from visualization_msgs.msg import Marker
 
+from .text import shortened
 from ..physics.rotations import quaternion_from_matrix
 
 __all__ = [
@@ -448,9 +449,11 @@ def frame_from_frame_id(frame_id, world_frame, body_frame):
         return 'world'
     if frame_id == body_frame:
         return 'body'
+    # A peer's frame id can be megabytes long or hold control characters: quoted cut and
+    # escaped, so the warning (and /rosout) stays one short line.
     raise RejectedInput(
-        f'unknown frame_id {frame_id!r}; accepted frame ids: {world_frame!r} or empty '
-        f'(world-fixed), {body_frame!r} (body-fixed)', 'frame')
+        f"unknown frame_id '{shortened(frame_id)}'; accepted frame ids: {world_frame!r} or "
+        f'empty (world-fixed), {body_frame!r} (body-fixed)', 'frame')
 
 
 def wrench_input_from_message(message, world_frame, body_frame, max_wrench):
