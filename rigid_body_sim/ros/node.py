@@ -76,6 +76,7 @@ from .parameter_services import ParameterServices
 from .parameters import check_integrator
 from .parameters import declare_parameters
 from .parameters import declare_scene_parameter
+from .parameters import given_overrides
 from .parameters import imu_model_from_parameters
 from .parameters import PARAMETERS
 from .parameters import scene_from_parameters
@@ -143,6 +144,7 @@ class RigidBodyNode(Node):
         # rclpy's parameter services let a malformed request stop the node: ours answer it.
         parameter_services = kwargs.pop('start_parameter_services', True)
         super().__init__(node_name, start_parameter_services=False, **kwargs)
+        self._overrides = given_overrides(self)
         if parameter_services:
             ParameterServices(self)
         self._ticks = 0
@@ -158,8 +160,8 @@ class RigidBodyNode(Node):
 
     def _configure(self):
         # The scene first: its integrator and rate are the defaults of those parameters.
-        scene = load_scene(declare_scene_parameter(self))
-        values = declare_parameters(self, scene)
+        scene = load_scene(declare_scene_parameter(self, self._overrides))
+        values = declare_parameters(self, scene, self._overrides)
         self._warn_unknown_overrides()
         named_scene, scene = scene, scene_from_parameters(scene, values)
         parameter_sources = show_effective_values(self, named_scene, values, scene)
@@ -307,16 +309,15 @@ class RigidBodyNode(Node):
 
     def _warn_unknown_overrides(self):
         # rclpy ignores overrides of undeclared parameters: a typo in a params file would
-        # silently leave the default in place.  (No public accessor exists in Jazzy.)
-        overrides = getattr(self, '_parameter_overrides', {})
+        # silently leave the default in place.
         # rclpy's own parameters, which a dumped parameter file holds too.
         known = {spec.name for spec in PARAMETERS} | {'use_sim_time',
                                                       'start_type_description_service'}
-        unknown = sorted(set(overrides) - known)
+        unknown = sorted(set(self._overrides) - known)
         if unknown:
             self.get_logger().warning(
-                f'ignoring unknown parameter(s): {", ".join(unknown)}; known parameters: '
-                f'{", ".join(spec.name for spec in PARAMETERS)}')
+                f'ignoring unknown parameter(s): {", ".join(map(shortened, unknown))}; known '
+                f'parameters: {", ".join(spec.name for spec in PARAMETERS)}')
 
     # -- the ticks
 
