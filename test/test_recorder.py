@@ -10,6 +10,8 @@ first and the last message recorded on a topic, received == published exactly wh
 sequence numbers and the stamps have no gap.
 """
 
+import inspect
+import math
 from pathlib import Path
 import re
 import signal
@@ -35,6 +37,8 @@ from rclpy.qos import QoSProfile
 from rclpy.qos import ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from rigid_body_sim.recording.bag_writer import storage_file
+from rigid_body_sim.recording.recorder import _receiver
+from rigid_body_sim.recording.recorder import _Recorder
 from rigid_body_sim.recording.recovery import bag_is_complete
 from rigid_body_sim.recording.recovery import recover_bag
 from rigid_body_sim.recording.simulate import simulate_to_bag
@@ -494,3 +498,39 @@ def test_recover_refuses_a_complete_bag_and_a_missing_one(tmp_path):
     with pytest.raises(ValueError, match='not a bag directory'):
         recover_bag(tmp_path / 'nothing')
     assert recover_bag(bag, force=True).counts['/pose'] == 50
+
+
+def test_a_message_info_callback_takes_both_calls_rclpy_executors_make():
+    """
+    (message, info) as two arguments (SingleThreadedExecutor) or one tuple (EventsExecutor).
+
+    rclpy reads the signature to decide whether to pass the info: it must ask for it.
+    """
+    kept = []
+    receive = _receiver(lambda topic, data, info: kept.append((topic, data, info)), 'topic')
+    assert list(inspect.signature(receive).parameters) == ['message', 'info']
+    receive(b'data', {'received_timestamp': 1})
+    receive((b'data', {'received_timestamp': 1}))
+    assert kept == [('topic', b'data', {'received_timestamp': 1})] * 2
+
+
+class _ListWriter:
+
+    def __init__(self):
+        self.written = []
+
+    def write(self, connection, log_time, data, publish_time, sequence):
+        self.written.append((log_time, data))
+
+
+def test_a_message_dispatched_after_later_ones_were_written_keeps_the_bag_in_time_order():
+    """One received before the last written but dispatched after it: at that last time."""
+    recorder = _Recorder.__new__(_Recorder)
+    recorder.writer = _ListWriter()
+    recorder.use_sim_time = False
+    recorder.written_until = -math.inf
+    recorder.buffer = [(30, None, b'b', 30, 2), (10, None, b'a', 10, 1)]
+    recorder.write_buffered(before=40)
+    recorder.buffer = [(20, None, b'late', 20, 3), (50, None, b'c', 50, 4)]
+    recorder.write_buffered()
+    assert recorder.writer.written == [(10, b'a'), (30, b'b'), (30, b'late'), (50, b'c')]
