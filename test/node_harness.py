@@ -77,10 +77,11 @@ class NodeProcess:
         ``python -m rigid_body_sim.ros.entry_point`` (what ``rigid_body_node`` runs).
     :param log_path: the file for its stdout and stderr.
     :param cwd: its working directory (default: the package root).
+    :param environment: variables to set in its environment, beside this process's.
     """
 
     def __init__(self, log_path, namespace=None, parameters=None, extra_arguments=(),
-                 command=None, cwd=PACKAGE_ROOT):
+                 command=None, cwd=PACKAGE_ROOT, environment=None):
         arguments = ['--ros-args']
         if namespace is not None:
             arguments += ['-r', f'__ns:={namespace}']
@@ -91,12 +92,13 @@ class NodeProcess:
         self.log_path = Path(log_path)
         self.namespace = namespace
         self._log = open(self.log_path, 'w')
-        environment = dict(os.environ)
-        environment['PYTHONUNBUFFERED'] = '1'
-        environment['RCUTILS_LOGGING_BUFFERED_STREAM'] = '0'
+        variables = dict(os.environ)
+        variables['PYTHONUNBUFFERED'] = '1'
+        variables['RCUTILS_LOGGING_BUFFERED_STREAM'] = '0'
+        variables.update(environment or {})
         self.process = subprocess.Popen(
             list(command) + arguments, stdout=self._log, stderr=subprocess.STDOUT,
-            cwd=cwd, env=environment)
+            cwd=cwd, env=variables)
 
     @property
     def pid(self):

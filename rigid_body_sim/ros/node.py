@@ -23,6 +23,13 @@ inputs, service requests and parameter changes are applied as they come, between
 ticks, in the order they came; none waits for a deadline.  ``reset`` and ``pause`` reply
 once applied, saying from which stamp on the published messages show the new state.
 
+Integrator kernels that are not compiled (:mod:`rigid_body_sim.ros.kernels`) are compiled
+in a process of their own, never in the node's: a switch to such an integrator is accepted
+at once, the simulation goes on with the old one until they are compiled (a log line, and
+/diagnostics, say so), then switches; if the compilation fails, one error line says so, the
+old integrator stays, and so does the parameter.  At start-up, the services, parameters and
+/diagnostics come first and the ticks start once the scene's integrator is compiled.
+
 Topics (relative names, so ``--ros-args -r __ns:=/sat1`` namespaces them):
 
 - published: ``pose``, ``twist``, ``angular_momentum``, ``odom``, ``marker`` (see
@@ -51,6 +58,7 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock
 from rclpy.clock import ClockType
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock as ClockMessage
 from sensor_msgs.msg import Imu as ImuMessage
@@ -72,6 +80,8 @@ from .diagnostics import status_name
 from .diagnostics import status_values
 from .diagnostics import substep_cap_reached
 from .diagnostics import TickFigures
+from .kernels import BackgroundCompilation
+from .kernels import kernels_compiled
 from .parameter_services import ParameterServices
 from .parameters import check_integrator
 from .parameters import declare_parameters
@@ -117,6 +127,8 @@ WORK_PER_CALLBACK = 0.05
 rest (services, inputs, signals); the ticks still due follow in the next callback."""
 # How often (s) the node looks for the topics that have subscribers.
 _SUBSCRIBER_CHECK_PERIOD = 0.1
+# How often (s) the node looks whether a background compilation ended.
+_COMPILATION_POLL_PERIOD = 0.2
 
 
 class ConfigurationError(ValueError):
@@ -149,6 +161,8 @@ class RigidBodyNode(Node):
             ParameterServices(self)
         self._ticks = 0
         self._timer = None
+        self._compilation = None  # the integrator's kernels compiling in the background
+        self._compilation_timer = None
         try:
             self._configure()
         except ValueError as error:
@@ -174,9 +188,11 @@ class RigidBodyNode(Node):
         self._period = 1.0 / self._rate
         self._real_time_factor = values['real_time_factor']
         self._wall_period = self._period / self._real_time_factor
-        # One throwaway step loads the integrator's compiled kernels (~0.5 s) now rather
-        # than in the first tick.
-        _load_kernels(scene, scene.integrator, self._period)
+        kernels_ready = kernels_compiled(scene.integrator)
+        if kernels_ready:
+            # One throwaway step loads the integrator's compiled kernels (~0.5 s) now
+            # rather than in the first tick.
+            _load_kernels(scene, scene.integrator, self._period)
         self._substeps = values['substeps']
         self._input_timeout_ns = int(values['input_timeout'] * 1e9)
         self._max_wrench = values['max_wrench']
@@ -260,7 +276,11 @@ class RigidBodyNode(Node):
                           clock=self._steady_clock)
         self.create_timer(_DIAGNOSTICS_PERIOD, self._publish_diagnostics,
                           clock=self._steady_clock)
-        self._start_ticking(time.monotonic())
+        if kernels_ready:
+            self._start_ticking(time.monotonic())
+        else:
+            # Services, parameters and diagnostics first; the ticks once compiled.
+            self._compile_in_background(scene.integrator)
 
     def _start_tf(self, imu_frame):
         """Create the /tf publishers and publish /tf_static; return the log's TF words."""
@@ -548,11 +568,7 @@ class RigidBodyNode(Node):
 
     def _apply_parameter(self, name, value):
         if name == 'integrator':
-            # Kernels loaded here (~0.1 s the first time), then the simulator keeps its
-            # state: the switch is continuous.
-            _load_kernels(self._scene, value, self._period)
-            self._simulator.integrator = value
-            self.get_logger().info(f'integrator is now {value}')
+            self._switch_integrator(value)
         elif name == 'substeps':
             self._substeps = value
             self._simulator.substeps = value
@@ -573,6 +589,91 @@ class RigidBodyNode(Node):
                 # past), never at the deadline set at the old pace.
                 self._start_ticking(min(self._last_tick, time.monotonic()))
             self.get_logger().info(f'real_time_factor is now {value:g}')
+
+    # -- integrator switches, and their kernels compiled in the background
+
+    def _switch_integrator(self, name):
+        pending = self._compilation
+        if pending is not None and pending.name == name:
+            return  # on its way
+        running = self._timer is not None and name == self._simulator.integrator
+        if not running and not kernels_compiled(name):
+            self._compile_in_background(name)
+            return
+        if pending is not None:
+            self._end_compilation()
+            self.get_logger().info(f'compiling the kernels of {pending.name} abandoned')
+        self._use_integrator(name)
+
+    def _use_integrator(self, name, how=''):
+        # Kernels loaded from the cache (tens of ms), then the simulator keeps its state:
+        # the switch is continuous.
+        _load_kernels(self._scene, name, self._period)
+        self._simulator.integrator = name
+        self.get_logger().info(f'integrator is now {name}{how}')
+        if self._timer is None:
+            self.get_logger().info(f'simulating with {name}')
+            self._window = (time.monotonic(), self._ticks, self._missed_ticks,
+                            self._simulator.time)
+            self._start_ticking(time.monotonic())
+
+    def _compile_in_background(self, name):
+        """Compile the kernels of integrator `name` beside the node; switch when done."""
+        if self._compilation is not None:
+            self._end_compilation()
+        self._compilation = BackgroundCompilation(name)
+        self._compilation_timer = self.create_timer(
+            _COMPILATION_POLL_PERIOD, self._poll_compilation, clock=self._steady_clock)
+        until = (f'integrating with {self._simulator.integrator} until then'
+                 if self._timer is not None else
+                 'services and parameters are up, the simulation starts when they are')
+        self.get_logger().info(
+            f'the kernels of {name} are not compiled: compiling them in the background '
+            f'(about {self._compilation.estimate:.0f} s; `rigid-body-sim compile` after an '
+            f'install avoids it); {until}')
+
+    def _end_compilation(self):
+        self._compilation.stop()
+        self._compilation = None
+        self.destroy_timer(self._compilation_timer)
+        self._compilation_timer = None
+
+    def _poll_compilation(self):
+        compilation = self._compilation
+        result = None if compilation is None else compilation.poll()
+        if result is None:
+            return
+        self._end_compilation()
+        succeeded, what = result
+        if succeeded:
+            self._use_integrator(compilation.name, f' (its kernels {what} in the background)')
+        elif self._timer is None:
+            # At start-up: nothing to simulate with.
+            self.get_logger().fatal(
+                f'compiling the kernels of {compilation.name} failed ({what}); run '
+                f'`rigid-body-sim compile {compilation.name}` to see why')
+            self.tick_error = RuntimeError(f'compiling {compilation.name} failed')
+            self.context.try_shutdown()
+        else:
+            current = self._simulator.integrator
+            self.get_logger().error(
+                f'compiling the kernels of {compilation.name} failed ({what}); integrating on '
+                f'with {current} (`rigid-body-sim compile {compilation.name}` shows why)')
+            # The parameter says what runs.
+            self.set_parameters([Parameter('integrator', value=current)])
+
+    def _compilation_status(self):
+        """Return the diagnostics' words about a background compilation ('' if none)."""
+        if self._compilation is None:
+            return ''
+        return (f'compiling the kernels of {self._compilation.name} in the background '
+                f'(about {self._compilation.estimate:.0f} s)')
+
+    def destroy_node(self):
+        """Stop a background compilation, then destroy the node."""
+        if self._compilation is not None:
+            self._end_compilation()
+        return super().destroy_node()
 
     def _warn_throttled(self, key, text):
         now = time.monotonic()
@@ -610,7 +711,10 @@ class RigidBodyNode(Node):
             reference_momentum=self._reference_momentum, rejected=self._rejected,
             limited=self._limited)
         level, message = DiagnosticStatus.OK, 'running'
-        if self._paused:
+        compiling = self._compilation_status()
+        if self._timer is None:
+            message = f'waiting: {compiling}; the simulation starts when they are'
+        elif self._paused:
             message = 'paused'
         elif achieved < _RATE_WARNING_FRACTION * requested:
             level = DiagnosticStatus.WARN
@@ -618,6 +722,8 @@ class RigidBodyNode(Node):
             if substep_cap_reached(dict(values), MAX_SUBSTEPS):
                 message += f' (error control at its cap of {MAX_SUBSTEPS} substeps a tick)'
         self._report_falling_behind(level == DiagnosticStatus.WARN, message)
+        if compiling and self._timer is not None:
+            message += f'; {compiling}, {self._simulator.integrator} until then'
         stamp = self._simulated_nanoseconds() if self._publish_clock \
             else self.get_clock().now().nanoseconds
         self._diagnostics_publisher.publish(diagnostic_array(
