@@ -377,3 +377,70 @@ def test_a_signal_while_numba_compiles_stops_the_node_within_seconds(tmp_path, m
     assert code == 0, output
     assert 'Traceback' not in output and 'Exception ignored' not in output, output
     assert stopped_after < 15.0, (stopped_after, output)
+
+
+STIFF_SCENE = """\
+# Issue 22 item 3's stiff drag on a 0.4 x 0.2 x 0.1 m box, at 0.1 kg: error control
+# reaches its cap of substeps at every tick (the drag's rate ~2.4e4 1/s).
+name: stiff_drag
+description: a light box under strong rotational drag
+body:
+  mass: 0.1
+  shape: box
+  size: [0.4, 0.2, 0.1]
+initial:
+  angular_velocity_body: [0.1, 2.0, 0.1]
+effects:
+  - drag:
+      rotational_linear: 10
+integrator: buss
+rate: 100
+tolerance: 1.0e-6
+"""
+
+
+def test_a_tick_at_the_substep_cap_is_reported_and_services_and_sigint_answer_within_1_s(
+        tmp_path):
+    """
+    Work is bounded and visible: a tick that cannot keep its period says so at once.
+
+    Each tick of this scene takes the cap's 100,000 substeps (~15 ms for a 10 ms period):
+    the first /diagnostics report says 'falling behind' and names the cap, the log says so
+    in one line, and the node still answers reset within a second (one timer callback works
+    at most WORK_PER_CALLBACK s before the executor serves the rest) and stops in order on
+    SIGINT within a second.
+    """
+    scene = tmp_path / 'stiff_drag.yaml'
+    scene.write_text(STIFF_SCENE)
+    node = NodeProcess(tmp_path / 'node.log', namespace=unique_namespace(),
+                       parameters={'scene': str(scene)})
+    client = Client(node.namespace)
+    try:
+        client.wait_for(lambda: client.messages('/diagnostics'), 120.0, 'a /diagnostics report')
+        message = client.messages('/diagnostics')[0]
+        status = next(s for s in message.status
+                      if s.hardware_id == f'{client.namespace}/rigid_body_sim')
+        assert status.level == status.WARN, status.message
+        assert 'falling behind' in status.message, status.message
+        assert 'error control at its cap of 100000 substeps a tick' in status.message
+        client.wait_for(lambda: 'falling behind' in node.output(), 5.0, 'the log line')
+        assert node.output().count('falling behind') == 1, node.output()
+        client.wait_for(client.reset_client.service_is_ready, 60.0, 'the reset service')
+        for _ in range(5):
+            asked = time.monotonic()
+            assert client.reset().success
+            assert time.monotonic() - asked < 1.0
+        asked = time.monotonic()
+        node.send_signal(signal.SIGINT)
+        code = node.wait(15.0)
+        stopped = time.monotonic() - asked
+    except AssertionError as error:
+        raise AssertionError(f'{error}\nnode output:\n{node.output()}') from None
+    finally:
+        client.close()
+        node.stop()
+    output = node.output()
+    assert code == 0, output
+    assert ' ticks, ' in output  # the shutdown summary: it stopped in order
+    assert 'could not stop in order' not in output, output
+    assert stopped < 1.0, stopped
