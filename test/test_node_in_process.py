@@ -12,9 +12,11 @@ from geometry_msgs.msg import Vector3Stamped
 from node_harness import isolate_ros_environment
 import numpy as np
 import pytest
+from rcl_interfaces.srv import DescribeParameters
 import rclpy
 from rclpy.parameter import Parameter
 from rigid_body_sim.ros.node import RigidBodyNode
+from rigid_body_sim.ros.parameter_services import ParameterServices
 from std_srvs.srv import Trigger
 
 
@@ -107,3 +109,30 @@ def test_the_imu_reads_the_compiled_wrench_and_no_effect_runs_in_python_per_tick
                                        rtol=1e-12, atol=1e-12)
     finally:
         stop_node(node)
+
+
+def test_a_parameter_service_answers_empty_and_logs_when_its_callback_fails(monkeypatch):
+    """Whatever a request makes a parameter service raise, it answers (and logs one line)."""
+    isolate_ros_environment()
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node('services', context=context, start_parameter_services=False)
+    try:
+        node.declare_parameter('x', 1.0)
+        ParameterServices(node)
+        service = next(s for s in node.services if s.srv_name.endswith('/describe_parameters'))
+
+        def failing(names):
+            raise RuntimeError('x' * 10_000)
+        monkeypatch.setattr(node, 'describe_parameters', failing)
+        logged = []
+        monkeypatch.setattr(node, 'get_logger', lambda: type(
+            'Logger', (), {'error': staticmethod(logged.append)})())
+        response = service.callback(DescribeParameters.Request(names=['x']),
+                                    DescribeParameters.Response())
+        assert list(response.descriptors) == []
+        assert len(logged) == 1 and 'a request failed, answered empty' in logged[0]
+        assert len(logged[0]) < 400
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)

@@ -106,9 +106,21 @@ class ParameterServices:
                 (SetParameters, 'set_parameters', self._set_callback),
                 (SetParametersAtomically, 'set_parameters_atomically',
                  self._set_atomically_callback)):
-            node.create_service(service_type, f'{node.get_name()}/{name}', callback,
+            node.create_service(service_type, f'{node.get_name()}/{name}',
+                                self._answering(name, callback),
                                 qos_profile=qos_profile_parameters,
                                 callback_group=callback_group)
+
+    def _answering(self, name, callback):
+        """Return `callback` made to answer whatever it raises (an empty response, logged)."""
+        def answer(request, response):
+            try:
+                return callback(request, response)
+            except Exception as error:  # noqa: B902 (a peer's request must not stop the node)
+                self._node.get_logger().error(
+                    f'{name}: a request failed, answered empty: {shortened(repr(error))}')
+                return response
+        return answer
 
     def _declared(self, names):
         return all(name and self._node.has_parameter(name) for name in names)
@@ -129,7 +141,9 @@ class ParameterServices:
 
     def _get_types_callback(self, request, response):
         if self._declared(request.names):
-            response.types = [kind.value for kind in
+            # (rclpy 7.1 gives the declared parameters' types as numbers, not as the
+            # Parameter.Type its annotation says: either is taken.)
+            response.types = [Parameter.Type(kind).value for kind in
                               self._node.get_parameter_types(list(request.names))]
         return response
 
