@@ -16,6 +16,7 @@ from rcl_interfaces.msg import Parameter as ParameterMessage
 from rcl_interfaces.msg import ParameterType
 from rcl_interfaces.msg import ParameterValue
 from rcl_interfaces.srv import GetParameters
+from rcl_interfaces.srv import GetParameterTypes
 from rcl_interfaces.srv import ListParameters
 from rcl_interfaces.srv import SetParameters
 from rcl_interfaces.srv import SetParametersAtomically
@@ -201,4 +202,17 @@ def test_a_megabyte_frame_id_reaches_the_log_and_rosout_as_one_short_line(peer):
     assert warning.isprintable()
     printed = [line for line in peer.process.output().splitlines() if 'unknown frame_id' in line]
     assert printed and all(len(line) < 600 for line in printed)
+    assert_alive_and_ticking(peer)
+
+
+def test_get_parameter_types_answers_the_types_as_ros2_param_list_asks_them(peer):
+    """``ros2 param list --param-type``'s request: it stopped the node (AttributeError)."""
+    client = peer.node.create_client(GetParameterTypes, f'{NODE_NAME}/get_parameter_types')
+    peer.wait_for(client.service_is_ready, 60.0, 'get_parameter_types')
+    response = peer.call(client, GetParameterTypes.Request(
+        names=['integrator', 'substeps', 'rate', 'publish_clock', 'body.size']))
+    assert list(response.types) == [
+        ParameterType.PARAMETER_STRING, ParameterType.PARAMETER_INTEGER,
+        ParameterType.PARAMETER_DOUBLE, ParameterType.PARAMETER_BOOL,
+        ParameterType.PARAMETER_DOUBLE_ARRAY]
     assert_alive_and_ticking(peer)
