@@ -6,12 +6,14 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+# tf2_msgs (TF) built into the venv where cmake and a C/C++ compiler exist: interfaces/.
+TF2_STAMP := $(VENV)/.tf2_msgs
 PYTEST_ARGS ?=
 NODE_ARGS ?=
 
 .PHONY: venv run test clean
 
-venv: $(STAMP)
+venv: $(STAMP) $(TF2_STAMP)
 
 $(STAMP): requirements.txt setup.py setup.cfg package.xml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -22,7 +24,13 @@ $(STAMP): requirements.txt setup.py setup.cfg package.xml
 	$(BIN)/rigid-body-sim compile
 	touch $@
 
-run: $(STAMP)
+$(TF2_STAMP): $(STAMP) requirements-tf2.txt interfaces/build_tf2_msgs.sh \
+		interfaces/tf2_msgs/package.xml interfaces/tf2_msgs/CMakeLists.txt \
+		interfaces/tf2_msgs/msg/TFMessage.msg
+	interfaces/build_tf2_msgs.sh $(VENV)
+	touch $@
+
+run: $(STAMP) $(TF2_STAMP)
 	@echo 'Starting rigid_body_node with the default scene: a T-handle spun near its unstable'
 	@echo 'middle axis. It first flips over after ~7.2 s, then every ~14.4 s.'
 	@echo 'Watch it live from another terminal in this directory (nothing else to install):'
@@ -38,7 +46,7 @@ run: $(STAMP)
 	$(BIN)/rigid_body_node $(NODE_ARGS)
 
 test: export ROS_AUTOMATIC_DISCOVERY_RANGE = LOCALHOST
-test: $(STAMP)
+test: $(STAMP) $(TF2_STAMP)
 	@# The numba kernels (compiled by the set-up; a changed source is compiled again here),
 	@# so that no test's node spends its start-up compiling them.
 	$(BIN)/rigid-body-sim compile --quiet

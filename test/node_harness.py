@@ -10,6 +10,7 @@ process that records what the node publishes and calls its services.
 import itertools
 import os
 from pathlib import Path
+import re
 import signal
 import subprocess
 import sys
@@ -76,10 +77,11 @@ class NodeProcess:
         ``python -m rigid_body_sim.ros.entry_point`` (what ``rigid_body_node`` runs).
     :param log_path: the file for its stdout and stderr.
     :param cwd: its working directory (default: the package root).
+    :param environment: variables to set in its environment, beside this process's.
     """
 
     def __init__(self, log_path, namespace=None, parameters=None, extra_arguments=(),
-                 command=None, cwd=PACKAGE_ROOT):
+                 command=None, cwd=PACKAGE_ROOT, environment=None):
         arguments = ['--ros-args']
         if namespace is not None:
             arguments += ['-r', f'__ns:={namespace}']
@@ -90,12 +92,13 @@ class NodeProcess:
         self.log_path = Path(log_path)
         self.namespace = namespace
         self._log = open(self.log_path, 'w')
-        environment = dict(os.environ)
-        environment['PYTHONUNBUFFERED'] = '1'
-        environment['RCUTILS_LOGGING_BUFFERED_STREAM'] = '0'
+        variables = dict(os.environ)
+        variables['PYTHONUNBUFFERED'] = '1'
+        variables['RCUTILS_LOGGING_BUFFERED_STREAM'] = '0'
+        variables.update(environment or {})
         self.process = subprocess.Popen(
             list(command) + arguments, stdout=self._log, stderr=subprocess.STDOUT,
-            cwd=cwd, env=environment)
+            cwd=cwd, env=variables)
 
     @property
     def pid(self):
@@ -130,6 +133,23 @@ class NodeProcess:
                 self.wait(10.0)
         self._log.close()
         return self.process.returncode
+
+
+def nanoseconds(stamp):
+    """Return a builtin_interfaces/Time in ns."""
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+def applied_from(response):
+    """
+    Return the stamp (ns) after which a reset or pause reply's new state is published.
+
+    The node replies once it has applied the request, with '... every message stamped after
+    <s>.<ns> s shows it ...'.
+    """
+    match = re.search(r'stamped after (\d+)\.(\d{9}) s', response.message)
+    assert match, response.message
+    return int(match.group(1)) * 1_000_000_000 + int(match.group(2))
 
 
 class Client:
@@ -265,10 +285,24 @@ class Client:
             and self.parameters_client.service_is_ready(),
             timeout, 'the node to connect')
 
-    def settle(self, ticks, rate):
-        """Sleep for `ticks` periods at `rate` Hz, then return ``time.monotonic()``."""
-        time.sleep(ticks / rate)
-        return time.monotonic()
+    def stamped_after(self, topic, stamp, count=1, timeout=DISCOVERY_TIMEOUT):
+        """
+        Wait for `count` messages on `topic` stamped after `stamp` (ns); return them.
+
+        With the stamp a reset or pause reply gives (:func:`applied_from`), these are the
+        messages that show its new state.
+        """
+        def after():
+            return [message for message in self.messages(topic)
+                    if nanoseconds(message.header.stamp) > stamp]
+        self.wait_for(lambda: len(after()) >= count, timeout,
+                      f'{count} messages on {topic} stamped after {stamp} ns')
+        return after()
+
+    def arrival_of_first_after(self, topic, stamp, timeout=DISCOVERY_TIMEOUT):
+        """Return the arrival time of the first message on `topic` stamped after `stamp`."""
+        first = self.stamped_after(topic, stamp, 1, timeout)[0]
+        return next(arrived for arrived, message in self.received(topic) if message is first)
 
     # -- inputs and services
 

@@ -247,6 +247,19 @@ def test_bad_inputs_are_rejected_with_the_reason(message, kind, words):
     assert caught.value.kind == kind
 
 
+def test_a_rejected_frame_id_is_quoted_cut_and_escaped():
+    """A 1 MB frame id, control characters in it: the reason stays one short line."""
+    frame_id = '\x1b[2J' + 'x' * 1_000_000 + '\n'
+    with pytest.raises(RejectedInput) as caught:
+        wrench_input_from_message(torque_message((1.0, 0.0, 0.0), frame_id), 'world', 'body',
+                                  99.9)
+    reason = str(caught.value)
+    assert len(reason) < 500, len(reason)
+    assert reason.isprintable(), reason
+    assert "unknown frame_id '\\x1b[2Jxxx" in reason
+    assert '... (999805 more characters)' in reason
+
+
 def test_input_at_max_wrench_is_accepted():
     """The limit itself is allowed (|torque| = 100 N m = max_wrench)."""
     wrench = wrench_input_from_message(torque_message((0.0, 60.0, 80.0)), 'world', 'body',

@@ -12,6 +12,7 @@ that exactly, to round-off.
 import math
 import time
 
+from node_harness import applied_from
 from node_harness import Client
 from node_harness import DISCOVERY_TIMEOUT
 from node_harness import isolate_ros_environment
@@ -73,9 +74,15 @@ def sim(tmp_path_factory):
 
 
 def fresh_start(sim):
-    """Reset the node and return the time after which messages come from the new run."""
-    assert sim.reset().success
-    return sim.settle(SETTLE * RATE, RATE)
+    """
+    Reset the node and return the time after which messages come from the new run.
+
+    The reply names the stamp after which the reset state is published: the arrival of the
+    first pose stamped after it (the messages of one tick are published together).
+    """
+    response = sim.reset()
+    assert response.success
+    return sim.arrival_of_first_after('pose', applied_from(response))
 
 
 def vector(message):
@@ -179,7 +186,9 @@ def test_odometry_twist_is_the_world_twist_seen_from_the_body(sim):
     """The odom twist is in the body frame: R^T v and R^T omega of the world-frame twist."""
     since = fresh_start(sim)
     sim.publish_wrench([0.2, -0.1, 0.3], [0.0, 0.0, 0.0], 'world')  # a velocity to see
-    sim.settle(10, RATE)
+    sim.wait_for(lambda: len([t for t in sim.messages('twist', since)
+                              if np.any(vector(t.linear) != 0.0)]) >= 10,
+                 DISCOVERY_TIMEOUT, 'ten ticks of the force')
     odom = sim.messages('odom', since)[-1]
     twists = sim.messages('twist', since)
     # twist has no stamp: find the one whose world angular velocity matches this odom's.
@@ -563,45 +572,48 @@ def test_reset_returns_to_the_initial_state(sim):
     # 1 N m about z adds 0.1 kg m^2/s in 10 ticks.
     sim.wait_for(lambda: np.linalg.norm(angular_momenta(sim, 0.0)[-1][1] - L0) > 0.1,
                  DISCOVERY_TIMEOUT, 'the wrench to change L by 0.1')
+    requested = time.monotonic()
     response = sim.reset()
     assert response.success
-    since = sim.settle(SETTLE * RATE, RATE)
-    sim.wait_for_messages('pose', 1, since=since)
-    momentum = sim.wait_for_messages('angular_momentum', 1, since=since)[0].vector
-    momentum = vector(momentum)
+    reset_stamp = applied_from(response)
+    pose = sim.stamped_after('pose', reset_stamp)[0].pose
+    momentum = vector(sim.stamped_after('angular_momentum', reset_stamp)[0].vector)
+    # The first tick after the reset: one step from the initial state, no wrench.
     np.testing.assert_allclose(momentum, L0, rtol=0, atol=ROUND_OFF)
-    pose = sim.messages('pose', since)[0].pose
     # The held wrench went with the reset: the COM is back at the origin and at rest.
     np.testing.assert_array_equal(vector(pose.position), 0.0)
     q = pose.orientation
     angle = 2.0 * math.acos(min(1.0, abs(q.w)))
     omega = np.linalg.norm(INITIAL.angular_velocity(BODY))
-    assert angle <= omega * 2.0 * SETTLE
-    # ... and the simulated time restarted at 0: the next /diagnostics report is at most
-    # the wall time since the reset (at real-time factor 1) plus a tick.
-    reported_at = time.monotonic()
-    diagnostics = sim.wait_for_messages('/diagnostics', 1, since=reported_at, timeout=5.0)[0]
+    assert angle <= omega * PERIOD * (1 + 1e-9)
+    # ... and the simulated time restarted at 0 when the reset was applied (after it was
+    # requested): ticks are due one wall period apart from then on (none from before it),
+    # and one runs at most half a period early, so the next /diagnostics report shows at
+    # most the wall time since the request (real-time factor 1) plus half a period (and
+    # its 6 printed decimals).
+    diagnostics = sim.wait_for_messages('/diagnostics', 1, since=time.monotonic())[0]
     status = next(s for s in diagnostics.status
                   if s.hardware_id == f'{sim.namespace}/{NODE_NAME}')
     simulated = float({kv.key: kv.value for kv in status.values}['simulated time [s]'])
-    assert simulated <= time.monotonic() - since + 2 * SETTLE + PERIOD, simulated
+    assert simulated <= time.monotonic() - requested + 0.5 * PERIOD + 1e-6, simulated
 
 
 def test_pause_freezes_the_state_and_keeps_publishing(sim):
     """Paused, the state stays put while messages keep coming; resumed, it moves."""
     fresh_start(sim)
     try:
-        assert sim.pause(True).success
-        since = sim.settle(SETTLE * RATE, RATE)
-        poses = sim.wait_for_messages('pose', int(0.5 * RATE), since=since)
+        response = sim.pause(True)
+        assert response.success and response.message.startswith('paused'), response.message
+        poses = sim.stamped_after('pose', applied_from(response), int(0.5 * RATE))
         orientations = {(p.pose.orientation.x, p.pose.orientation.y, p.pose.orientation.z,
                          p.pose.orientation.w) for p in poses}
         assert len(orientations) == 1
     finally:
-        assert sim.pause(False).success
-    since = sim.settle(SETTLE * RATE, RATE)
+        response = sim.pause(False)
+        assert response.success and response.message.startswith('running')
+    resumed = applied_from(response)
     sim.wait_for(lambda: len({(p.pose.orientation.x, p.pose.orientation.w)
-                              for p in sim.messages('pose', since)}) > 1,
+                              for p in sim.stamped_after('pose', resumed)}) > 1,
                  DISCOVERY_TIMEOUT, 'the orientation to move again')
 
 
@@ -623,3 +635,52 @@ def test_diagnostics_report_integrator_rates_and_drift(sim):
     # No input since the last reset: the torque-free drift of Buss's method is round-off
     # for |L| (it conserves world L exactly) and small for the energy at h = 0.01 s.
     assert abs(float(values['|L| drift since last input'])) <= 1e-12
+
+
+def test_tf_carries_the_pose_bit_for_bit_at_the_same_stamp_and_the_imu_mount_is_static(
+        tmp_path):
+    """
+    Over DDS: every /tf transform world -> body equals the pose of its stamp, exactly.
+
+    A node of its own with a body frame no other test node uses (/tf is a global topic);
+    /tf_static (transient local) reaches a subscriber that comes after it was published.
+    """
+    from rigid_body_sim.ros.qos import TF_QOS
+    from rigid_body_sim.ros.qos import TF_STATIC_QOS
+    from tf2_msgs.msg import TFMessage
+    namespace = unique_namespace()
+    body_frame = f'body_{namespace.strip("/")}'
+    node = NodeProcess(tmp_path / 'node.log', namespace=namespace,
+                       parameters={'rate': RATE, 'body_frame': body_frame})
+    client = Client(namespace, extra_topics={'/tf': (TFMessage, TF_QOS),
+                                             '/tf_static': (TFMessage, TF_STATIC_QOS)})
+    try:
+        client.wait_until_connected()
+
+        def ours(topic):
+            return [t for m in client.messages(topic) for t in m.transforms
+                    if body_frame in (t.child_frame_id, t.header.frame_id)]
+        client.wait_for(lambda: len(ours('/tf')) >= 200, DISCOVERY_TIMEOUT, '200 transforms')
+        client.wait_for(lambda: ours('/tf_static'), DISCOVERY_TIMEOUT, 'the static transform')
+        poses = {(p.header.stamp.sec, p.header.stamp.nanosec): p.pose
+                 for p in client.messages('pose')}
+        compared = 0
+        for transform in ours('/tf'):
+            assert (transform.header.frame_id, transform.child_frame_id) == (
+                'world', body_frame)
+            pose = poses.get((transform.header.stamp.sec, transform.header.stamp.nanosec))
+            if pose is None:
+                continue  # that tick's pose was not (yet) received here
+            t, r = transform.transform.translation, transform.transform.rotation
+            assert (t.x, t.y, t.z) == (pose.position.x, pose.position.y, pose.position.z)
+            assert (r.x, r.y, r.z, r.w) == (pose.orientation.x, pose.orientation.y,
+                                            pose.orientation.z, pose.orientation.w)
+            compared += 1
+        assert compared >= 150, compared
+        (mount,) = ours('/tf_static')
+        assert (mount.header.frame_id, mount.child_frame_id) == (body_frame, 'imu')
+    except AssertionError as error:
+        raise AssertionError(f'{error}\nnode output:\n{node.output()}') from None
+    finally:
+        client.close()
+        assert node.stop() == 0, node.output()

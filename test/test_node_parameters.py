@@ -22,6 +22,7 @@ from rigid_body_sim.ros.parameters import declare_parameters
 from rigid_body_sim.ros.parameters import declare_scene_parameter
 from rigid_body_sim.ros.parameters import DEFAULTS
 from rigid_body_sim.ros.parameters import effective_values
+from rigid_body_sim.ros.parameters import given_overrides
 from rigid_body_sim.ros.parameters import imu_model_from_parameters
 from rigid_body_sim.ros.parameters import NOT_SET
 from rigid_body_sim.ros.parameters import parameter_descriptor
@@ -72,8 +73,9 @@ def declared(context, overrides=None):
         parameter_overrides=[Parameter(name, value=value)
                              for name, value in (overrides or {}).items()])
     try:
-        scene = load_scene(declare_scene_parameter(node))
-        return scene, declare_parameters(node, scene)
+        given = given_overrides(node)
+        scene = load_scene(declare_scene_parameter(node, given))
+        return scene, declare_parameters(node, scene, given)
     finally:
         node.destroy_node()
 

@@ -35,6 +35,7 @@ from rclpy.serialization import deserialize_message
 from rigid_body_sim.cli import main as cli_main
 from rigid_body_sim.physics import RigidBody
 from rigid_body_sim.physics import State
+from rigid_body_sim.physics.effects import EFFECTS
 from rigid_body_sim.recording.bag_writer import INFINITE_DURATION
 from rigid_body_sim.recording.bag_writer import offered_qos
 from rigid_body_sim.recording.bag_writer import qos_from_profile
@@ -65,7 +66,8 @@ TYPE_NAMES = {'/pose': 'geometry_msgs/msg/PoseStamped', '/twist': 'geometry_msgs
               '/angular_momentum': 'geometry_msgs/msg/Vector3Stamped',
               '/odom': 'nav_msgs/msg/Odometry', '/marker': 'visualization_msgs/msg/Marker',
               '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
-              '/clock': 'rosgraph_msgs/msg/Clock', '/imu': 'sensor_msgs/msg/Imu'}
+              '/clock': 'rosgraph_msgs/msg/Clock', '/imu': 'sensor_msgs/msg/Imu',
+              '/tf': 'tf2_msgs/msg/TFMessage', '/tf_static': 'tf2_msgs/msg/TFMessage'}
 STAMPED = ('/pose', '/angular_momentum', '/odom', '/marker')
 SHARE = Path(__file__).resolve().parent.parent / '.venv' / 'share'
 
@@ -128,12 +130,14 @@ def test_counts_are_duration_times_rate_for_every_state_topic(van_zon_bag):
     facts, messages = read_rosbags(bag)
     ticks = 3500
     for topic in ('/pose', '/twist', '/angular_momentum', '/odom', '/marker', '/imu',
-                  '/clock'):
+                  '/clock', '/tf'):
         assert len(messages[topic]) == ticks, topic
         assert facts['connections'][topic].msgcount == ticks
     # /diagnostics once per simulated second: at 1, 2 and 3 s.
     assert len(messages['/diagnostics']) == 3
-    assert facts['message_count'] == 7 * ticks + 3 == sum(summary.message_counts.values())
+    # /tf_static once.
+    assert len(messages['/tf_static']) == 1
+    assert facts['message_count'] == 8 * ticks + 3 + 1 == sum(summary.message_counts.values())
 
 
 def test_types_and_frames_are_the_nodes(van_zon_bag):
@@ -216,8 +220,10 @@ def test_offered_qos_is_what_discovery_reports_for_the_node_publishers(van_zon_b
         (offer,) = connection.ext.offered_qos_profiles
         reliability = (QosReliability.BEST_EFFORT if topic == '/clock'
                        else QosReliability.RELIABLE)
+        durability = (QosDurability.TRANSIENT_LOCAL if topic == '/tf_static'
+                      else QosDurability.VOLATILE)
         assert (offer.history, offer.depth, offer.reliability, offer.durability) == (
-            QosHistory.UNKNOWN, 0, reliability, QosDurability.VOLATILE), topic
+            QosHistory.UNKNOWN, 0, reliability, durability), topic
         assert offer.deadline == offer.lifespan == offer.liveliness_lease_duration \
             == INFINITE_DURATION
         # In the MCAP channel: the same list as YAML text, policies by name (version 9).
@@ -240,6 +246,23 @@ def test_angular_momentum_read_from_the_bag_is_constant_in_torque_free_scenes(tm
         # Exact: a torque-free step adds h * 0 to L.
         np.testing.assert_array_equal(momenta, np.tile(scene.state.angular_momentum,
                                                        (len(momenta), 1)), err_msg=name)
+
+
+def test_the_imu_rows_take_the_compiled_wrench_and_no_effect_runs_in_python(
+        tmp_path, monkeypatch):
+    """The imu messages of simulate come from Simulator.applied_wrench (compiled, once a tick)."""
+    faces = []
+    for name, effect_class in EFFECTS.items():
+        if hasattr(effect_class, 'wrench'):
+            def python_face(self, *arguments, original=effect_class.wrench, name=name):
+                faces.append(name)
+                return original(self, *arguments)
+            monkeypatch.setattr(effect_class, 'wrench', python_face)
+    scene = load_scene('heavy_top')  # gravity through a pivot: its wrench is not zero
+    simulate_to_bag(scene, tmp_path / 'imu', 0.2, rate=100.0)
+    _, messages = read_rosbags(tmp_path / 'imu')
+    assert len(messages['/imu']) == 20
+    assert faces == [], f'Python faces ran: {sorted(set(faces))}'
 
 
 def test_each_message_is_the_nodes_serialisation_of_the_simulated_state(van_zon_bag):
@@ -339,8 +362,9 @@ def test_namespace_moves_the_state_topics_only(tmp_path):
     facts, messages = read_rosbags(tmp_path / 'ns')
     assert set(facts['connections']) == {'/sat1/pose', '/sat1/twist', '/sat1/angular_momentum',
                                          '/sat1/odom', '/sat1/marker', '/sat1/imu',
-                                         '/diagnostics'}
+                                         '/diagnostics', '/tf', '/tf_static'}
     assert len(messages['/sat1/pose']) == 10 and '/diagnostics' not in messages
+    assert len(messages['/tf']) == 10
 
 
 def test_cli_writes_a_bag_and_refuses_bad_input(tmp_path, capsys):
@@ -579,3 +603,26 @@ def test_a_negative_flush_period_is_refused_in_one_line(tmp_path, capsys):
                      '--flush-period', '-1']) == 2
     error = capsys.readouterr().err
     assert error.count('\n') == 1 and '--flush-period must be' in error
+
+
+def test_tf_in_the_bag_is_the_pose_bit_for_bit_and_the_imu_mount_is_static(van_zon_bag):
+    """Each /tf transform world -> body: the pose's stamp, position and quaternion exactly."""
+    bag, _, _ = van_zon_bag
+    _, messages = read_rosbags(bag)
+    poses = messages['/pose']
+    transforms = messages['/tf']
+    assert len(transforms) == len(poses)
+    for (pose_time, pose), (tf_time, tf) in zip(poses, transforms):
+        (transform,) = tf.transforms
+        assert tf_time == pose_time
+        assert (transform.header.frame_id, transform.child_frame_id) == ('world', 'body')
+        assert stamp_of(transform) == stamp_of(pose)
+        position, orientation = pose.pose.position, pose.pose.orientation
+        translation, rotation = transform.transform.translation, transform.transform.rotation
+        assert (translation.x, translation.y, translation.z) == (
+            position.x, position.y, position.z)
+        assert (rotation.x, rotation.y, rotation.z, rotation.w) == (
+            orientation.x, orientation.y, orientation.z, orientation.w)
+    ((_, static),) = messages['/tf_static']
+    (mount,) = static.transforms
+    assert (mount.header.frame_id, mount.child_frame_id) == ('body', 'imu')

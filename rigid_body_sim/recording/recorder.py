@@ -11,7 +11,7 @@ the node's topics are subscribed at once with the policies of
 :mod:`rigid_body_sim.ros.qos` (best effort for /clock, whose publishers are best effort),
 other topics when discovery shows their type and offers (reliable if every publisher is,
 transient local if every publisher is).  History is keep-last with a deep queue (`depth`,
-default 5000: five seconds at 1 kHz), so a take loop that falls behind while the DDS threads
+default 5000: five seconds at 1 kHz), so a recorder that falls behind while the DDS threads
 keep receiving (a slow flush, the interpreter busy) loses nothing.  A stall of the whole
 process, DDS threads included, is another matter: Fast DDS's shared-memory port queue holds
 512 samples (85 ms of the node's six topics at 1 kHz), and a reliable publisher resends
@@ -20,18 +20,24 @@ only what its history still holds: the node's state publishers their last 1000 s
 best-effort /clock nothing.  A longer stall loses the rest (measured in
 ``benchmarks/recording_benchmark.py --stalls``; the summary says so when it happens).
 
-No executor.  rclpy's executor costs tens of microseconds of Python per message, too much
-for five topics at 1 kHz on a small machine.  The recorder waits on its subscriptions with
-a wait set and then takes every queued message of every ready topic in one pass, the way
-``rclpy.wait_for_message`` takes one; messages are taken raw (CDR bytes, never
-deserialised) with their message info.
+Subscriptions on rclpy's EventsExecutor.  Each topic is an ordinary subscription, raw (CDR
+bytes, never deserialised), whose callback takes the message info with it (reception and
+source timestamps, publication sequence number); rclpy's EventsExecutor
+(``rclpy.experimental``) dispatches them from C++, where the SingleThreadedExecutor's
+Python wait loop costs tens of microseconds a message, much of a core for the node's
+topics at 1 kHz.  The main thread spins it in slices of :data:`_SLICE` s and between two
+slices writes what came, flushes, looks for topics and for a stop.
 
 What is written.  Each message's bag (log) time is its receive time: the DDS reception
-timestamp (system clock), or with ``use_sim_time`` the latest /clock received (messages taken
-before the first /clock get its time; 0 if none ever comes).  MCAP also keeps the
-publisher's source timestamp (publish time) and its publication sequence number
-(sequence), so a reader can count what was lost: the summary
-does, per topic, as gaps in the sequence numbers (meaningful for one publisher per topic).
+timestamp (system clock), or with ``use_sim_time`` the latest /clock received (messages
+received before the first /clock get its time; 0 if none ever comes).  Messages are written
+in the order of their log times (an MCAP file without index, a killed recorder's, must be in
+time order for rosbags to read it): held back :data:`_ORDER_MARGIN` after their reception
+stamp, so that one received earlier on another topic and dispatched later still comes
+before them; one dispatched later than that is written at the last time written.  MCAP also
+keeps the publisher's source timestamp (publish time) and its publication sequence number
+(sequence), so a reader can count what was lost: the summary does, per topic, as gaps in
+the sequence numbers (meaningful for one publisher per topic).
 The offered QoS profiles stored per topic are those discovery reports, as ``ros2 bag
 record`` stores them.
 
@@ -41,6 +47,7 @@ Killed.  Every `flush_period` (default 0.25 s) the bag is flushed (see
 """
 
 import importlib
+import inspect
 import math
 import os
 import threading
@@ -48,13 +55,14 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 import rclpy
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy
 from rclpy.qos import HistoryPolicy
 from rclpy.qos import QoSProfile
 from rclpy.qos import ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
+from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 
 from .bag_writer import BagWriter
@@ -66,23 +74,20 @@ from .simulate import CUSTOM_DATA_PREFIX
 from .simulate import DIAGNOSTICS_TOPIC
 from .simulate import message_type_name
 from .simulate import topic_names
-from ..defaults import default_body
-from ..physics import State
 from ..ros import qos
-from ..ros.conversions import state_messages
+from ..ros.conversions import STATE_TYPES
 
 __all__ = ['NODE_NAME', 'RecordingSummary', 'default_topics', 'record']
 
 NODE_NAME = 'rigid_body_recorder'
 """Name of the recorder's node."""
 
-# Wake up at least this often to look at the stop flag, the flush clock and discovery.
-_WAIT_TIMEOUT = 0.05  # s
-# Shortest time between two passes over the queues: at 1 kHz a pass per message would cost
-# a wait-set round trip each; waiting a little lets every topic's queue gather a few.
-_PASS_INTERVAL = 0.002  # s
-# How long after its DDS reception stamp a sample is surely in its reader's queue.
-_ORDER_MARGIN = 20_000_000  # ns
+_SLICE = 0.05
+"""Seconds the executor dispatches messages before the recorder writes, flushes, looks for
+topics and for a stop."""
+_ORDER_MARGIN = 20_000_000
+"""How long (ns) after its DDS reception stamp a message's callback has surely run (the
+messages received before are written then, in time order)."""
 # How often topics of yet unknown type are looked up in the ROS graph.
 _DISCOVERY_PERIOD = 0.5  # s
 
@@ -93,8 +98,7 @@ def default_topics(namespace=''):
 
     The state topics under `namespace`, /diagnostics and /clock.
     """
-    messages = state_messages(default_body(), State(), 0)
-    topics = {name: (type(messages[topic]), qos.STATE_QOS)
+    topics = {name: (STATE_TYPES[topic], qos.STATE_QOS)
               for topic, name in topic_names(namespace).items()}
     topics[DIAGNOSTICS_TOPIC] = (DiagnosticArray, qos.DIAGNOSTICS_QOS)
     topics[CLOCK_TOPIC] = (Clock, qos.CLOCK_QOS)
@@ -102,9 +106,14 @@ def default_topics(namespace=''):
 
 
 class RecordingSummary:
-    """Messages recorded per topic, losses seen in sequence numbers, time and CPU used."""
+    """
+    Messages recorded per topic, losses seen in sequence numbers, time and CPU used.
 
-    def __init__(self, bag, counts, lost, wall_time, cpu_time, longest_pass=0.0,
+    `longest_pause` is the longest time (s) between two slices of the executor's
+    dispatching, `longest_flush` the longest flush.
+    """
+
+    def __init__(self, bag, counts, lost, wall_time, cpu_time, longest_pause=0.0,
                  longest_flush=0.0, missing=()):
         self.bag = bag
         self.missing = list(missing)
@@ -112,7 +121,7 @@ class RecordingSummary:
         self.lost = lost
         self.wall_time = wall_time
         self.cpu_time = cpu_time
-        self.longest_pass = longest_pass
+        self.longest_pause = longest_pause
         self.longest_flush = longest_flush
 
     @property
@@ -123,8 +132,8 @@ class RecordingSummary:
     def __str__(self):
         lines = [f'{self.bag}: {sum(self.counts.values())} messages on {len(self.counts)} '
                  f'topics in {self.wall_time:.1f} s, CPU {100.0 * self.cpu_fraction:.1f}% '
-                 f'of a core; longest pass {1e3 * self.longest_pass:.0f} ms, longest flush '
-                 f'{1e3 * self.longest_flush:.0f} ms']
+                 f'of a core; longest pause in dispatching {1e3 * self.longest_pause:.0f} '
+                 f'ms, longest flush {1e3 * self.longest_flush:.0f} ms']
         for topic, count in self.counts.items():
             lost = self.lost.get(topic)
             seen = 'lost: n/a' if lost is None else f'lost (sequence gaps): {lost}'
@@ -170,8 +179,29 @@ def _subscription_qos(reliability, durability, depth):
                       history=HistoryPolicy.KEEP_LAST, depth=depth)
 
 
+# What rclpy reads from a callback's signature to pass the message info with the message.
+_MESSAGE_AND_INFO = inspect.Signature([
+    inspect.Parameter(name, inspect.Parameter.POSITIONAL_ONLY) for name in ('message', 'info')])
+
+
+def _receiver(keep, topic):
+    """
+    Return a subscription callback that calls ``keep(topic, data, info)`` for each message.
+
+    Its signature takes (message, info), which tells rclpy to pass the message info;
+    rclpy's EventsExecutor (7.1.x) then calls it with one (message, info) tuple instead of
+    two arguments (the SingleThreadedExecutor passes two): both are taken.
+    """
+    def receive(*received):
+        if len(received) == 1:
+            received = received[0]
+        keep(topic, *received)
+    receive.__signature__ = _MESSAGE_AND_INFO
+    return receive
+
+
 class _Recorder:
-    """The wait-and-take loop; see :func:`record`."""
+    """The subscriptions and what they received, written in time order; see :func:`record`."""
 
     def __init__(self, node, writer, topics, namespace, depth, flush_period, sync,
                  use_sim_time, log):
@@ -184,15 +214,12 @@ class _Recorder:
         self.log = log
         self.topics = {}
         self.pending = []  # topic names whose type is not known yet
-        # Taken, not yet written: (log time, connection, data, publish time, sequence).
-        # Topics are taken one after the other, so messages are written only once no
-        # earlier one can still come, in the order of their times: an MCAP file without
-        # index (a killed recorder's) must be in time order for rosbags to read it.
+        # Received, not yet written: (log time, connection, data, publish time, sequence),
+        # written once no earlier one can still come, in the order of their times.
         self.buffer = []
+        self.written_until = -math.inf  # ns: the latest log time written
         self.sim_time = None  # ns, from /clock (use_sim_time): None before the first one
         self.first_sim_time = None  # ns, the first /clock's: the time of earlier messages
-        self.wait_set = None
-        self.ready_handles = []
         # The node's topics (in its namespace) are subscribed at once, with known types.
         known = default_topics(namespace)
         for name in topics:
@@ -212,9 +239,8 @@ class _Recorder:
         profile = _subscription_qos(publisher_qos.reliability, publisher_qos.durability,
                                     self.depth)
         topic.subscription = self.node.create_subscription(
-            message_class, name, lambda message: None, profile, raw=True)
+            message_class, name, _receiver(self._keep, topic), profile, raw=True)
         self.topics[name] = topic
-        self.wait_set = None  # rebuilt with the new subscription
 
     def discover(self):
         """Subscribe to the pending topics whose type and publishers the graph now shows."""
@@ -248,79 +274,45 @@ class _Recorder:
             self.pending.remove(name)
             self.log(f'recording {name} ({type_name})')
 
-    def _wait_set(self):
-        if self.wait_set is None:
-            self.wait_set = _rclpy.WaitSet(len(self.topics), 0, 0, 0, 0, 0,
-                                           self.node.context.handle)
-            self.ready_handles = [(topic, topic.subscription.handle,
-                                   topic.subscription.handle.pointer)
-                                  for topic in self.topics.values()]
-            # /clock first: with sim time, the messages taken after it are stamped with it.
-            self.ready_handles.sort(key=lambda item: item[0].name != CLOCK_TOPIC)
-        return self.wait_set
-
-    def wait_and_take(self, timeout):
-        """Wait up to `timeout` s for messages, take every queued one, write in time order."""
-        if not self.topics:
-            # Nothing subscribed yet (only topics discovery has not shown): rcl refuses to
-            # wait on an empty wait set, so just let the time pass until the next look.
-            time.sleep(timeout)
-            return
-        wait_set = self._wait_set()
-        wait_set.clear_entities()
-        for _, handle, _ in self.ready_handles:
-            wait_set.add_subscription(handle)
-        wait_set.wait(int(timeout * 1e9))
-        woke = time.time_ns()
-        ready = wait_set.get_ready_entities('subscription')
-        if ready:
-            self.take(set(ready))
-        # A topic that was not ready when the wait returned had nothing received before
-        # then; so every message received before `woke` (less a margin for the time DDS
-        # takes from stamping a sample to queueing it) has now been taken.
+    def write_received(self):
+        """Write what was received, as far as no earlier message can still come."""
         if not self.use_sim_time:
-            self.write_buffered(woke - _ORDER_MARGIN)
+            # A message received before now - margin has had its callback.
+            self.write_buffered(time.time_ns() - _ORDER_MARGIN)
         elif self.sim_time is not None:
             self.write_buffered()
 
     def write_buffered(self, before=math.inf):
-        """Write the taken messages received before `before` (ns), in time order."""
+        """Write the messages received before `before` (ns), in time order."""
         buffer = self.buffer
         if not buffer:
             return
         if self.use_sim_time and buffer[0][0] < 0:
-            # Taken before the first /clock: they get its time (0 if none came), so the bag
-            # stays in time order; the node publishes /clock only once it has seen a
+            # Received before the first /clock: they get its time (0 if none came), so the
+            # bag stays in time order; the node publishes /clock only once it has seen a
             # subscriber, which under load can be seconds after the state topics matched.
             first = self.first_sim_time
             early = sum(1 for item in buffer if item[0] < 0)
             if first is None:
-                self.log(f'no /clock received: the {early} message(s) taken have bag time 0')
+                self.log(f'no /clock received: the {early} message(s) received have bag time '
+                         '0')
                 first = 0
             else:
-                self.log(f'{early} message(s) taken before the first /clock are logged at '
-                         f'its time, {first} ns')
+                self.log(f'{early} message(s) received before the first /clock are logged '
+                         f'at its time, {first} ns')
             buffer[:] = [(first if item[0] < 0 else item[0],) + item[1:] for item in buffer]
         buffer.sort(key=_log_time)
         count = len(buffer)
         if buffer[-1][0] >= before:
             count = next(k for k, item in enumerate(buffer) if item[0] >= before)
         write = self.writer.write
+        written_until = self.written_until
         for log_time, connection, data, publish_time, sequence in buffer[:count]:
-            write(connection, log_time, data, publish_time, sequence)
+            # One dispatched later than the margin: at the last time written, in order.
+            written_until = max(written_until, log_time)
+            write(connection, written_until, data, publish_time, sequence)
+        self.written_until = written_until
         del buffer[:count]
-
-    def take(self, ready=None):
-        """Take every queued message of the ready (default: all) topics into the buffer."""
-        for topic, handle, pointer in self.ready_handles:
-            if ready is not None and pointer not in ready:
-                continue
-            message_class = topic.message_class
-            while True:
-                taken = handle.take_message(message_class, True)
-                if taken is None:
-                    break
-                self._keep(topic, *taken)
 
     def _keep(self, topic, data, info):
         if topic.name == CLOCK_TOPIC and self.use_sim_time:
@@ -424,38 +416,43 @@ def record(bag, topics=None, storage='mcap', namespace='', depth=5000, flush_per
     signals = StopOnSignals(stop)
     signals.install()
     node = None
+    executor = None
     syncer = None
     started = time.monotonic()
     cpu_started = time.process_time()
     try:
+        executor = EventsExecutor(context=context)
+        # The executor catches SIGINT and SIGTERM itself (asio's signal set, which shuts the
+        # context down): ours are put back in front of it.
+        signals.restore()
+        signals.install()
         node = Node(NODE_NAME, context=context, start_parameter_services=False)
         writer.create()
         writer.set_custom_data(CUSTOM_DATA_PREFIX + 'writer', 'rigid-body-sim record')
         recorder = _Recorder(node, writer, names, namespace, depth, flush_period, sync,
                              use_sim_time, log)
+        executor.add_node(node)
         log(f'recording {", ".join(names)} into {writer.path} ({storage}); Ctrl-C to stop')
         next_flush = started + flush_period
         next_discovery = started
         end = math.inf if duration is None else started + duration
-        # Longest time from one pass over the queues to the next, and longest flush: a queue
-        # of `depth` messages at rate r overflows after depth / r s without a pass.
-        longest_pass = longest_flush = 0.0
-        previous = None
+        # Longest time between two slices of dispatching (writing, flushing, discovery), and
+        # longest flush: a queue of `depth` messages at rate r overflows after depth / r s
+        # without dispatching.
+        longest_pause = longest_flush = 0.0
         syncer = _Syncer(writer) if sync and storage == 'mcap' else None
-        while not stop.is_set():
+        dispatched = time.monotonic()
+        while not stop.is_set() and context.ok():
             now = time.monotonic()
-            if previous is not None:
-                longest_pass = max(longest_pass, now - previous)
-            previous = now
+            longest_pause = max(longest_pause, now - dispatched)
             if now >= end:
                 break
-            if now >= next_discovery:
+            _dispatch(executor, min(_SLICE, end - now))
+            dispatched = time.monotonic()
+            if dispatched >= next_discovery:
                 recorder.discover()
-                next_discovery = now + _DISCOVERY_PERIOD
-            recorder.wait_and_take(min(_WAIT_TIMEOUT, max(0.0, end - now)))
-            rest = now + _PASS_INTERVAL - time.monotonic()
-            if rest > 0.0:
-                time.sleep(rest)
+                next_discovery = dispatched + _DISCOVERY_PERIOD
+            recorder.write_received()
             if time.monotonic() >= next_flush:
                 flush_started = time.monotonic()
                 # To the OS here (enough against SIGKILL); the fsync against power loss runs
@@ -465,12 +462,19 @@ def record(bag, topics=None, storage='mcap', namespace='', depth=5000, flush_per
                     syncer.request()
                 next_flush = time.monotonic() + flush_period
                 longest_flush = max(longest_flush, next_flush - flush_period - flush_started)
-        # What arrived up to the stop is recorded too.
-        recorder.take()
+        # What arrived up to the stop is recorded too: its callbacks have run within the
+        # order margin.
+        if context.ok():
+            _dispatch(executor, 1e-9 * _ORDER_MARGIN)
         recorder.write_buffered()
         counts, lost = recorder.summary_counts()
         missing = [name for name in names if name not in counts]
     finally:
+        if executor is not None:
+            # The executor lets go of the node's callbacks before the node is destroyed.
+            if node is not None:
+                executor.remove_node(node)
+            executor.shutdown()
         signals.restore()
         if syncer is not None:
             syncer.stop()
@@ -481,8 +485,15 @@ def record(bag, topics=None, storage='mcap', namespace='', depth=5000, flush_per
             node.destroy_node()
         rclpy.try_shutdown(context=context)
     return RecordingSummary(writer.path, counts, lost, time.monotonic() - started,
-                            time.process_time() - cpu_started, longest_pass, longest_flush,
+                            time.process_time() - cpu_started, longest_pause, longest_flush,
                             missing)
+
+
+def _dispatch(executor, seconds):
+    """Let `executor` dispatch callbacks for `seconds` s."""
+    # (The EventsExecutor of rclpy 7.1 spins for a time only until a future completes: one
+    # that never does.)
+    executor.spin_until_future_complete(Future(), timeout_sec=seconds)
 
 
 class _Syncer:

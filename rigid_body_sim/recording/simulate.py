@@ -5,7 +5,9 @@ The bag holds what the node (:mod:`rigid_body_sim.ros.node`) publishes while it 
 the same body at the same rate: the topics ``pose``, ``twist``, ``angular_momentum``,
 ``odom``, ``marker`` (relative names, under ``namespace``), with their types, frame ids and
 QoS, serialised by the node's own :class:`~rigid_body_sim.ros.conversions.StateSerializer`;
-``/diagnostics`` once per simulated second with the node's status keys; and, on request,
+``/diagnostics`` once per simulated second with the node's status keys; ``/tf`` at every
+tick and ``/tf_static`` once, as the node publishes them (:mod:`rigid_body_sim.ros.tf`;
+left out, with a note on stderr, where tf2_msgs is not installed); and, on request,
 ``/clock`` (rosgraph_msgs/Clock) at every tick, for ``ros2 bag play --clock``-free sim-time
 playback.
 
@@ -22,12 +24,11 @@ apart when that is a whole number of ns, else within 1 ns of it.
 import json
 import math
 import struct
+import sys
 import time
 
-from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from diagnostic_msgs.msg import DiagnosticStatus
-from diagnostic_msgs.msg import KeyValue
 import numpy as np
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
@@ -42,10 +43,18 @@ from ..ros import qos
 from ..ros.conversions import fill_imu_message
 from ..ros.conversions import imu_message
 from ..ros.conversions import marker_geometry_from_drawing
-from ..ros.conversions import state_messages
 from ..ros.conversions import STATE_TOPICS
-from ..ros.node import NODE_NAME
-from ..ros.node import substep_diagnostics
+from ..ros.conversions import STATE_TYPES
+from ..ros.diagnostics import diagnostic_array
+from ..ros.diagnostics import NODE_NAME
+from ..ros.diagnostics import status_name
+from ..ros.diagnostics import status_values
+from ..ros.diagnostics import TickFigures
+from ..ros.tf import static_transforms
+from ..ros.tf import TF_STATIC_TOPIC
+from ..ros.tf import TF_TOPIC
+from ..ros.tf import transform_message_class
+from ..ros.tf import TransformSerializer
 
 __all__ = [
     'CLOCK_TOPIC',
@@ -232,9 +241,13 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
     body = simulator.body
     geometry = marker_geometry_from_drawing(scene.drawing)
     serializer = BatchSerializer(body, world_frame, body_frame, geometry)
-    # The message classes, hence type names, are those of conversions.state_messages.
-    types = {topic: message_type_name(type(message)) for topic, message in state_messages(
-        body, simulator.state, 0, world_frame, body_frame, geometry).items()}
+    types = {topic: message_type_name(STATE_TYPES[topic]) for topic in STATE_TOPICS}
+    if imu_frame in (world_frame, body_frame) or not imu_frame:
+        raise ValueError(f'imu_frame must differ from world_frame and body_frame and not be '
+                         f'empty; got {imu_frame!r}')
+    transform_class, no_tf = transform_message_class()
+    if no_tf is not None:
+        print(f'simulate: no /tf or /tf_static in the bag: {no_tf}', file=sys.stderr)
     imu = scene.imu_sensor()
     imu_rows = _ImuRows(imu, simulator, imu_frame, 1.0 / rate)
     diagnostics = _OfflineDiagnostics(scene, simulator, rate, substeps,
@@ -257,6 +270,16 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
         diagnostics_connection = writer.add_topic(
             DIAGNOSTICS_TOPIC, message_type_name(DiagnosticArray),
             [offered_qos(qos.DIAGNOSTICS_QOS)])
+        tf_serializer = None
+        if transform_class is not None:
+            tf_serializer = TransformSerializer(transform_class, world_frame, body_frame)
+            static_connection = writer.add_topic(
+                TF_STATIC_TOPIC, message_type_name(transform_class),
+                [offered_qos(qos.TF_STATIC_QOS)])
+            writer.write(static_connection, start_time, serialize_message(static_transforms(
+                transform_class, body_frame, imu_frame, imu.model, start_time)))
+            connections.append((TF_TOPIC, writer.add_topic(
+                TF_TOPIC, message_type_name(transform_class), [offered_qos(qos.TF_QOS)])))
         if clock_connection is not None:
             connections.insert(0, (CLOCK_TOPIC, clock_connection))
         row_connections = [connection for _, connection in connections]
@@ -288,6 +311,11 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
                     imu_rows.append(stamps[index])
                 serialized = serializer.serialize(batch.filled(), stamps)
                 serialized[IMU_TOPIC] = imu_rows.take()
+                if tf_serializer is not None:
+                    # The pose's own doubles: position, then the quaternion (x, y, z, w).
+                    rows = batch.filled()
+                    serialized[TF_TOPIC] = tf_serializer.serialize_rows(
+                        stamps, [rows[:, column] for column in (4, 5, 6, 0, 1, 2, 3)])
                 if clock_connection is not None:
                     serialized[CLOCK_TOPIC] = _clock_rows(stamps)
                 writer.write_rows(row_connections,
@@ -320,7 +348,6 @@ class _ImuRows:
     def __init__(self, imu, simulator, frame_id, period):
         self._imu = imu
         self._simulator = simulator
-        self._wrench = simulator.wrench_function()  # offline: the effects only
         self._period = period
         self._values = []
         self._stamps = []
@@ -339,12 +366,10 @@ class _ImuRows:
         """Add the reading of the simulator's state, stamped `stamp` (ns)."""
         imu = self._imu
         imu.advance(self._period)
-        state = self._simulator.state
-        if self._wrench is None:
-            force = torque = _NO_VECTOR
-        else:
-            force, torque = self._wrench(state, self._simulator.time)
-        self._values.append(np.concatenate(imu.reading(state, force, torque)))
+        simulator = self._simulator
+        # The wrench on the state now (offline: the effects only), in one compiled call.
+        force, torque = simulator.applied_wrench()
+        self._values.append(np.concatenate(imu.reading(simulator.state, force, torque)))
         self._stamps.append(stamp)
 
     def take(self):
@@ -361,10 +386,6 @@ class _ImuRows:
         return data
 
 
-_NO_VECTOR = np.zeros(3)
-_NO_VECTOR.flags.writeable = False
-
-
 def _clock_rows(stamps):
     """Return the serialised rosgraph_msgs/Clock of each stamp, (n, size) uint8."""
     template = np.frombuffer(serialize_message(Clock()), dtype=np.uint8)
@@ -375,11 +396,6 @@ def _clock_rows(stamps):
     rows[:, 4:8] = seconds.astype('<i4').view(np.uint8).reshape(-1, 4)
     rows[:, 8:12] = nanoseconds.astype('<u4').view(np.uint8).reshape(-1, 4)
     return rows
-
-
-def _time(nanoseconds):
-    seconds, remainder = divmod(nanoseconds, 1_000_000_000)
-    return Time(sec=seconds, nanosec=remainder)
 
 
 def _progress_bar(duration):
@@ -439,7 +455,7 @@ class _OfflineDiagnostics:
         self._rate = rate
         self._substeps = substeps
         self._clock = clock
-        self._name = f'{NODE_NAME}: simulation'
+        self._name = status_name(NODE_NAME)
         self._hardware_id = f'{namespace}/{NODE_NAME}'
         self._reference_energy = simulator.energy()
         self._reference_momentum = float(np.linalg.norm(simulator.state.angular_momentum))
@@ -462,8 +478,6 @@ class _OfflineDiagnostics:
     def serialized(self, stamp):
         """Return the serialised DiagnosticArray for the ticks since the last one."""
         simulator = self._simulator
-        energy = simulator.energy()
-        momentum = float(np.linalg.norm(simulator.state.angular_momentum))
         steps = np.concatenate(self._steps) if self._steps else np.empty(0)
         ticks = np.concatenate(self._ticks) if self._ticks else np.empty(0)
         self._steps, self._ticks = [], []
@@ -471,49 +485,11 @@ class _OfflineDiagnostics:
         # Ticks per wall-clock second, as the node reports them: here as fast as it goes.
         wall = float(ticks.sum())
         achieved = ticks.size / wall if wall > 0.0 else math.inf
-        status = DiagnosticStatus()
-        status.name = self._name
-        status.hardware_id = self._hardware_id
-        status.level, status.message = DiagnosticStatus.OK, 'running'
-        values = [
-            ('scene', self._scene.name),
-            ('effects', ', '.join(self._scene.effect_names()) or 'none'),
-            ('integrator', simulator.integrator),
-            ('requested rate [Hz]', f'{self._rate:g}'),
-            ('real-time factor', 'offline: as fast as possible'),
-            ('achieved rate [Hz]', f'{achieved:.2f}'),
-            ('achieved real-time factor', f'{achieved / self._rate:.3f}'),
-            ('missed ticks', '0'),
-            *substep_diagnostics(simulator, 1.0 / self._rate, float(steps.sum()), simulated),
-            ('step time p50 [ms]', _milliseconds(steps, 50)),
-            ('step time max [ms]', _milliseconds(steps, 100)),
-            ('tick duration p50 [ms]', _milliseconds(ticks, 50)),
-            ('tick duration p99 [ms]', _milliseconds(ticks, 99)),
-            ('simulated time [s]', f'{simulator.time:.6f}'),
-            ('clock [s]', f'{1e-9 * stamp:.6f}' if self._clock else 'not published'),
-            ('paused', 'False'),
-            ('external wrench active', 'False'),
-            ('energy [J]', f'{energy:.12g}'),
-            ('energy drift since last input', _relative(energy, self._reference_energy)),
-            ('|L| [kg m^2/s]', f'{momentum:.12g}'),
-            ('|L| drift since last input', _relative(momentum, self._reference_momentum)),
-            ('inputs rejected', '0'),
-            ('inputs scaled down to the scene limits', '0'),
-        ]
-        status.values = [KeyValue(key=key, value=value) for key, value in values]
-        array = DiagnosticArray()
-        array.header.stamp = _time(stamp)
-        array.status = [status]
-        return serialize_message(array)
-
-
-def _milliseconds(durations, percentile):
-    if durations.size == 0:
-        return 'n/a'
-    return f'{1e3 * float(np.percentile(durations, percentile)):.4f}'
-
-
-def _relative(value, reference):
-    if reference == 0.0:
-        return f'{value - reference:+.3e} (absolute)'
-    return f'{(value - reference) / abs(reference):+.3e}'
+        values = status_values(
+            self._scene, simulator, self._rate, 'offline: as fast as possible',
+            TickFigures(achieved, 0, steps, ticks, simulated),
+            clock_seconds=1e-9 * stamp if self._clock else None,
+            reference_energy=self._reference_energy,
+            reference_momentum=self._reference_momentum)
+        return serialize_message(diagnostic_array(
+            self._name, self._hardware_id, DiagnosticStatus.OK, 'running', values, stamp))

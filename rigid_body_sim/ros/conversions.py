@@ -28,10 +28,12 @@ from sensor_msgs.msg import Imu
 from visualization_msgs.msg import Marker
 
 from ..physics.kernels.derived import derived_quantities
+from .text import shortened
 from ..physics.rotations import quaternion_from_matrix
 
 __all__ = [
     'STATE_TOPICS',
+    'STATE_TYPES',
     'SHAPES',
     'MarkerGeometry',
     'WrenchInput',
@@ -49,6 +51,10 @@ __all__ = [
 
 STATE_TOPICS = ('pose', 'twist', 'angular_momentum', 'odom', 'marker')
 """Topic names (relative) of the messages :func:`state_messages` returns, in that order."""
+
+STATE_TYPES = {'pose': PoseStamped, 'twist': Twist, 'angular_momentum': Vector3Stamped,
+               'odom': Odometry, 'marker': Marker}
+"""Topic name (relative) -> message class of :func:`state_messages`, known without a scene."""
 
 SHAPES = ('box', 'cylinder', 'sphere', 'ellipsoid')
 """Body shapes with a closed-form inertia and a matching RViz marker."""
@@ -446,9 +452,11 @@ def frame_from_frame_id(frame_id, world_frame, body_frame):
         return 'world'
     if frame_id == body_frame:
         return 'body'
+    # A peer's frame id can be megabytes long or hold control characters: quoted cut and
+    # escaped, so the warning (and /rosout) stays one short line.
     raise RejectedInput(
-        f'unknown frame_id {frame_id!r}; accepted frame ids: {world_frame!r} or empty '
-        f'(world-fixed), {body_frame!r} (body-fixed)', 'frame')
+        f"unknown frame_id '{shortened(frame_id)}'; accepted frame ids: {world_frame!r} or "
+        f'empty (world-fixed), {body_frame!r} (body-fixed)', 'frame')
 
 
 def wrench_input_from_message(message, world_frame, body_frame, max_wrench):

@@ -25,6 +25,10 @@ in three kinds, told apart by the ``default`` of their :class:`ParameterSpec`:
 :func:`declare_scene_parameter` and :func:`declare_parameters` declare them with a
 ParameterDescriptor each; :func:`scene_from_parameters` applies the values that are set to
 the scene, the one place that knows how the body and state parameters combine.
+
+What the user gave (``-p name:=value``, ``--params-file``) is read once, by
+:func:`given_overrides`, so that an unknown name (a typo in a params file) can be reported
+and a refused override quoted.
 """
 
 import collections
@@ -58,6 +62,7 @@ __all__ = [
     'ParameterSpec',
     'declare_scene_parameter',
     'declare_parameters',
+    'given_overrides',
     'parameter_descriptor',
     'scene_from_parameters',
     'effective_values',
@@ -246,11 +251,34 @@ def parameter_descriptor(spec):
     return descriptor
 
 
+def given_overrides(node):
+    """
+    Return {name: value} of the parameter overrides `node` was started with.
+
+    rclpy (7.1 here, 8.0 too) has no public accessor for them: Node keeps them in a private
+    dict, the attribute read below and nowhere else (if a later rclpy renames it, this
+    returns {}: unknown names then go unreported and refused overrides unquoted, nothing
+    else changes).  The one public route,
+    ``automatically_declare_parameters_from_overrides=True`` (rclpy declares every override,
+    ``list_parameters`` then shows them), makes rclpy's Node.__init__ raise ValueError
+    ("Cannot declare a statically typed parameter with default value of type
+    PARAMETER_NOT_SET") for an override without a type: an empty list, as ``-p name:=[]``
+    or ``size: []`` in a params file, which ``ros2 param dump`` writes for an empty array
+    (this node's dump of the default scene holds one), so the node could not start from
+    its own dump.  Parsing ``--ros-args`` here would duplicate rcl's parser (params files,
+    node-name keys and wildcards, namespaces).
+    """
+    overrides = getattr(node, '_parameter_overrides', {})
+    return {name: parameter.value for name, parameter in overrides.items()}
+
+
 # A -p value can be a megabyte string or list: echoed cut, on one line.
 @one_line_errors
-def declare_scene_parameter(node):
+def declare_scene_parameter(node, overrides=None):
     """
     Declare the parameter ``scene`` on `node` and return its value.
+
+    `overrides` ({name: value}, :func:`given_overrides`) quotes a refused override.
 
     Raises
     ------
@@ -258,12 +286,12 @@ def declare_scene_parameter(node):
         If its override is not a string.
 
     """
-    _declare(node, _SPECS['scene'], DEFAULT_SCENE)
+    _declare(node, _SPECS['scene'], DEFAULT_SCENE, overrides)
     return node.get_parameter('scene').value
 
 
 @one_line_errors
-def declare_parameters(node, scene):
+def declare_parameters(node, scene, overrides=None):
     """
     Declare every parameter of :data:`PARAMETERS` not yet declared on `node`.
 
@@ -276,6 +304,8 @@ def declare_parameters(node, scene):
     scene : Scene
         The scene the node simulates: its integrator, rate and tolerance are the defaults
         of the parameters of the same names.
+    overrides : dict, optional
+        What :func:`given_overrides` returned: a refused override is quoted from it.
 
     Returns
     -------
@@ -302,7 +332,7 @@ def declare_parameters(node, scene):
             default = spec.default
             if default is SCENE_VALUE:
                 default = scene_values[spec.name]
-            _declare(node, spec, default)
+            _declare(node, spec, default, overrides)
         try:
             values[spec.name] = node.get_parameter(spec.name).value
         except ParameterUninitializedException:
@@ -310,7 +340,7 @@ def declare_parameters(node, scene):
     return values
 
 
-def _declare(node, spec, default):
+def _declare(node, spec, default, overrides):
     if default is NOT_SET:
         default = _PARAMETER_TYPES[spec.kind][1]  # declared typed, without a value
         # Writable until show_effective_values has given it the value that runs.
@@ -320,23 +350,17 @@ def _declare(node, spec, default):
     except InvalidParameterTypeException:
         raise ValueError(
             f'parameter {spec.name!r} must be {_TYPE_NAMES[spec.kind]}; got '
-            f'{_override(node, spec.name)!r} (ROS parameters are typed: write e.g. '
+            f'{(overrides or {}).get(spec.name)!r} (ROS parameters are typed: write e.g. '
             f'{_EXAMPLES[spec.kind]})') from None
     except InvalidParameterValueException:
         low, high = spec.value_range
-        override = _override(node, spec.name)
+        override = (overrides or {}).get(spec.name)
         if override is None:  # the scene's value is outside the node's range
             raise ValueError(
                 f"parameter {spec.name!r} must be in [{low}, {high}]; the scene's "
                 f'{spec.name} is {default!r}: set {spec.name}') from None
         raise ValueError(
             f'parameter {spec.name!r} must be in [{low}, {high}]; got {override!r}') from None
-
-
-def _override(node, name):
-    # The offending value: rclpy keeps the overrides in a private dict (Jazzy).
-    override = getattr(node, '_parameter_overrides', {}).get(name)
-    return None if override is None else override.value
 
 
 def check_integrator(name):

@@ -20,7 +20,8 @@ from rclpy.qos import HistoryPolicy
 from rclpy.qos import QoSProfile
 from rclpy.qos import ReliabilityPolicy
 
-__all__ = ['STATE_QOS', 'INPUT_QOS', 'DIAGNOSTICS_QOS', 'CLOCK_QOS']
+__all__ = ['STATE_QOS', 'INPUT_QOS', 'DIAGNOSTICS_QOS', 'CLOCK_QOS', 'TF_QOS', 'TF_STATIC_QOS',
+           'SERVICE_QOS']
 
 _STATE_DEPTH = 1000  # 1 s at 1 kHz: resends cover a subscriber's stall of up to a second
 _DEPTH = 10
@@ -49,3 +50,26 @@ CLOCK_QOS = QoSProfile(
     depth=1,
     durability=DurabilityPolicy.VOLATILE)
 """QoS of /clock: rclcpp's ClockQoS, as rosbag2's player and rclpy's TimeSource use it."""
+
+TF_QOS = QoSProfile(
+    reliability=ReliabilityPolicy.RELIABLE,
+    history=HistoryPolicy.KEEP_LAST,
+    depth=100,
+    durability=DurabilityPolicy.VOLATILE)
+"""QoS of /tf: tf2_ros's DynamicBroadcasterQoS."""
+
+TF_STATIC_QOS = QoSProfile(
+    reliability=ReliabilityPolicy.RELIABLE,
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL)
+"""QoS of /tf_static: tf2_ros's StaticBroadcasterQoS (a late subscriber gets it too)."""
+
+SERVICE_QOS = QoSProfile(
+    reliability=ReliabilityPolicy.RELIABLE,
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1000,
+    durability=DurabilityPolicy.VOLATILE)
+"""QoS of the reset and pause services: a deep queue, so a burst of requests (a client
+calling asynchronously in a loop) is answered whole instead of losing all but the last 10
+(rclpy's default depth); each request costs microseconds to answer."""
