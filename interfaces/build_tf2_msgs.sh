@@ -23,6 +23,7 @@ for tool in cmake cc c++; do
     fi
 done
 started=$(date +%s)
+mkdir -p "$ROOT/build"
 if ! "$PYTHON" -m pip install --quiet -r "$ROOT/requirements-tf2.txt" > "$BUILD.pip.log" 2>&1; then
     echo "tf2_msgs: not built, the build wheels did not install (see $BUILD.pip.log): the node will run without TF"
     exit 0
