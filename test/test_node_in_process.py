@@ -136,3 +136,57 @@ def test_a_parameter_service_answers_empty_and_logs_when_its_callback_fails(monk
     finally:
         node.destroy_node()
         rclpy.try_shutdown(context=context)
+
+
+def test_a_diverged_simulation_stops_the_state_topics_and_reports_error_until_a_reset(
+        node, monkeypatch):
+    """
+    A step whose state turns non-finite stops the simulation at the last finite state.
+
+    The state topics stop (no NaN is published), /diagnostics is ERROR naming the cause
+    the simulator gave, one error line is logged, and a reset starts it again.
+    """
+    from diagnostic_msgs.msg import DiagnosticStatus
+    from rigid_body_sim.physics.simulator import DivergedError
+
+    published_states = []
+    monkeypatch.setattr(node, '_publish_state', published_states.append)
+    diagnostics = []
+    monkeypatch.setattr(node._diagnostics_publisher, 'publish', diagnostics.append)
+    errors = []
+
+    class Logger:
+        def error(self, text):
+            errors.append(text)
+
+        def __getattr__(self, name):
+            return lambda *args, **kwargs: None
+
+    monkeypatch.setattr(node, 'get_logger', Logger)
+    simulator = node._simulator
+    node._tick()
+    assert len(published_states) == 1
+    last_finite = simulator.state
+    cause = 'the state turned non-finite between t = 0.01 s and 0.02 s under drag'
+
+    def diverging_step(duration):
+        raise DivergedError(cause, simulator.time)
+
+    monkeypatch.setattr(simulator, 'step', diverging_step)
+    for _ in range(3):
+        node._tick()
+    assert len(published_states) == 1, 'state published after the divergence'
+    assert len(errors) == 1 and cause in errors[0], errors
+    assert np.array_equal(simulator.state.angular_momentum, last_finite.angular_momentum)
+    node._publish_diagnostics()
+    for array in diagnostics:
+        status = array.status[0]
+        assert status.level == DiagnosticStatus.ERROR, status
+        assert cause in status.message, status.message
+    assert len(diagnostics) == 2  # at the divergence, and the periodic report
+    monkeypatch.undo()
+    monkeypatch.setattr(node, '_publish_state', published_states.append)
+    response = node._reset_callback(Trigger.Request(), Trigger.Response())
+    assert response.success
+    node._tick()
+    assert len(published_states) == 2

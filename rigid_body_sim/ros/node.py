@@ -106,6 +106,7 @@ from .tf import transform_message_class
 from .tf import TransformSerializer
 from ..physics import unresolved_rotation
 from ..physics.error_control import MAX_SUBSTEPS
+from ..physics.simulator import DivergedError
 from ..scenes import load_scene
 
 __all__ = ['RigidBodyNode', 'ConfigurationError', 'NODE_NAME', 'MAX_LAG',
@@ -239,6 +240,8 @@ class RigidBodyNode(Node):
         self._inputs = dict.fromkeys(_INPUT_TOPICS)  # topic -> (WrenchInput, held from ns)
         self._inputs_changed = False
         self._paused = False
+        # Why the simulation stopped (a state that turned non-finite), until a reset.
+        self._diverged = None
         self._last_warning = {}
         self._rejected = 0
         self._limited = 0
@@ -396,9 +399,15 @@ class RigidBodyNode(Node):
             self._hold_inputs(now)
         simulator = self._simulator
         stepped = time.perf_counter()
+        if self._diverged is not None:
+            return  # stopped at the last finite state until a reset: nothing to publish
         if not self._paused:
             # substeps steps, or under error control as many as it chooses.
-            simulator.step(self._period)
+            try:
+                simulator.step(self._period)
+            except DivergedError as error:
+                self._stop_diverged(error)
+                return
             self._clock_ticks += 1
             if self._imu_noisy:
                 self._imu.advance(self._period)
@@ -408,6 +417,15 @@ class RigidBodyNode(Node):
         self._step_durations[index] = step_duration
         self._tick_durations[index] = time.perf_counter() - started
         self._ticks += 1
+
+    def _stop_diverged(self, error):
+        # The state topics stop rather than carry NaN; the simulator holds the last finite
+        # state, which /diagnostics (ERROR, naming the cause) and a reset go on from.
+        self._diverged = str(error)
+        self.get_logger().error(
+            f'the simulation stopped: {self._diverged}; the state topics are silent until '
+            'a reset (~/reset)')
+        self._publish_diagnostics()
 
     def _publish_state(self, now):
         simulator = self._simulator
@@ -533,6 +551,7 @@ class RigidBodyNode(Node):
 
     def _reset_callback(self, request, response):
         self._simulator.reset(self._initial_state, time=0.0)
+        self._diverged = None
         if self._timer is not None:
             # Simulated time 0 is now: ticks still due from before the reset (a late
             # node's backlog) belonged to the run it ended, and are not run after it.
@@ -712,7 +731,10 @@ class RigidBodyNode(Node):
             limited=self._limited)
         level, message = DiagnosticStatus.OK, 'running'
         compiling = self._compilation_status()
-        if self._timer is None:
+        if self._diverged is not None:
+            level = DiagnosticStatus.ERROR
+            message = f'stopped: {self._diverged}; reset to start again'
+        elif self._timer is None:
             message = f'waiting: {compiling}; the simulation starts when they are'
         elif self._paused:
             message = 'paused'
