@@ -156,6 +156,7 @@ def test_a_diverged_simulation_stops_the_state_topics_and_reports_error_until_a_
     errors = []
 
     class Logger:
+
         def error(self, text):
             errors.append(text)
 
@@ -190,3 +191,33 @@ def test_a_diverged_simulation_stops_the_state_topics_and_reports_error_until_a_
     assert response.success
     node._tick()
     assert len(published_states) == 2
+
+
+def test_a_fixed_step_too_long_for_a_stiff_effect_is_refused_as_a_parameter(tmp_path):
+    """
+    Turning error control off where the fixed step cannot carry a stiff drag is refused.
+
+    The refusal says what to change (it is the scene check's own message); the simulator
+    keeps its error control, and a fixed step with enough substeps is accepted.
+    """
+    scene = tmp_path / 'stiff.yaml'
+    scene.write_text('name: stiff\ndescription: a light box under rotational drag\n'
+                     'body: {mass: 0.1, shape: box, size: [0.4, 0.2, 0.1]}\n'
+                     'initial: {angular_velocity_body: [0.1, 2.0, 0.1]}\n'
+                     'effects:\n  - drag: {rotational_linear: 0.5}\n'
+                     'integrator: buss\nrate: 100\ntolerance: 1.0e-6\n')
+    node = start_node(str(scene))
+    try:
+        result = node.set_parameters([Parameter('tolerance', value=0.0)])[0]
+        assert not result.successful
+        assert 'unstable for buss' in result.reason and 'substeps to' in result.reason, \
+            result.reason
+        assert node._simulator.tolerance == 1e-6
+        needed = int(result.reason.rsplit('substeps to ', 1)[1].split()[0].rstrip(','))
+        result = node.set_parameters([Parameter('substeps', value=needed),
+                                      Parameter('tolerance', value=0.0)])
+        assert all(r.successful for r in result), result
+        node._tick()
+        assert np.isfinite(node._simulator.state.angular_momentum).all()
+    finally:
+        stop_node(node)

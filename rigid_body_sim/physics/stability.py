@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-__all__ = ['decay_limit', 'stiffness_problem', 'LIMIT_MARGIN']
+__all__ = ['decay_limit', 'stiffness_problem', 'step_problem', 'LIMIT_MARGIN']
 
 LIMIT_MARGIN = 0.9
 """The fraction of a method's limit a step may use (the limit itself is neutral, |g| = 1)."""
@@ -66,24 +66,38 @@ def stiffness_problem(simulator, dt):
     The step taken is dt / substeps (the simulator's fixed count, or its lower bound under
     error control).  The message names the effect, its rate and what to change.
     """
-    steps = simulator.substeps
+    return step_problem(simulator.body, simulator.effects, simulator.integrator,
+                        simulator.substeps, dt)
+
+
+def step_problem(body, effects, integrator, substeps, dt):
+    """
+    Return (substeps needed, message) if dt / substeps s is too long a step, else None.
+
+    As :func:`stiffness_problem`, for a configuration not (yet) a simulator's: `body` and
+    `effects` as a Simulator holds them, `integrator` a registered name, dt in s.
+    """
+    steps = substeps
     h = dt / steps
-    limit = LIMIT_MARGIN * decay_limit(simulator.integrator)
-    for effect in simulator.effects:
+    for effect in effects:
         damping_rate = getattr(effect, 'damping_rate', None)
         if damping_rate is None:
             continue
-        rate, what = damping_rate(simulator.body)
+        rate, what = damping_rate(body)
+        if not rate > 0.0:
+            continue
+        # Measured on the integrator's kernel: only where an effect damps at all.
+        limit = LIMIT_MARGIN * decay_limit(integrator)
         if not rate * h > limit:
             continue
         if limit <= 0.0:
             return math.inf, (f'{effect.effect_name} damps the motion at {rate:.4g} /s '
-                              f'({what}), which {simulator.integrator} cannot follow at any '
+                              f'({what}), which {integrator} cannot follow at any '
                               'step; choose another integrator')
         needed = math.ceil(rate * dt / limit)
         return needed, (
             f'{effect.effect_name} damps the motion at {rate:.4g} /s ({what}): a step of '
-            f'{h:.3g} s is unstable for {simulator.integrator}, which follows a decay up to '
+            f'{h:.3g} s is unstable for {integrator}, which follows a decay up to '
             f'{limit / h:.4g} /s at it; raise rate to at least '
             f'{rate / (steps * limit):.4g} Hz or substeps to {needed}, or lower the '
             'coefficient')

@@ -27,8 +27,8 @@ from rclpy.serialization import serialize_message
 from sensor_msgs.msg import Imu
 from visualization_msgs.msg import Marker
 
-from ..physics.kernels.derived import derived_quantities
 from .text import shortened
+from ..physics.kernels.derived import derived_quantities
 from ..physics.rotations import quaternion_from_matrix
 
 __all__ = [

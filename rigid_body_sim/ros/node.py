@@ -107,6 +107,8 @@ from .tf import TransformSerializer
 from ..physics import unresolved_rotation
 from ..physics.error_control import MAX_SUBSTEPS
 from ..physics.simulator import DivergedError
+from ..physics.stability import step_problem
+from ..physics.warm_up import load_kernels
 from ..scenes import load_scene
 
 __all__ = ['RigidBodyNode', 'ConfigurationError', 'NODE_NAME', 'MAX_LAG',
@@ -191,9 +193,14 @@ class RigidBodyNode(Node):
         self._wall_period = self._period / self._real_time_factor
         kernels_ready = kernels_compiled(scene.integrator)
         if kernels_ready:
-            # One throwaway step loads the integrator's compiled kernels (~0.5 s) now
-            # rather than in the first tick.
-            _load_kernels(scene, scene.integrator, self._period)
+            # The integrator's compiled kernels loaded (~0.5 s) now rather than in the
+            # first tick; then a scene whose fixed step cannot carry its stiff effect is
+            # refused, with what to change.
+            load_kernels(scene.integrator)
+            reason = self._step_refusal(scene.integrator, values['substeps'],
+                                        values['tolerance'])
+            if reason is not None:
+                raise ValueError(reason)
         self._substeps = values['substeps']
         self._input_timeout_ns = int(values['input_timeout'] * 1e9)
         self._max_wrench = values['max_wrench']
@@ -574,12 +581,32 @@ class RigidBodyNode(Node):
 
     def _validate_parameters_callback(self, parameters):
         # Types, ranges and read-only flags are checked by rclpy from the descriptors.
+        simulator = self._simulator
+        proposed = {'integrator': simulator.integrator, 'substeps': self._substeps,
+                    'tolerance': simulator.tolerance or 0.0}
         for parameter in parameters:
             if parameter.name == 'integrator':
                 reason = check_integrator(shortened(parameter.value))
                 if reason is not None:
                     return SetParametersResult(successful=False, reason=reason)
+            if parameter.name in proposed:
+                proposed[parameter.name] = parameter.value
+        # A fixed step too long for a stiff effect would turn the state non-finite: refused
+        # here, with what to change.  (An integrator still to compile is checked when it is.)
+        if kernels_compiled(proposed['integrator']):
+            reason = self._step_refusal(**proposed)
+            if reason is not None:
+                return SetParametersResult(successful=False, reason=reason)
         return SetParametersResult(successful=True)
+
+    def _step_refusal(self, integrator, substeps, tolerance):
+        """Return why the steps of this configuration cannot carry a stiff effect, or None."""
+        simulator = self._simulator
+        problem = step_problem(simulator.body, simulator.effects, integrator,
+                               1 if tolerance > 0.0 else substeps, self._period)
+        if problem is not None and (tolerance == 0.0 or math.isinf(problem[0])):
+            return problem[1]
+        return None
 
     def _parameters_set_callback(self, parameters):
         for parameter in parameters:
@@ -627,7 +654,11 @@ class RigidBodyNode(Node):
     def _use_integrator(self, name, how=''):
         # Kernels loaded from the cache (tens of ms), then the simulator keeps its state:
         # the switch is continuous.
-        _load_kernels(self._scene, name, self._period)
+        load_kernels(name)
+        reason = self._step_refusal(name, self._substeps, self._simulator.tolerance or 0.0)
+        if reason is not None:
+            self._refuse_integrator(name, reason)
+            return
         self._simulator.integrator = name
         self.get_logger().info(f'integrator is now {name}{how}')
         if self._timer is None:
@@ -666,20 +697,24 @@ class RigidBodyNode(Node):
         succeeded, what = result
         if succeeded:
             self._use_integrator(compilation.name, f' (its kernels {what} in the background)')
-        elif self._timer is None:
-            # At start-up: nothing to simulate with.
-            self.get_logger().fatal(
-                f'compiling the kernels of {compilation.name} failed ({what}); run '
-                f'`rigid-body-sim compile {compilation.name}` to see why')
-            self.tick_error = RuntimeError(f'compiling {compilation.name} failed')
-            self.context.try_shutdown()
         else:
-            current = self._simulator.integrator
-            self.get_logger().error(
-                f'compiling the kernels of {compilation.name} failed ({what}); integrating on '
-                f'with {current} (`rigid-body-sim compile {compilation.name}` shows why)')
-            # The parameter says what runs.
-            self.set_parameters([Parameter('integrator', value=current)])
+            self._refuse_integrator(
+                compilation.name, f'compiling the kernels of {compilation.name} failed ({what}; '
+                f'`rigid-body-sim compile {compilation.name}` shows why)')
+
+    def _refuse_integrator(self, name, reason):
+        """Say why integrator `name` cannot run; stop at start-up, else keep the current one."""
+        if self._timer is None:
+            # At start-up: nothing to simulate with.
+            self.get_logger().fatal(f'cannot simulate with {name}: {reason}')
+            self.tick_error = RuntimeError(f'{name}: {reason}')
+            self.context.try_shutdown()
+            return
+        current = self._simulator.integrator
+        self.get_logger().error(f'not switching to {name}: {reason}; integrating on with '
+                                f'{current}')
+        # The parameter says what runs.
+        self.set_parameters([Parameter('integrator', value=current)])
 
     def _compilation_status(self):
         """Return the diagnostics' words about a background compilation ('' if none)."""
@@ -771,14 +806,6 @@ class RigidBodyNode(Node):
         return (f'{self._ticks} ticks, {self._missed_ticks} missed; tick duration over the '
                 f'last {tick.size}: p50 {_milliseconds(tick, 50)} ms, p99 '
                 f'{_milliseconds(tick, 99)} ms, max {_milliseconds(tick, 100)} ms')
-
-
-def _load_kernels(scene, integrator, period):
-    """Load (from numba's cache, or compile) the kernels an integrator runs with, both ways."""
-    simulator = scene.simulator(integrator=integrator)
-    simulator.step(period)
-    simulator.tolerance = 0.0 if simulator.tolerance is not None else 1e-6
-    simulator.step(period)
 
 
 def _milliseconds(durations, percentile):
