@@ -20,7 +20,7 @@ $(STAMP): requirements.txt setup.py setup.cfg package.xml
 	$(BIN)/python -m pip install --upgrade pip
 	$(BIN)/python -m pip install -r requirements.txt
 	$(BIN)/python -m pip install --no-deps -e .
-	@echo 'Compiling the numba kernels once, so that no run waits for them (about 1-2 min):'
+	@echo 'Compiling the numba kernels once, so that no run waits for them (about 4 min on 2 cores, once):'
 	$(BIN)/rigid-body-sim compile
 	touch $@
 

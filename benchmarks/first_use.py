@@ -107,8 +107,10 @@ def main():
                         help='forget which kernels are compiled first (they compile again)')
     parser.add_argument('--rate', type=float, default=100.0, help='the node rate, Hz')
     args = parser.parse_args()
-    environment = dict(os.environ, ROS_DOMAIN_ID=str(150 + os.getpid() % 80),
-                       ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    # The node and this process's client in a domain of their own, on the loopback.
+    os.environ.update(ROS_DOMAIN_ID=str(150 + os.getpid() % 80),
+                      ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    environment = dict(os.environ)
     if args.cold:
         from rigid_body_sim.physics import kernels
         for path in kernels.cached_kernel_files():

@@ -106,6 +106,7 @@ from ..error_control import controlled_ticks
 from ..kernels import helper
 from ..kernels import inline
 from ..kernels import kernel
+from ..kernels import outlined
 from ..kernels.algebra import cross
 from ..kernels.algebra import normalised
 from ..kernels.algebra import quaternion_product
@@ -495,7 +496,7 @@ def _rounded_step(q, increment, lx, ly, lz, moments, axes, kind):
             hz + ((ez - hz * half_excess) + cz), hw + ((ew - hw * half_excess) + cw))
 
 
-@helper
+@outlined
 def free_rotation(q, lx, ly, lz, moments, axes, kind, duration):
     if (lx == 0.0 and ly == 0.0 and lz == 0.0) or duration == 0.0:
         return q

@@ -47,6 +47,7 @@ from ..error_control import controlled_ticks
 from ..kernels import helper
 from ..kernels import inline
 from ..kernels import kernel
+from ..kernels import outlined
 from ..kernels.algebra import conjugate
 from ..kernels.algebra import normalised
 from ..kernels.algebra import quaternion_product
@@ -72,7 +73,7 @@ SUZUKI_COEFFICIENTS = (_SUZUKI_P, _SUZUKI_P, 1.0 - 4.0 * _SUZUKI_P, _SUZUKI_P, _
 _METHOD_SIZE = 10
 
 
-@helper
+@outlined
 def free_flow(q, lx, ly, lz, moments, frame, axes, dt):
     """
     Return q after the torque-free Strang step of dt s (world L unchanged), as a 4-tuple.

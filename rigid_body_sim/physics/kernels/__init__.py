@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numba
 
-__all__ = ['kernel', 'helper', 'inline', 'ensure_fresh_cache', 'source_fingerprint',
+__all__ = ['kernel', 'helper', 'outlined', 'inline', 'ensure_fresh_cache', 'source_fingerprint',
            'PHYSICS_ROOT', 'FINGERPRINT', 'compiled_marker']
 
 PHYSICS_ROOT = Path(__file__).resolve().parent.parent
@@ -46,6 +46,13 @@ helper = functools.partial(numba.njit, cache=True, nogil=True, inline='always',
 Inlined into its callers at numba's IR level: left to LLVM, calls of the algebra's small
 tuple functions cost 5 of a Buss step's 48 ns (numba's calling convention around each); a
 Python caller gets the helper compiled on its own, cached."""
+
+outlined = functools.partial(numba.njit, cache=True, nogil=True, error_model='numpy')
+"""Decorator of a compiled helper too large to inline: compiled once and called.
+
+The call costs a few ns, nothing beside the work of a helper such as the exact torque-free
+flow (~500 ns); inlined at the IR level into each copy of each loop, that one made the exact
+integrator's kernels take 288 s to compile (25 s called)."""
 
 inline = functools.partial(numba.njit, inline='always', nogil=True, error_model='numpy')
 """Decorator of a compiled function that takes other compiled functions as arguments.
