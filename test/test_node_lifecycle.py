@@ -276,6 +276,13 @@ def test_colcon_built_executable_starts_and_publishes(colcon_install, tmp_path):
     assert executable.is_file(), executable
     command = ['bash', '-c', f'source "{colcon_install}/setup.bash" && exec "{executable}" "$@"',
                'rigid_body_node']
+    # The install's kernels are its own: compiled first, as docs/install.md says to after
+    # colcon build (a minute idle, minutes loaded: the bound is a failure detector).
+    compiled = subprocess.run(
+        ['bash', '-c', f'source "{colcon_install}/setup.bash" && exec "{executable.parent}'
+         '/rigid-body-sim" compile buss --quiet'], capture_output=True, text=True,
+        timeout=1800, check=False)
+    assert compiled.returncode == 0, compiled.stdout + compiled.stderr
     node = NodeProcess(tmp_path / 'node.log', namespace=unique_namespace(), command=command,
                        cwd=colcon_install.parent)
 

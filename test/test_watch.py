@@ -275,6 +275,28 @@ def _start_xvfb():
     return process, f':{number}'
 
 
+_CURVES = (('Omega_x', (214, 39, 40)), ('Omega_y', (44, 160, 44)), ('Omega_z', (31, 119, 180)),
+           ('T_rot drift', (255, 127, 14)))
+"""The strip charts' curves: Omega_x, _y, _z in tab red, green, blue, the drift in orange."""
+
+
+def _regions(screen):
+    """Return the screenshot's pixels (int RGB) left of the charts (the body) and the charts."""
+    pixels = np.asarray(screen.convert('RGB')).astype(int)
+    width = pixels.shape[1]
+    return pixels[:, :int(0.38 * width)], pixels[:, int(0.38 * width):]
+
+
+def near(region, colour, tolerance=30):
+    """Return how many pixels of `region` are within `tolerance` of `colour`."""
+    return int((np.abs(region - np.array(colour)).max(axis=2) <= tolerance).sum())
+
+
+def _curves_drawn(screen):
+    charts = _regions(screen)[1]
+    return all(near(charts, colour) > 200 for _, colour in _CURVES)
+
+
 @pytest.mark.xdist_group('node')
 def test_the_window_shows_the_body_and_both_charts(node, tmp_path):
     pytest.importorskip('tkinter', reason='this Python has no tkinter (the window needs it)')
@@ -284,25 +306,25 @@ def test_the_window_shows_the_body_and_both_charts(node, tmp_path):
     try:
         watch.wait_for(lambda blocks, lines: any('window shows' in line for line in lines),
                        'window drawn')
-        screen = ImageGrab.grab(xdisplay=display)
+        # The charts grow as messages come (slowly on a loaded machine): screenshots until
+        # every curve is drawn long enough, the bound a failure detector.
+        deadline = time.monotonic() + 120.0
+        while True:
+            screen = ImageGrab.grab(xdisplay=display)
+            if _curves_drawn(screen) or time.monotonic() > deadline:
+                break
+            time.sleep(0.2)  # waits-for: poll interval of the loop waiting for the curves
         screen.save(tmp_path / 'watch.png')
     finally:
         code, errors = watch.stop()
         xvfb.terminate()
         xvfb.wait(10.0)
     assert code == 128 + signal.SIGINT and 'Traceback' not in errors, errors
-    pixels = np.asarray(screen.convert('RGB')).astype(int)
-    width = pixels.shape[1]
-    body, charts = pixels[:, :int(0.38 * width)], pixels[:, int(0.38 * width):]
-
-    def near(region, colour, tolerance=30):
-        return int((np.abs(region - np.array(colour)).max(axis=2) <= tolerance).sum())
+    body, charts = _regions(screen)
     # The default scene's body (orange, 0.85 0.55 0.15, shaded and half transparent): a
     # plate of thousands of pixels on the left.
     red, green, blue = body[..., 0], body[..., 1], body[..., 2]
     orange = (red > 180) & (green > 110) & (green < 200) & (blue < 130)
     assert orange.sum() > 2000, f'body: {orange.sum()} orange pixels ({tmp_path})'
-    # The strip charts: Omega_x, _y, _z in tab red, green, blue, and the drift in orange.
-    for name, colour in (('Omega_x', (214, 39, 40)), ('Omega_y', (44, 160, 44)),
-                         ('Omega_z', (31, 119, 180)), ('T_rot drift', (255, 127, 14))):
+    for name, colour in _CURVES:
         assert near(charts, colour) > 200, f'{name}: {near(charts, colour)} pixels'

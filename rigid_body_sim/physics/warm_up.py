@@ -23,6 +23,7 @@ from .imu import Imu
 from .imu import ImuModel
 from .integrators import INTEGRATORS
 from .kernels import compiled_marker
+from .kernels.derived import derived_quantities
 from .simulator import Simulator
 from .state import State
 
@@ -80,6 +81,10 @@ def _shared():
     imu.truth(state, np.zeros(3), np.zeros(3))
     Imu(ImuModel(), body, gravity=(0.0, 0.0, -9.81), pivot_offset=(0.0, 0.0, 0.1)).truth(
         state, np.zeros(3), np.zeros(3))
+    # The velocities and marker turn the node's messages and simulate's bags are made of.
+    derived_quantities(np.concatenate(state._fields())[None, :],
+                       np.ascontiguousarray(body.inertia_inverse).reshape(9), body.mass,
+                       np.array([0.0, 0.0, 0.0, 1.0]))
     _mark(_SHARED)
 
 
