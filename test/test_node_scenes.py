@@ -72,6 +72,12 @@ def test_only_a_scene_with_external_wrench_subscribes_and_each_is_drawn_its_way(
                 return {topic for topic, _ in
                         client.node.get_subscriber_names_and_types_by_node(
                             NODE_NAME, node.namespace)}
+
+            def known(client=client, node=node):
+                # The client's graph has the node itself (asking before raises).
+                return (NODE_NAME, node.namespace) in \
+                    client.node.get_node_names_and_namespaces()
+            client.wait_for(known, 30.0, 'the node in the graph')
             if scene.accepts_external_wrench:
                 client.wait_for(lambda: inputs <= subscribed(), 30.0, 'the input subscriptions')
             else:
