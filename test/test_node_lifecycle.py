@@ -335,6 +335,27 @@ def _run_python(script):
                           cwd=PACKAGE_ROOT, timeout=120)
 
 
+def test_a_teardown_that_hangs_holding_the_gil_still_ends_the_process_with_exit_code_1():
+    """
+    Once the node is done, its process ends within EXIT_GRACE whatever the middleware does.
+
+    A node that had logged its configuration error once never exited (a CI run: the DDS
+    teardown hung).  Simulated by a call that never returns and holds the GIL (a regular
+    expression's catastrophic backtracking), so that no Python thread could end it: the
+    deadline (shortened to 0.5 s here) must, with exit code 1 and where it hung.
+    """
+    result = _run_python(
+        'import re, sys\n'
+        'from rigid_body_sim.ros import process\n'
+        'process.EXIT_GRACE = 0.5\n'
+        'process.bound_the_shutdown()\n'
+        "re.match(r'(a+)+$', 'a' * 64 + 'b')\n"
+        "print('the hang returned')\n")
+    assert result.returncode == 1, result
+    assert 'the hang returned' not in result.stdout
+    assert 'Timeout' in result.stderr and '<string>' in result.stderr, result.stderr
+
+
 def test_a_context_shut_down_before_the_executor_is_built_leaves_no_message():
     """
     The context shut down as spinning begins (a signal then): a quiet return, no message.

@@ -135,7 +135,16 @@ _COMPILATION_POLL_PERIOD = 0.2
 
 
 class ConfigurationError(ValueError):
-    """The node's configuration describes no valid simulation (already logged)."""
+    """
+    The node's configuration describes no valid simulation (already logged).
+
+    ``node`` is the node that failed to configure: the caller destroys it (its process
+    bounds the middleware's shutdown first: see :mod:`.process`).
+    """
+
+    def __init__(self, message, node):
+        super().__init__(message)
+        self.node = node
 
 
 class RigidBodyNode(Node):
@@ -147,8 +156,8 @@ class RigidBodyNode(Node):
     Raises
     ------
     ConfigurationError
-        If the parameters are invalid: one clear error is logged first, and the node is
-        destroyed.
+        If the parameters are invalid: one clear error is logged first; the caller destroys
+        the node, the error's ``node``.
 
     """
 
@@ -170,8 +179,7 @@ class RigidBodyNode(Node):
             self._configure()
         except ValueError as error:
             self.get_logger().error(f'invalid configuration: {error}')
-            self.destroy_node()
-            raise ConfigurationError(str(error)) from None
+            raise ConfigurationError(str(error), self) from None
 
     # -- set-up
 

@@ -34,18 +34,25 @@ begins (handlers, imports, rclpy.init, node, spin), so that a test can send a si
 every phase by waiting for its line, whatever the machine's speed.
 """
 
+import faulthandler
+import io
 import os
 import signal
 import sys
 import threading
 
-__all__ = ['STOP_GRACE', 'STOP_LATENCY', 'install_signal_handlers', 'main', 'run_node',
+__all__ = ['EXIT_GRACE', 'STOP_GRACE', 'STOP_LATENCY', 'bound_the_shutdown',
+           'install_signal_handlers', 'main', 'run_node',
            'signalled', 'spin', 'start_up_phase']
 
 STOP_LATENCY = 0.1
 """Longest time (s) the spin waits before it looks for a noted signal."""
 STOP_GRACE = 1.0
 """Time (s) the main thread has to notice a signal before the watchdog ends the process."""
+EXIT_GRACE = 30.0
+"""Longest time (s) the node's teardown (node, context, DDS participant) may take once the
+node is done; see :func:`bound_the_shutdown`.  It takes ~0.1 s; 30 s covers a machine under
+any load seen here."""
 
 _TRACE = os.environ.get('RIGID_BODY_SIM_TRACE_START_UP') == '1'
 # The signals that arrived.
@@ -89,6 +96,26 @@ def signalled():
         _noticed.set()
         return True
     return False
+
+
+def bound_the_shutdown():
+    """
+    Make sure the process ends within :data:`EXIT_GRACE` s from now, whatever the middleware.
+
+    Called once the node is done (stopped by a signal, a failed tick or an invalid
+    configuration), before the node, the context and, at exit, the DDS participant are
+    torn down.  That teardown is the middleware's: Fast DDS's was seen to hang once (a node
+    that had logged its configuration error never exited; 1 run in several hundred, ten
+    nodes starting and stopping together on a loaded machine; deadlocks of this kind are
+    known upstream, eProsima/Fast-DDS#6193, #2500).  The deadline is faulthandler's, a
+    thread of C that needs no GIL, so it fires even inside a middleware call that holds it:
+    the process then writes where each thread was (to stderr, for the report upstream)
+    and exits with code 1.
+    """
+    try:
+        faulthandler.dump_traceback_later(EXIT_GRACE, exit=True, file=sys.stderr)
+    except (AttributeError, ValueError, io.UnsupportedOperation):
+        pass  # stderr is no file (closed, or replaced by one without a descriptor)
 
 
 def start_up_phase(name):
@@ -185,7 +212,7 @@ def run_node(args=None):
     except (RuntimeError, ValueError) as error:
         print(f'rigid_body_node: error: {error}'.replace('\n', ' '), file=sys.stderr)
         return 2
-    node = None
+    node = unconfigured = None
     code = 0
     try:
         if not signalled():
@@ -194,12 +221,14 @@ def run_node(args=None):
         if not signalled():
             start_up_phase('spin')
             spin(node)
-    except ConfigurationError:
+    except ConfigurationError as error:
         code = 1
+        unconfigured = error.node
     except ExternalShutdownException:
         pass
     finally:
         _noticed.set()
+        bound_the_shutdown()
         if node is not None:
             if node.tick_error is not None:
                 code = 1
@@ -207,5 +236,7 @@ def run_node(args=None):
             logger = node.get_logger()
             node.destroy_node()
             logger.info(summary)
+        if unconfigured is not None:
+            unconfigured.destroy_node()
         rclpy.try_shutdown(context=context)
     return code
