@@ -30,3 +30,21 @@ def test_no_source_of_the_package_uses_a_private_rclpy_name():
             if PRIVATE.search(line) and (name, line.strip()) not in ALLOWED:
                 found.append(f'{name}:{number}: {line.strip()}')
     assert not found, '\n'.join(found)
+
+
+def test_recording_never_imports_the_node():
+    """The offline writer and the recorder load without the node (the layers of issue 21)."""
+    import json
+    import subprocess
+    import sys
+    script = ('import importlib, json, pkgutil, sys\n'
+              'import rigid_body_sim.recording as recording\n'
+              'for module in pkgutil.iter_modules(recording.__path__):\n'
+              "    importlib.import_module('rigid_body_sim.recording.' + module.name)\n"
+              'print(json.dumps([name for name in sys.modules\n'
+              "                  if name.startswith('rigid_body_sim.ros.')]))\n")
+    result = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True,
+                            cwd=PACKAGE.parent, timeout=300, check=True)
+    loaded = json.loads(result.stdout.strip().splitlines()[-1])
+    assert loaded, 'the recording modules load no ROS module at all: the check checks nothing'
+    assert 'rigid_body_sim.ros.node' not in loaded and 'rigid_body_sim.ros.process' not in loaded

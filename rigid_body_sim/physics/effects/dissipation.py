@@ -35,8 +35,9 @@ from .registry import Effect
 from .registry import ParameterError
 from .registry import register_effect
 from ..kernels.algebra import cross
+from ..kernels.algebra import exp_map
+from ..kernels.algebra import quaternion_product
 from ..kernels.algebra import rotate_back
-from ..kernels.algebra import turned
 from ..kernels.layout import inverse_inertia_times
 from ..kernels.model import flow_function
 from ..rotations import cross as cross_product
@@ -55,8 +56,8 @@ def relax(state, parameters, duration):
     damping / |L|, m = R^T L, Omega = I_b^-1 m) is the extra turning rate, and
     dm/dt = m x u as R turns.  Explicit midpoint, second order: the midpoint's m is predicted
     by m + (h/2) m x u(m), and R <- R exp(h u(m_half)) turns on SO(3) exactly (R stays a
-    rotation, L is not touched).  One turn per flow: the flow costs about what a Buss step
-    does (two turns, the midpoint's as a rotation too, cost 1.4x as much).
+    rotation to round-off, L is not touched).  One turn per flow: the flow costs about what a
+    Buss step does (two turns, the midpoint's as a rotation too, cost 1.4x as much).
     """
     lx, ly, lz = state[10], state[11], state[12]
     momentum_norm = math.sqrt(lx * lx + ly * ly + lz * lz)
@@ -74,7 +75,12 @@ def relax(state, parameters, duration):
     middle = (m[0] + half * drift[0], m[1] + half * drift[1], m[2] + half * drift[2])
     ux, uy, uz = cross(middle, inverse_inertia_times(inverse, middle))
     whole = duration * eps
-    state[0], state[1], state[2], state[3] = turned(q, (whole * ux, whole * uy, whole * uz))
+    # Not normalised: a product of unit quaternions is unit to round-off, and the step that
+    # follows each flow normalises its own turn, so |q| never drifts; the normalisation's
+    # square root and divisions were a quarter of the flow's time, on the step's critical
+    # path (benchmarks/effect_cost.py).
+    state[0], state[1], state[2], state[3] = quaternion_product(
+        q, exp_map((whole * ux, whole * uy, whole * uz)))
 
 
 @register_effect('dissipation')

@@ -35,9 +35,13 @@ def fluid_resistance(state, time, parameters):
         fx, fy, fz = scale * vx, scale * vy, scale * vz
     if parameters[2] != 0.0 or parameters[3] != 0.0:
         q = (state[0], state[1], state[2], state[3])
-        wx, wy, wz = rotate(q, inverse_inertia_times(parameters[5:14], rotate_back(
-            q, (state[10], state[11], state[12]))))
-        scale = -(parameters[2] + parameters[3] * math.sqrt(wx * wx + wy * wy + wz * wz))
+        ox, oy, oz = inverse_inertia_times(parameters[5:14], rotate_back(
+            q, (state[10], state[11], state[12])))
+        # |omega| from the body frame's Omega (the same length): the square root then runs
+        # beside the rotation to the world frame, not after it (a kick's midpoint rule calls
+        # this twice in a row, so its latency is the step's).
+        scale = -(parameters[2] + parameters[3] * math.sqrt(ox * ox + oy * oy + oz * oz))
+        wx, wy, wz = rotate(q, (ox, oy, oz))
         tx, ty, tz = scale * wx, scale * wy, scale * wz
     return fx, fy, fz, tx, ty, tz
 
