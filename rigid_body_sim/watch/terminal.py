@@ -23,6 +23,11 @@ def waiting_lines(listener, waited):
     if listener.wanted_node or listener.wanted_namespace:
         asked = ' named ' + ' in namespace '.join(
             part for part in (listener.wanted_node, listener.wanted_namespace) if part)
+    if others and not asked:
+        # Seen in the graph, not yet chosen: the first report of its topics is on its way
+        # (seconds on a busy machine, where discovery is slow).
+        return [f'rigid-body-sim watch: found {others} on ROS domain {domain}; connecting '
+                f'to its topics ({waited:.0f} s, Ctrl-C stops).']
     lines = [f'rigid-body-sim watch: no rigid_body_sim node{asked} found on ROS domain '
              f'{domain} for {waited:.0f} s; still looking (Ctrl-C stops).']
     if others:
