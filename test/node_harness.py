@@ -322,11 +322,26 @@ class Client:
         wrench.torque.x, wrench.torque.y, wrench.torque.z = (float(t) for t in torque)
         self.wrench_publisher.publish(message)
 
-    def call(self, client, request, timeout=10.0):
-        """Call a service and return its response."""
-        future = client.call_async(request)
-        self.wait_for(future.done, timeout, f'a response from {client.srv_name}')
-        return future.result()
+    def call(self, client, request, timeout=10.0, attempts=3):
+        """
+        Call a service and return its response; the request is sent again if none comes.
+
+        A response can be lost before the node's DDS participant has discovered this
+        client's response reader: rmw_fastrtps then drops it after a short wait ("failed to
+        send response (timeout): client will not receive response", seen once on a loaded
+        machine, where discovery lags), and no public API tells a client when the server
+        has matched it.  The requests these tests send (parameters, reset, pause) may be
+        sent twice; each attempt waits `timeout` s for its response.
+        """
+        for attempt in range(attempts):
+            future = client.call_async(request)
+            try:
+                self.wait_for(future.done, timeout, f'a response from {client.srv_name}')
+                return future.result()
+            except AssertionError:
+                client.remove_pending_request(future)
+                if attempt == attempts - 1:
+                    raise
 
     def reset(self):
         """Call ``reset``; return the response."""

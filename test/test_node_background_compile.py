@@ -34,14 +34,23 @@ import time
 # python -m rigid_body_sim.cli compile NAME --quiet: sys.argv here is ['-m', 'compile', ...]
 if os.environ.get('TEST_COMPILE_GATE') and sys.argv[1:2] == ['compile']:
     gate = os.path.join(os.environ['TEST_COMPILE_GATE'], sys.argv[2])
-    with open(gate + '.started', 'w') as started:
+    # Written whole, then named: the test reads it as soon as the name exists.
+    with open(gate + '.started.tmp', 'w') as started:
         started.write(str(os.getpid()))
+    os.replace(gate + '.started.tmp', gate + '.started')
     while not os.path.exists(gate):
         time.sleep(0.02)  # waits-for: the test opening the gate
     if open(gate).read() == 'fail':
         print('error: the test gate failed this compilation', file=sys.stderr, flush=True)
         os._exit(3)
 """
+
+
+def open_gate(gate, verdict):
+    """Open a compilation's gate with `verdict` ('ok' or 'fail'), written whole, then named."""
+    partial = gate.with_name(gate.name + '.tmp')
+    partial.write_text(verdict)
+    partial.replace(gate)
 
 
 @pytest.fixture(autouse=True)
@@ -109,7 +118,7 @@ def test_the_node_serves_while_its_kernels_compile_and_switches_when_they_are(tm
         assert message.startswith('waiting: compiling the kernels of buss'), message
         assert not client.received('pose')
         assert node.output().count('compiling them in the background') == 1, node.output()
-        (gates / 'buss').write_text('ok')
+        open_gate(gates / 'buss', 'ok')
         client.wait_for(lambda: client.received('pose'), DISCOVERY_TIMEOUT,
                         'the first state once buss compiled')
         assert 'integrator is now buss (its kernels compiled in' in node.output()
@@ -123,7 +132,7 @@ def test_the_node_serves_while_its_kernels_compile_and_switches_when_they_are(tm
         assert values['integrator'] == 'buss', values
         assert 'compiling the kernels of rk4 in the background' in message, message
         assert client.reset().success
-        (gates / 'rk4').write_text('ok')
+        open_gate(gates / 'rk4', 'ok')
         client.wait_for(lambda: 'integrator is now rk4' in node.output(), DISCOVERY_TIMEOUT,
                         'the switch to rk4 once compiled')
         since = client.received('pose')[-1][0]
@@ -144,7 +153,7 @@ def test_a_failed_compilation_keeps_the_old_integrator_and_says_so_in_one_line(t
         client.wait_until_connected()
         assert client.set_parameter('integrator', 'rk4').successful
         wait_until_started(client, node, gates, 'rk4')
-        (gates / 'rk4').write_text('fail')
+        open_gate(gates / 'rk4', 'fail')
         client.wait_for(lambda: 'compiling the kernels of rk4 failed' in node.output(),
                         DISCOVERY_TIMEOUT, 'the failure')
         failure = [line for line in node.output().splitlines() if 'failed' in line]

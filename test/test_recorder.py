@@ -135,7 +135,7 @@ def assert_nothing_lost(messages, namespace, rate):
         records = messages[f'{namespace}/{topic}']
         sequences = np.array([m.sequence for m in records])
         assert np.all(np.diff(sequences) == 1), \
-            f'{topic}: {int(np.sum(np.diff(sequences) - 1))} lost of {sequences.ptp() + 1}'
+            f'{topic}: {int(np.sum(np.diff(sequences) - 1))} lost of {np.ptp(sequences) + 1}'
         if topic in STAMPED:
             stamps = np.array([stamp_of(m.data) for m in records])
             assert np.all(np.diff(stamps) == period), f'{topic}: stamps with gaps'

@@ -11,8 +11,12 @@ the node's topics are subscribed at once with the policies of
 :mod:`rigid_body_sim.ros.qos` (best effort for /clock, whose publishers are best effort),
 other topics when discovery shows their type and offers (reliable if every publisher is,
 transient local if every publisher is).  History is keep-last with a deep queue (`depth`,
-default 5000: five seconds at 1 kHz), so a recorder that falls behind while the DDS threads
-keep receiving (a slow flush, the interpreter busy) loses nothing.  A stall of the whole
+default 30,000: thirty seconds at 1 kHz; Fast DDS allocates a sample only when it is
+queued, so a deep queue costs nothing until the recorder falls behind), so a recorder that
+falls behind while the DDS threads keep receiving (a slow flush, the interpreter busy)
+loses nothing.  A flush was seen to block for 4.9 s on a loaded machine (most likely its
+write into the page of the bag's end that the fsync thread had under writeback), which
+overflowed the former 5000 by 60 messages a topic.  A stall of the whole
 process, DDS threads included, is another matter: Fast DDS's shared-memory port queue holds
 512 samples (85 ms of the node's six topics at 1 kHz), and a reliable publisher resends
 only what its history still holds: the node's state publishers their last 1000 samples
@@ -139,10 +143,12 @@ class RecordingSummary:
             seen = 'lost: n/a' if lost is None else f'lost (sequence gaps): {lost}'
             lines.append(f'  {topic}: {count} ({seen})')
         if any(self.lost.values()):
-            lines.append('  messages lost: a stall of this process longer than the '
-                         "publishers' history covers (Fast DDS's shared-memory queue holds 512 "
-                         "samples, ~85 ms at 1 kHz; the node's state publishers resend their "
-                         'last 1000, 1 s at 1 kHz); see the README')
+            lines.append('  messages lost: a pause in dispatching (the longest above) longer '
+                         "than the subscriptions' queue holds (--depth messages a topic), or a "
+                         "stall of this process longer than the publishers' history covers "
+                         "(Fast DDS's shared-memory queue holds 512 samples, ~85 ms at 1 kHz; "
+                         "the node's state publishers resend their last 1000, 1 s at 1 kHz); "
+                         'see the README')
         if self.missing:
             lines.append(f'  no message received (not in the bag): {", ".join(self.missing)}')
         return '\n'.join(lines)
@@ -361,7 +367,7 @@ class _Recorder:
         return counts, lost
 
 
-def record(bag, topics=None, storage='mcap', namespace='', depth=5000, flush_period=0.25,
+def record(bag, topics=None, storage='mcap', namespace='', depth=30000, flush_period=0.25,
            sync=True, use_sim_time=False, duration=None, stop=None, log=None, ros_args=None):
     """
     Record topics into a new bag until stopped; return a :class:`RecordingSummary`.

@@ -36,8 +36,9 @@ def add_arguments(parser):
                         help="the node's namespace (default: none)")
     parser.add_argument('--duration', type=float,
                         help='stop after this many seconds (default: at Ctrl-C/SIGTERM)')
-    parser.add_argument('--depth', type=int, default=5000,
-                        help='keep-last queue depth of each subscription (default: 5000)')
+    parser.add_argument('--depth', type=int, default=30000,
+                        help='keep-last queue depth of each subscription (default: 30000, '
+                             '30 s at 1 kHz: what a stalled recorder can catch up)')
     parser.add_argument('--flush-period', type=float, default=0.25,
                         help='seconds between flushes to disk (default: 0.25)')
     parser.add_argument('--no-fsync', action='store_true',
