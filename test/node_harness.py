@@ -343,6 +343,18 @@ class Client:
                 if attempt == attempts - 1:
                     raise
 
+    def await_matched(self, clients):
+        """
+        Call each service client once with its request type's defaults, until answered.
+
+        A response received proves that the node's DDS has matched that client's response
+        reader; a burst or a property-based series sent before then can lose its first
+        answers (see :meth:`call`).  The default requests are harmless here: empty
+        parameter lists, a reset, pause(false).
+        """
+        for client in clients:
+            self.call(client, client.srv_type.Request())
+
     def reset(self):
         """Call ``reset``; return the response."""
         return self.call(self.reset_client, Trigger.Request())

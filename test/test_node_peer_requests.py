@@ -75,6 +75,7 @@ def peer(tmp_path_factory):
                                        (ListParameters, 'list_parameters'))}
         client.wait_for(lambda: all(c.service_is_ready() for c in client.clients.values()),
                         60.0, 'the parameter services')
+        client.await_matched(client.clients.values())
     except AssertionError as error:
         client.close()
         node.stop()
@@ -170,6 +171,7 @@ def test_a_burst_of_1000_asynchronous_reset_and_pause_requests_is_answered_whole
     pause = peer.node.create_client(SetBool, 'pause', qos_profile=SERVICE_QOS)
     peer.wait_for(lambda: reset.service_is_ready() and pause.service_is_ready(), 60.0,
                   'the reset and pause services')
+    peer.await_matched((reset, pause))
     futures = []
     for index in range(1000):
         if index % 3 == 0:

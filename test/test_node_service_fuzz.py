@@ -136,6 +136,7 @@ def peer(tmp_path_factory):
                            for kind, name in SERVICES.items()}
         client.wait_for(lambda: all(c.service_is_ready() for c in client.services.values()),
                         60.0, 'the services')
+        client.await_matched(client.services.values())
     except AssertionError as error:
         client.close()
         node.stop()
