@@ -447,20 +447,9 @@ class Simulator:
         # A finite positive float needs no conversion (the node passes one every tick).
         if dt.__class__ is not float or not 0.0 < dt < math.inf:
             dt = _checked_positive(dt, 'dt')
-        integrator = self._integrator
-        if self._checked != (dt, self._substeps, integrator, self._tolerance):
+        if self._checked != (dt, self._substeps, self._integrator, self._tolerance):
             self._check_stiffness(dt)
-        if self._fast and self._tolerance is None and self._substeps == 1:
-            # The node's tick, written out: _guarded(_advance(1, dt)) without its closure
-            # (0.4 us of 2.5 per call: benchmarks/step_cost.py's step() column).
-            values = self._values
-            self._checkpoint[:] = values
-            integrator.run(values, self._model, integrator.method, dt, 1, self._time)
-            self._integrated = self._state = None
-            if not _all_finite(values):
-                self._restore_and_raise(dt)
-            self._add_time(dt)
-        elif self._tolerance is not None:
+        if self._tolerance is not None:
             self._controlled(dt, 1)
         elif self._substeps == 1:
             self._advance(1, dt)
@@ -548,20 +537,19 @@ class Simulator:
             error_control.set_bounds(self._control, floor)
             self._control_floor = floor
 
-    def _guarded(self, advance, duration):
-        """Run `advance()`; if it left a non-finite state, restore the last and raise."""
-        values = self._values
-        self._checkpoint[:] = values
-        advance()
-        self._integrated = self._state = None
-        if not _all_finite(values):
-            self._restore_and_raise(duration)
-        self._add_time(duration)
+    def _advanced(self, duration):
+        """
+        Take the state a kernel left after `duration` s: finite, or the last one restored.
 
-    def _restore_and_raise(self, duration):
-        """Put back the state before the `duration` s that turned it non-finite; raise."""
-        self._values[:] = self._checkpoint
-        raise DivergedError(self._divergence(duration), self._time)
+        The caller copied the values to the checkpoint before the kernel ran; a non-finite
+        state is replaced by it and DivergedError raised.
+        """
+        self._integrated = self._state = None
+        values = self._values
+        if not _all_finite(values):
+            values[:] = self._checkpoint
+            raise DivergedError(self._divergence(duration), self._time)
+        self._add_time(duration)
 
     def _divergence(self, duration):
         """Return the one-line message of a state that turned non-finite."""
@@ -583,16 +571,15 @@ class Simulator:
 
     def _advance(self, steps, dt, duration=None):
         """Take `steps` steps of dt s; the clock moves by `duration` (default steps x dt)."""
+        # Called once a tick by the node: no closure, no call more than needed.
+        values = self._values
+        self._checkpoint[:] = values
         if self._fast:
             integrator = self._integrator
-
-            def advance():
-                integrator.run(self._values, self._model, integrator.method, dt, steps,
-                               self._time)
+            integrator.run(values, self._model, integrator.method, dt, steps, self._time)
         else:
-            def advance():
-                self._readable_run(self._values, self._model, None, dt, steps, self._time)
-        self._guarded(advance, steps * dt if duration is None else duration)
+            self._readable_run(values, self._model, None, dt, steps, self._time)
+        self._advanced(steps * dt if duration is None else duration)
 
     def _controlled(self, tick, ticks):
         """
@@ -601,17 +588,17 @@ class Simulator:
         Compiled: one call of the integrator's controlled kernel takes them all.  Readable:
         the same controller, as Python, around the readable steps.
         """
+        values = self._values
+        self._checkpoint[:] = values
         integrator = self._integrator
         if self._fast:
-            def advance():
-                integrator.controlled(self._values, self._model, integrator.method, tick,
-                                      ticks, self._time, self._control)
+            integrator.controlled(values, self._model, integrator.method, tick, ticks,
+                                  self._time, self._control)
         else:
-            def advance():
-                error_control.controlled_ticks.py_func(
-                    self._readable_run, self._values, self._model, None, tick, ticks,
-                    self._time, self._control)
-        self._guarded(advance, ticks * tick)
+            error_control.controlled_ticks.py_func(
+                self._readable_run, values, self._model, None, tick, ticks, self._time,
+                self._control)
+        self._advanced(ticks * tick)
 
     def _readable_run(self, values, model, method, dt, steps, time):
         """
