@@ -537,17 +537,17 @@ class Simulator:
             error_control.set_bounds(self._control, floor)
             self._control_floor = floor
 
-    def _advanced(self, duration):
+    def _advanced(self, duration, finite):
         """
         Take the state a kernel left after `duration` s: finite, or the last one restored.
 
-        The caller copied the values to the checkpoint before the kernel ran; a non-finite
-        state is replaced by it and DivergedError raised.
+        The caller copied the values to the checkpoint before the kernel ran and says
+        whether they are all `finite` now; a non-finite state is replaced by the checkpoint
+        and DivergedError raised.
         """
         self._integrated = self._state = None
-        values = self._values
-        if not _all_finite(values):
-            values[:] = self._checkpoint
+        if not finite:
+            self._values[:] = self._checkpoint
             raise DivergedError(self._divergence(duration), self._time)
         self._add_time(duration)
 
@@ -576,10 +576,13 @@ class Simulator:
         self._checkpoint[:] = values
         if self._fast:
             integrator = self._integrator
-            integrator.run(values, self._model, integrator.method, dt, steps, self._time)
+            # The kernel tests the state it leaves (kernels/loop.py): -1 if not finite.
+            finite = integrator.run(values, self._model, integrator.method, dt, steps,
+                                    self._time) >= 0
         else:
             self._readable_run(values, self._model, None, dt, steps, self._time)
-        self._advanced(steps * dt if duration is None else duration)
+            finite = _all_finite(values)
+        self._advanced(steps * dt if duration is None else duration, finite)
 
     def _controlled(self, tick, ticks):
         """
@@ -598,7 +601,7 @@ class Simulator:
             error_control.controlled_ticks.py_func(
                 self._readable_run, values, self._model, None, tick, ticks, self._time,
                 self._control)
-        self._advanced(ticks * tick)
+        self._advanced(ticks * tick, _all_finite(values))
 
     def _readable_run(self, values, model, method, dt, steps, time):
         """

@@ -11,8 +11,9 @@ The limit of each integrator is measured on its own compiled kernel, not tabled 
 (:func:`decay_limit`): a sphere under linear rotational drag, L shrinking by the method's
 amplification factor g(lambda h) per step; the limit is the first lambda h at which |g|
 exceeds 1.  A new integrator gets its limit without an edit here.  Measured: first_order 2.0
-(Euler), rk4 2.78, buss, buss_plain, splitting and exact 4.0 (two midpoint kicks of h/2),
-splitting4 7.3 (its kicks are of at most 0.66 h / 2).
+(Euler), rk4 2.78, buss, buss_plain, splitting and exact 3.08 (two kicks of h/2, the second
+started from the first's estimate: kernels/model.py's impulse; 4.0 when each took two
+evaluations), splitting4 6.36 (7.3 before; its kicks are of at most 0.66 h / 2).
 
 Effects say how stiff they are (``damping_rate(body) -> (rate 1/s, what)``, registry.py); the
 Simulator checks each new step against them (:func:`stiffness_problem`).

@@ -36,6 +36,7 @@ from ..kernels.layout import inverse_inertia_times
 from ..kernels.layout import quaternion_of
 from ..kernels.loop import run_steps
 from ..kernels.model import kick
+from ..kernels.model import NO_ESTIMATE
 from ..rotations import cross as cross_product
 from ..state import State
 
@@ -80,8 +81,9 @@ def step(state, forcing, method, dt, time, pushed, translates):
     torque-free step: benchmarks/step_cost.py).
     """
     half = 0.5 * dt
+    estimate = NO_ESTIMATE
     if pushed:
-        kick(state, time, half, forcing)
+        estimate = kick(state, time, half, forcing, estimate, False)
     body = forcing.body
     momentum_body = rotate_back(quaternion_of(state), angular_momentum_of(state))
     omega_body = inverse_inertia_times(body, momentum_body)
@@ -98,7 +100,8 @@ def step(state, forcing, method, dt, time, pushed, translates):
         for i in range(3):
             state[4 + i] += dt * state[7 + i] / mass
     if pushed:
-        kick(state, time + dt, half, forcing)
+        # The closing kick starts from the opening one's estimate (model.impulse).
+        kick(state, time + dt, half, forcing, estimate, True)
 
 
 @kernel

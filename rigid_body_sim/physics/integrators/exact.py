@@ -117,6 +117,7 @@ from ..kernels.layout import BODY_MASS
 from ..kernels.layout import BODY_MOMENTS
 from ..kernels.loop import run_steps
 from ..kernels.model import kick
+from ..kernels.model import NO_ESTIMATE
 from ..principal_frame import ASYMMETRIC
 from ..principal_frame import OBLATE
 from ..principal_frame import principal_frame
@@ -536,8 +537,9 @@ def step(state, forcing, method, dt, time, pushed, translates):
     if abs(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3] - 1.0) > 1e-12:
         # The last rounding normalises to first order: start from a unit quaternion.
         state[0], state[1], state[2], state[3] = normalised(q)
+    estimate = NO_ESTIMATE
     if pushed:
-        kick(state, time, half, forcing)
+        estimate = kick(state, time, half, forcing, estimate, False)
     state[0], state[1], state[2], state[3] = free_rotation(
         (state[0], state[1], state[2], state[3]), state[10], state[11], state[12], moments,
         axes, kind, dt)
@@ -545,7 +547,8 @@ def step(state, forcing, method, dt, time, pushed, translates):
         for i in range(3):
             state[4 + i] += dt * state[7 + i] / mass
     if pushed:
-        kick(state, time + dt, half, forcing)
+        # The closing kick starts from the opening one's estimate (model.impulse).
+        kick(state, time + dt, half, forcing, estimate, True)
 
 
 @kernel

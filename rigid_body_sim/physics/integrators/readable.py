@@ -27,25 +27,33 @@ def world_inertia_inverse(body, rotation):
     return rotation @ body.inertia_inverse @ rotation.T
 
 
-def kick(state, time, half_step, wrench):
+def kick(state, time, half_step, wrench, estimate=None):
     """
-    Return the state after the momenta take the wrench for `half_step` s.
+    Return (the state after the momenta take the wrench for `half_step` s, an estimate).
 
     The kick flow changes p and L with the configuration (R, x) fixed:
     p <- p + h F, L <- L + h tau.  For a wrench that depends only on configuration and time
     this is exact.  A momentum-dependent wrench (drag) is integrated by the explicit
     midpoint rule instead, which keeps the kick second order, so the Strang composition
-    kick-drift-kick stays second order too.
+    kick-drift-kick stays second order too: its first half takes `estimate` (force,
+    torque) if given, else the wrench at the state.  The estimate returned, the wrench
+    extrapolated to the kick's end along the momenta (2 W_mid - W_0), is the closing kick's
+    (kernels/model.py's impulse says why it keeps the order; None without momentum
+    dependence).
     """
-    force, torque = wrench(state, time)
-    if getattr(wrench, 'momentum_dependent', False):
+    if not getattr(wrench, 'momentum_dependent', False):
+        force, torque = wrench(state, time)
+        next_estimate = None
+    else:
+        first_force, first_torque = wrench(state, time) if estimate is None else estimate
         midpoint = State._from_arrays(state.quaternion, state.position,
-                                      state.linear_momentum + 0.5 * half_step * force,
-                                      state.angular_momentum + 0.5 * half_step * torque)
+                                      state.linear_momentum + 0.5 * half_step * first_force,
+                                      state.angular_momentum + 0.5 * half_step * first_torque)
         force, torque = wrench(midpoint, time)
+        next_estimate = (2.0 * force - first_force, 2.0 * torque - first_torque)
     return State._from_arrays(state.quaternion, state.position,
                               state.linear_momentum + half_step * force,
-                              state.angular_momentum + half_step * torque)
+                              state.angular_momentum + half_step * torque), next_estimate
 
 
 def kick_drift_kick(body, state, time, dt, wrench, drift):
@@ -55,14 +63,14 @@ def kick_drift_kick(body, state, time, dt, wrench, drift):
     `drift(body, state, dt)` is a torque-free, force-free step (the free flow), of order >= 2.
     Splitting the wrench off this way keeps a second-order drift second order with any
     wrench, and makes a constant torque give L(t) = L0 + tau t and a constant force give the
-    exact parabola of the COM.
+    exact parabola of the COM.  The closing kick starts from the opening one's estimate.
     """
     if wrench is None:
         return drift(body, state, dt)
     half = 0.5 * dt
-    state = kick(state, time, half, wrench)
+    state, estimate = kick(state, time, half, wrench)
     state = drift(body, state, dt)
-    return kick(state, time + dt, half, wrench)
+    return kick(state, time + dt, half, wrench, estimate)[0]
 
 
 def free_translation(state, dt, mass):

@@ -40,6 +40,7 @@ from ..kernels.algebra import normalised
 from ..kernels.algebra import quaternion_product
 from ..kernels.algebra import rotate
 from ..kernels.algebra import rotate_back
+from ..kernels.algebra import rotate_unnormalised
 from ..kernels.layout import angular_momentum_of
 from ..kernels.layout import BODY_MASS
 from ..kernels.layout import inverse_inertia_times
@@ -162,7 +163,8 @@ def _derivatives(q, momentum_body, position, linear_momentum, time, forcing, pus
             # The effects read all of the stage's state, not just its orientation.
             stage[4], stage[5], stage[6] = position
             stage[7], stage[8], stage[9] = linear_momentum
-            stage[10], stage[11], stage[12] = rotate(unit, momentum_body)
+            # L = R m from the stage's own q, beside its normalisation rather than after it.
+            stage[10], stage[11], stage[12] = rotate_unnormalised(q, momentum_body)
         wrench = integrated_wrench(stage, time, forcing)
         force = (wrench[0], wrench[1], wrench[2])
         # R^T tau: the torque in the body frame at this stage's orientation.

@@ -57,6 +57,7 @@ from ..kernels.layout import BODY_MASS
 from ..kernels.layout import BODY_MOMENTS
 from ..kernels.loop import run_steps
 from ..kernels.model import impulse
+from ..kernels.model import NO_ESTIMATE
 from ..principal_frame import principal_frame
 from ..state import State
 
@@ -187,6 +188,7 @@ def step(state, forcing, method, dt, time, pushed, translates):
     p, angular = p0, l0
     stage_start = time
     stage_state = forcing.stage
+    estimate = NO_ESTIMATE
     for index in range(4, 4 + stages):
         stage = method[index] * dt
         for kick_number in range(2):
@@ -204,8 +206,9 @@ def step(state, forcing, method, dt, time, pushed, translates):
                         stage_state[4 + i] = x0[i] + dx[i]
                         stage_state[7 + i] = p[i]
                         stage_state[10 + i] = angular[i]
-                change = impulse(stage_state, stage_start + kick_number * stage, 0.5 * stage,
-                                 forcing)
+                # A stage's closing kick starts from its opening one's estimate.
+                change, estimate = impulse(stage_state, stage_start + kick_number * stage,
+                                           0.5 * stage, forcing, estimate, kick_number == 1)
                 sp = (sp[0] + change[0], sp[1] + change[1], sp[2] + change[2])
                 sl = (sl[0] + change[3], sl[1] + change[4], sl[2] + change[5])
                 p = (p0[0] + sp[0], p0[1] + sp[1], p0[2] + sp[2])
