@@ -55,6 +55,23 @@ def test_a_new_or_renamed_source_changes_the_fingerprint(tmp_path):
     assert len({before, renamed, kernels.source_fingerprint(root)}) == 3
 
 
+def test_a_new_or_edited_effect_keeps_every_integrators_compiled_kernels(tmp_path):
+    # The kernels call effects through a Model's pointers and never inline them; numba
+    # watches an effect's own file for its own functions.
+    root = _tree(tmp_path)
+    (root / 'effects').mkdir()
+    (root / 'effects' / 'drag.py').write_text('z = 3\n')
+    kernels.ensure_fresh_cache(root)
+    _cache_files(root)
+    (root / 'effects' / 'spring.py').write_text('k = 1\n')
+    (root / 'effects' / 'drag.py').write_text('z = 4\n')
+    assert kernels.ensure_fresh_cache(root) == 0
+    assert len(kernels.cached_kernel_files(root)) == 3
+    # The toolkit an effect's code inlines is in the fingerprint: an edit drops everything.
+    (root / 'kernels' / 'loop.py').write_text('y = 3\n')
+    assert kernels.ensure_fresh_cache(root) == 3
+
+
 def test_a_compiled_integrator_is_marked_for_these_sources_only():
     # The set-up compiled everything: every integrator is marked, under this fingerprint.
     assert warm_up.missing() == []

@@ -13,8 +13,13 @@ The compiled toolkit of the physics core: every piece of rigid-body algebra writ
 Compiled functions are cached by numba beside their sources (``__pycache__``).  numba's cache
 sees edits to a function's own file only, not to a helper it calls from another file, so
 :func:`ensure_fresh_cache` (run when this package is imported, before anything compiles)
-keeps a fingerprint of every source of the physics core and, when it changed, deletes the
-core's cached kernels: a changed source never runs a stale kernel.
+keeps a fingerprint of the physics core's sources and, when it changed, deletes the core's
+cached kernels: a changed source never runs a stale kernel.  The effects (``effects/``) are
+left out of the fingerprint: the kernels reach an effect's compiled functions only through
+the pointers a Model holds, never inline its code, and an effect's own file is numba's to
+watch; so a new or edited effect compiles its own functions (under a second) and every
+integrator's kernels stay compiled.  An effect's compiled code may call this toolkit (in
+the fingerprint) and its own file, not another effect's file.
 """
 
 import functools
@@ -62,10 +67,17 @@ calls; a call that passed them at run time would make numba refuse to cache the 
 
 
 def source_fingerprint(root=PHYSICS_ROOT):
-    """Return the SHA-256 of every ``*.py`` file under `root` (names and contents), as hex."""
+    """
+    Return the SHA-256 of the ``*.py`` files under `root` (names and contents), as hex.
+
+    Every file but the effects' (``effects/``: see the module docstring).
+    """
     digest = hashlib.sha256()
     for path in sorted(root.rglob('*.py')):
-        digest.update(str(path.relative_to(root)).encode())
+        relative = path.relative_to(root)
+        if relative.parts[0] == 'effects':
+            continue
+        digest.update(str(relative).encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()
 
