@@ -67,16 +67,18 @@ at once after anything changes (the wrench, the state, the integrator, the toler
 lower bound: :func:`changed`).  The ticks between two estimates are one call of the run.
 
 The state of the controller lives in one float array (see :func:`new_control`), which the
-compiled kernels update in place; :func:`controlled_ticks` is inlined into each integrator's
-``controlled`` kernel around its ``run`` (kernels/loop.py).
+compiled kernel updates in place.  :data:`controlled` is that kernel: compiled once, it takes
+any integrator's run kernel as a first-class function (kernels/loop.py's RUN_SIGNATURE), so
+that no integrator compiles a controller of its own.
 """
 
 import math
 
+from numba import types
 import numpy as np
 
 from .kernels import helper
-from .kernels import inline
+from .kernels import LazyKernel
 from .kernels.algebra import conjugate
 from .kernels.algebra import quaternion_product
 from .kernels.algebra import rotate_back
@@ -84,8 +86,12 @@ from .kernels.layout import BODY_AXES
 from .kernels.layout import BODY_KIND
 from .kernels.layout import BODY_MOMENTS
 from .kernels.layout import inverse_inertia_times
+from .kernels.loop import METHOD_TYPE
+from .kernels.loop import RUN_SIGNATURE
+from .kernels.model import MODEL_TYPE
 
-__all__ = ['new_control', 'controlled_ticks', 'next_substeps', 'step_difference',
+__all__ = ['new_control', 'controlled_ticks', 'controlled', 'CONTROLLED_SIGNATURE',
+           'next_substeps', 'step_difference',
            'set_tolerance', 'set_order', 'set_bounds', 'set_torque_free', 'changed', 'statistics',
            'reset_statistics', 'turning_points',
            'SAFETY', 'HOLD', 'DECREASE_FRACTION', 'OVERHEAD', 'MAX_TURN', 'MAX_SUBSTEPS',
@@ -116,6 +122,11 @@ ORBIT_EVERY = 64
 """Estimates between two estimates on the polhode's turning points (and after any change
 or a new substep count).  Torque-free, the polhode and so its error constant are fixed: the
 estimate is renewed only because it is taken at the step in use."""
+# Step counts passed to the run kernel as int64 values, not literals: numba compiles a
+# kernel once per literal argument it is called with (a run for 1, one for 2, one for any n),
+# which tripled the run kernel's compile time.
+_ONE = np.int64(1)
+_TWO = np.int64(2)
 # Retakes of one tick after a rejection (the second has the count the first one measured).
 _RETAKES = 2
 
@@ -334,17 +345,15 @@ def _record(control, substeps, steps, ticks=1):
     control[TICKS] += ticks
 
 
-@inline
 def controlled_ticks(run, state, model, method, tick, ticks, time, control):
     """
     Advance a packed state in place by `ticks` ticks of `tick` s from `time` (s), controlled.
 
-    run: an integrator's run kernel (kernels/loop.py's signature); model and method are
+    run: an integrator's run kernel (kernels/loop.py's RUN_SIGNATURE); model and method are
     passed on to it.  control: the control array (updated: n, the countdown, the votes, the
-    statistics).  Returns the integrator steps taken.
-
-    Inlined into each integrator's ``controlled`` kernel (kernels.inline): a call with `run`
-    as an argument would pass the kernel at run time, which numba refuses to cache.
+    statistics).  Returns the integrator steps taken.  Compiled as :data:`controlled`, where
+    `run` is a first-class function (an indirect call a few times a tick); as Python, the
+    Simulator's readable path drives its readable steps with it.
     """
     order = control[ORDER]
     taken = 0
@@ -381,8 +390,8 @@ def controlled_ticks(run, state, model, method, tick, ticks, time, control):
                 virtual[3] = 1.0
                 virtual[10:13] = points[index]
                 companion[:] = virtual
-                run(virtual, model, method, h, 2, now)
-                run(companion, model, method, 2.0 * h, 1, now)
+                run(virtual, model, method, h, _TWO, now)
+                run(companion, model, method, 2.0 * h, _ONE, now)
                 error = step_difference(virtual, companion, model.body, h) / (
                     2.0 ** (order + 1) - 2.0)
                 largest = max(largest, error / h)
@@ -398,16 +407,16 @@ def controlled_ticks(run, state, model, method, tick, ticks, time, control):
                 run(state, model, method, h, n - 2, now)
                 companion[:] = state
                 middle = now + (n - 2) * h
-                run(state, model, method, h, 2, middle)
-                run(companion, model, method, 2.0 * h, 1, middle)
+                run(state, model, method, h, _TWO, middle)
+                run(companion, model, method, 2.0 * h, _ONE, middle)
                 error = step_difference(state, companion, model.body, h) / (
                     2.0 ** (order + 1) - 2.0)
                 steps += n + 1
             else:
                 # One substep: the companion is two half steps, e(h) = |diff| / (1 - 2^-q).
                 companion[:] = state
-                run(state, model, method, h, 1, now)
-                run(companion, model, method, 0.5 * h, 2, now)
+                run(state, model, method, h, _ONE, now)
+                run(companion, model, method, 0.5 * h, _TWO, now)
                 error = step_difference(state, companion, model.body, h) / (
                     1.0 - 2.0 ** -order)
                 steps += 3
@@ -436,3 +445,11 @@ def controlled_ticks(run, state, model, method, tick, ticks, time, control):
         control[COUNTDOWN] = _ticks_between_estimates(following, tick,
                                                       _turn_rate(state, model.body))
     return taken
+
+
+CONTROLLED_SIGNATURE = types.int64(types.FunctionType(RUN_SIGNATURE), types.float64[::1],
+                                   MODEL_TYPE, METHOD_TYPE, types.float64, types.int64,
+                                   types.float64, types.float64[::1])
+controlled = LazyKernel(CONTROLLED_SIGNATURE, controlled_ticks)
+"""The compiled controller: ``controlled(run, state, model, method, tick, ticks, time,
+control)``, one kernel for every integrator (see :func:`controlled_ticks`)."""

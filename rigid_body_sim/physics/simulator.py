@@ -208,6 +208,8 @@ class Simulator:
     @integrator.setter
     def integrator(self, name):
         self._integrator = get_integrator(name)
+        # Its compiled run kernel, fetched on the first compiled step (compiled or loaded).
+        self._run = None
         self._set_order()
         self._plan()
 
@@ -575,10 +577,12 @@ class Simulator:
         values = self._values
         self._checkpoint[:] = values
         if self._fast:
-            integrator = self._integrator
+            run = self._run
+            if run is None:
+                run = self._run = self._integrator.run
             # The kernel tests the state it leaves (kernels/loop.py): -1 if not finite.
-            finite = integrator.run(values, self._model, integrator.method, dt, steps,
-                                    self._time) >= 0
+            finite = run(values, self._model, self._integrator.method, dt, steps,
+                         self._time) >= 0
         else:
             self._readable_run(values, self._model, None, dt, steps, self._time)
             finite = _all_finite(values)
@@ -595,12 +599,14 @@ class Simulator:
         self._checkpoint[:] = values
         integrator = self._integrator
         if self._fast:
-            integrator.controlled(values, self._model, integrator.method, tick, ticks,
-                                  self._time, self._control)
+            if self._run is None:
+                self._run = integrator.run
+            error_control.controlled.dispatcher(self._run, values, self._model,
+                                                integrator.method, tick, ticks, self._time,
+                                                self._control)
         else:
-            error_control.controlled_ticks.py_func(
-                self._readable_run, values, self._model, None, tick, ticks, self._time,
-                self._control)
+            error_control.controlled_ticks(self._readable_run, values, self._model, None, tick,
+                                           ticks, self._time, self._control)
         self._advanced(ticks * tick, _all_finite(values))
 
     def _readable_run(self, values, model, method, dt, steps, time):

@@ -24,9 +24,7 @@ from .readable import kick_drift_kick
 from .readable import rotate_by_world_vector
 from .readable import world_inertia_inverse
 from .registry import register_integrator
-from ..error_control import controlled_ticks
 from ..kernels import inline
-from ..kernels import kernel
 from ..kernels.algebra import cross
 from ..kernels.algebra import rotate_back
 from ..kernels.algebra import turned
@@ -34,6 +32,7 @@ from ..kernels.layout import angular_momentum_of
 from ..kernels.layout import BODY_MASS
 from ..kernels.layout import inverse_inertia_times
 from ..kernels.layout import quaternion_of
+from ..kernels.loop import run_kernel
 from ..kernels.loop import run_steps
 from ..kernels.model import kick
 from ..kernels.model import NO_ESTIMATE
@@ -104,19 +103,14 @@ def step(state, forcing, method, dt, time, pushed, translates):
         kick(state, time + dt, half, forcing, estimate, True)
 
 
-@kernel
+@run_kernel
 def run(state, model, method, dt, steps, time):
     """Take `steps` Buss steps of dt s from `time` (kernels/loop.py)."""
     return run_steps(step, state, model, method, dt, steps, time)
 
 
-@kernel
-def controlled(state, model, method, tick, ticks, time, control):
-    """Take `ticks` ticks of `tick` s under error control (error_control.py)."""
-    return controlled_ticks(run, state, model, method, tick, ticks, time, control)
 
-
-@register_integrator('buss', order=2, run=run, controlled=controlled, method=(1.0,))
+@register_integrator('buss', order=2, run=run, method=(1.0,))
 def buss(body, state, time, dt, wrench):
     """
     Buss's augmented second-order method (J. Comput. Phys. 164:377, 2000).
@@ -127,7 +121,7 @@ def buss(body, state, time, dt, wrench):
     return kick_drift_kick(body, state, time, dt, wrench, buss_free_step)
 
 
-@register_integrator('buss_plain', order=2, run=run, controlled=controlled, method=(0.0,))
+@register_integrator('buss_plain', order=2, run=run, method=(0.0,))
 def buss_plain(body, state, time, dt, wrench):
     """Buss's plain second-order method: :func:`buss` without the h^2/12 term."""
     return kick_drift_kick(body, state, time, dt, wrench, _buss_plain_free_step)

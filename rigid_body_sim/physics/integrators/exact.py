@@ -102,10 +102,8 @@ from .registry import register_integrator
 from ..elliptic import carlson_rf_compiled
 from ..elliptic import carlson_rj_compiled
 from ..elliptic import jacobi_elliptic_compiled
-from ..error_control import controlled_ticks
 from ..kernels import helper
 from ..kernels import inline
-from ..kernels import kernel
 from ..kernels import outlined
 from ..kernels.algebra import cross
 from ..kernels.algebra import normalised
@@ -115,6 +113,7 @@ from ..kernels.layout import BODY_AXES
 from ..kernels.layout import BODY_KIND
 from ..kernels.layout import BODY_MASS
 from ..kernels.layout import BODY_MOMENTS
+from ..kernels.loop import run_kernel
 from ..kernels.loop import run_steps
 from ..kernels.model import kick
 from ..kernels.model import NO_ESTIMATE
@@ -551,16 +550,11 @@ def step(state, forcing, method, dt, time, pushed, translates):
         kick(state, time + dt, half, forcing, estimate, True)
 
 
-@kernel
+@run_kernel
 def run(state, model, method, dt, steps, time):
     """Take `steps` exact steps of dt s from `time` (kernels/loop.py)."""
     return run_steps(step, state, model, method, dt, steps, time)
 
-
-@kernel
-def controlled(state, model, method, tick, ticks, time, control):
-    """Take `ticks` ticks of `tick` s under error control (error_control.py)."""
-    return controlled_ticks(run, state, model, method, tick, ticks, time, control)
 
 
 # -- readable form
@@ -612,7 +606,7 @@ def exact_free_flow(body, state, duration):
                               state.linear_momentum, state.angular_momentum)
 
 
-@register_integrator('exact', order=2, run=run, controlled=controlled)
+@register_integrator('exact', order=2, run=run)
 def exact(body, state, time, dt, wrench):
     """
     Exact torque-free flow; a wrench enters as half kicks around it (Strang splitting).

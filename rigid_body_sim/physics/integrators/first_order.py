@@ -17,16 +17,15 @@ from .readable import free_translation
 from .readable import rotate_by_world_vector
 from .readable import world_inertia_inverse
 from .registry import register_integrator
-from ..error_control import controlled_ticks
 from ..kernels import inline
-from ..kernels import kernel
 from ..kernels.algebra import rotate_back
 from ..kernels.algebra import turned
 from ..kernels.layout import angular_momentum_of
 from ..kernels.layout import BODY_MASS
 from ..kernels.layout import inverse_inertia_times
 from ..kernels.layout import quaternion_of
-from ..kernels.loop import run_steps
+from ..kernels.loop import run_kernel
+from ..kernels.loop import run_steps_specialised
 from ..kernels.model import integrated_wrench
 from ..state import State
 
@@ -54,19 +53,14 @@ def step(state, forcing, method, dt, time, pushed, translates):
         dt * omega_body[0], dt * omega_body[1], dt * omega_body[2]))
 
 
-@kernel
+@run_kernel
 def run(state, model, method, dt, steps, time):
     """Take `steps` first-order steps of dt s from `time` (kernels/loop.py)."""
-    return run_steps(step, state, model, method, dt, steps, time)
+    return run_steps_specialised(step, state, model, method, dt, steps, time)
 
 
-@kernel
-def controlled(state, model, method, tick, ticks, time, control):
-    """Take `ticks` ticks of `tick` s under error control (error_control.py)."""
-    return controlled_ticks(run, state, model, method, tick, ticks, time, control)
 
-
-@register_integrator('first_order', order=1, run=run, controlled=controlled)
+@register_integrator('first_order', order=1, run=run)
 def first_order(body, state, time, dt, wrench):
     """Seed's simple first-order method (see the module docstring)."""
     omega = world_inertia_inverse(body, state.rotation) @ state.angular_momentum

@@ -12,13 +12,15 @@ Each method is one module (buss.py, rk4.py, ...) holding
   giving the total external force through the COM (N) and torque about it (N m), world
   frame; a wrench that depends on the momenta (drag) carries ``momentum_dependent = True``
   so that the method keeps its order for it;
-- its compiled step on packed arrays (kernels/loop.py) and the two kernels built on it,
-  ``run`` and ``controlled`` (the same step under error control).
+- its compiled step on packed arrays (kernels/loop.py) and the run kernel built on it
+  (error control drives any run kernel: error_control.controlled).
 
 Both forms compute the same method (tested to round-off); the Simulator runs the compiled
 one, under every effect (kernels/model.py).  Adding an integrator: its module, decorated
 with :func:`register_integrator`, and its import in ``integrators/__init__.py``.
 """
+
+from ..kernels.loop import method_constants
 
 __all__ = ['INTEGRATORS', 'Integrator', 'register_integrator', 'get_integrator']
 
@@ -28,23 +30,26 @@ INTEGRATORS = {}
 
 class Integrator:
     """
-    A registered method: its name, order, readable step and compiled kernels.
+    A registered method: its name, order, readable step and compiled kernel.
 
-    Calling it calls the readable step (see the module docstring).  ``run(state, model,
-    method, dt, steps, time)`` and ``controlled(state, model, method, tick, ticks, time,
-    control)`` are its kernels (kernels/loop.py, error_control.py); ``method`` is the tuple
-    of its constants they take (a tuple, not an array: the compiler then knows them constant
-    over the loop and hoists what it computes from them: 3.5 ns of Buss's 48 ns step).
+    Calling it calls the readable step (see the module docstring).  ``run_kernel`` is its
+    run kernel (a :class:`~..kernels.LazyKernel` of kernels/loop.py's RUN_SIGNATURE: several
+    methods may share one, with different constants); ``run`` the compiled function
+    (compiled or loaded on first use); ``method`` the tuple of constants it takes.
     """
 
-    def __init__(self, name, order, step, run, controlled, method=()):
+    def __init__(self, name, order, step, run, method=()):
         self.name = name
         self.order = order
         self.step = step
-        self.run = run
-        self.controlled = controlled
-        self.method = tuple(float(value) for value in method)
+        self.run_kernel = run
+        self.method = method_constants(method)
         self.__doc__ = step.__doc__
+
+    @property
+    def run(self):
+        """Get the compiled run kernel (compiled, or loaded from the cache, on first use)."""
+        return self.run_kernel.dispatcher
 
     def __call__(self, body, state, time, dt, wrench):
         """Return the state after one readable step of dt s (see the module docstring)."""
@@ -55,17 +60,18 @@ class Integrator:
         return f'Integrator({self.name!r}, order={self.order})'
 
 
-def register_integrator(name, order, run, controlled, method=()):
+def register_integrator(name, order, run, method=()):
     """
-    Register the decorated readable step under `name`, with its order and kernels.
+    Register the decorated readable step under `name`, with its order and run kernel.
 
-    run, controlled: the method's compiled kernels; method: its constants (passed to them).
-    Returns the step unchanged; the registry holds an :class:`Integrator`.
+    run: the method's run kernel (kernels/loop.run_kernel); method: its constants (passed
+    to it, at most kernels/loop.METHOD_SIZE).  Returns the step unchanged; the registry
+    holds an :class:`Integrator`.
     """
     def decorate(step):
         if name in INTEGRATORS:
             raise ValueError(f'integrator {name!r} is registered twice')
-        INTEGRATORS[name] = Integrator(name, order, step, run, controlled, method)
+        INTEGRATORS[name] = Integrator(name, order, step, run, method)
         return step
     return decorate
 

@@ -30,10 +30,8 @@ side; both end the step with :func:`world_momentum_change`, written once.
 import numpy as np
 
 from .registry import register_integrator
-from ..error_control import controlled_ticks
 from ..kernels import helper
 from ..kernels import inline
-from ..kernels import kernel
 from ..kernels.algebra import conjugate
 from ..kernels.algebra import cross
 from ..kernels.algebra import normalised
@@ -45,7 +43,8 @@ from ..kernels.layout import angular_momentum_of
 from ..kernels.layout import BODY_MASS
 from ..kernels.layout import inverse_inertia_times
 from ..kernels.layout import quaternion_of
-from ..kernels.loop import run_steps
+from ..kernels.loop import run_kernel
+from ..kernels.loop import run_steps_specialised
 from ..kernels.model import integrated_wrench
 from ..rotations import matrix_from_quaternion
 from ..state import State
@@ -214,16 +213,11 @@ def step(state, forcing, method, dt, time, pushed, translates):
             state[7 + i] = p0[i] + sixth * (f1[i] + 2.0 * f2[i] + 2.0 * f3[i] + f4[i])
 
 
-@kernel
+@run_kernel
 def run(state, model, method, dt, steps, time):
     """Take `steps` RK4 steps of dt s from `time` (kernels/loop.py)."""
-    return run_steps(step, state, model, method, dt, steps, time)
+    return run_steps_specialised(step, state, model, method, dt, steps, time)
 
 
-@kernel
-def controlled(state, model, method, tick, ticks, time, control):
-    """Take `ticks` ticks of `tick` s under error control (error_control.py)."""
-    return controlled_ticks(run, state, model, method, tick, ticks, time, control)
 
-
-register_integrator('rk4', order=4, run=run, controlled=controlled)(rk4)
+register_integrator('rk4', order=4, run=run)(rk4)

@@ -43,10 +43,8 @@ import numpy as np
 from .readable import free_translation
 from .readable import kick_drift_kick
 from .registry import register_integrator
-from ..error_control import controlled_ticks
 from ..kernels import helper
 from ..kernels import inline
-from ..kernels import kernel
 from ..kernels import outlined
 from ..kernels.algebra import conjugate
 from ..kernels.algebra import normalised
@@ -55,7 +53,8 @@ from ..kernels.algebra import rotate_back
 from ..kernels.layout import BODY_FRAME
 from ..kernels.layout import BODY_MASS
 from ..kernels.layout import BODY_MOMENTS
-from ..kernels.loop import run_steps
+from ..kernels.loop import run_kernel
+from ..kernels.loop import run_steps_specialised
 from ..kernels.model import impulse
 from ..kernels.model import NO_ESTIMATE
 from ..principal_frame import principal_frame
@@ -225,16 +224,11 @@ def step(state, forcing, method, dt, time, pushed, translates):
     state[0], state[1], state[2], state[3] = q
 
 
-@kernel
+@run_kernel
 def run(state, model, method, dt, steps, time):
     """Take `steps` splitting steps of dt s from `time` (kernels/loop.py)."""
-    return run_steps(step, state, model, method, dt, steps, time)
+    return run_steps_specialised(step, state, model, method, dt, steps, time)
 
-
-@kernel
-def controlled(state, model, method, tick, ticks, time, control):
-    """Take `ticks` ticks of `tick` s under error control (error_control.py)."""
-    return controlled_ticks(run, state, model, method, tick, ticks, time, control)
 
 
 def _method(axes, coefficients):
@@ -243,14 +237,14 @@ def _method(axes, coefficients):
     return tuple(float(value) for value in constants) + (0.0,) * (_METHOD_SIZE - len(constants))
 
 
-@register_integrator('splitting', order=2, run=run, controlled=controlled,
+@register_integrator('splitting', order=2, run=run,
                      method=_method(STRANG_AXES, (1.0,)))
 def splitting(body, state, time, dt, wrench):
     """Strang splitting 1(h/2) 2(h/2) 3(h) 2(h/2) 1(h/2) of the free body; kicks for wrenches."""
     return kick_drift_kick(body, state, time, dt, wrench, splitting_free_flow)
 
 
-@register_integrator('splitting4', order=4, run=run, controlled=controlled,
+@register_integrator('splitting4', order=4, run=run,
                      method=_method(SUZUKI_AXES, SUZUKI_COEFFICIENTS))
 def splitting4(body, state, time, dt, wrench):
     """

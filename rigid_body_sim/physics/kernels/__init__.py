@@ -29,8 +29,8 @@ from pathlib import Path
 
 import numba
 
-__all__ = ['kernel', 'helper', 'outlined', 'inline', 'ensure_fresh_cache', 'source_fingerprint',
-           'PHYSICS_ROOT', 'FINGERPRINT', 'compiled_marker']
+__all__ = ['kernel', 'helper', 'outlined', 'inline', 'LazyKernel', 'ensure_fresh_cache',
+           'source_fingerprint', 'PHYSICS_ROOT', 'FINGERPRINT', 'compiled_marker']
 
 PHYSICS_ROOT = Path(__file__).resolve().parent.parent
 """The directory of the physics core, whose sources the kernels are compiled from."""
@@ -64,6 +64,57 @@ inline = functools.partial(numba.njit, inline='always', nogil=True, error_model=
 
 numba inlines it into its caller at the IR level, so the function arguments become direct
 calls; a call that passed them at run time would make numba refuse to cache the caller."""
+
+
+class LazyKernel:
+    """
+    An entry point declared with its one signature, compiled (or loaded) on first use.
+
+    numba compiles a function given a signature at once, when it is decorated; declared
+    this way the compile waits until :attr:`dispatcher` is first read, so that importing
+    the package compiles nothing.  One signature, declared: numba never compiles a second
+    specialisation (a literal argument, a new tuple length) behind the caller's back, and a
+    kernel that takes another kernel takes it as a first-class function of that signature
+    (cached, where a kernel passed as a dispatcher is not).
+
+    Attributes
+    ----------
+    signature : numba signature
+        What it is compiled for.
+    py_func : function
+        Its source as a Python function (``dispatcher.py_func``, without compiling).
+
+    """
+
+    def __init__(self, signature, function):
+        self.signature = signature
+        self.py_func = function
+        self.__name__ = function.__name__
+        self.__qualname__ = function.__qualname__
+        self.__module__ = function.__module__
+        self.__doc__ = function.__doc__
+        self._dispatcher = None
+
+    @property
+    def dispatcher(self):
+        """Get the compiled function (compiling it, or loading it from the cache, once)."""
+        if self._dispatcher is None:
+            self._dispatcher = numba.njit(self.signature, cache=True, nogil=True,
+                                          error_model='numpy')(self.py_func)
+        return self._dispatcher
+
+    @property
+    def loaded(self):
+        """Get whether :attr:`dispatcher` was made in this process."""
+        return self._dispatcher is not None
+
+    def __call__(self, *arguments):
+        """Call the compiled function (a caller in a loop keeps :attr:`dispatcher`)."""
+        return self.dispatcher(*arguments)
+
+    def __repr__(self):
+        """Return ``LazyKernel(module.name)``."""
+        return f'LazyKernel({self.__module__}.{self.__qualname__})'
 
 
 def source_fingerprint(root=PHYSICS_ROOT):

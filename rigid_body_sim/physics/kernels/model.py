@@ -355,28 +355,35 @@ def impulse(state, time, duration, forcing, estimate, estimated):
     Simulator refuses a step beyond it).  Without momentum dependence the estimate is the
     wrench at the state, unused.
     """
-    if forcing.momentum_dependent:
-        if estimated:
-            first = estimate
+    if not forcing.momentum_dependent:
+        wrench = integrated_wrench(state, time, forcing)
+        return (duration * wrench[0], duration * wrench[1], duration * wrench[2],
+                duration * wrench[3], duration * wrench[4], duration * wrench[5]), wrench
+    # One call site of the wrench, in a loop of one or two evaluations (the first estimate
+    # unless given, then the midpoint): its code compiled once here, not twice.
+    evaluations = 1 if estimated else 2
+    first = estimate
+    half = 0.5 * duration
+    p0, l0 = (state[7], state[8], state[9]), (state[10], state[11], state[12])
+    wrench = NO_ESTIMATE
+    for evaluation in range(evaluations):
+        midpoint = evaluation == evaluations - 1
+        if midpoint:
+            # The midpoint is the state itself with p and L moved for the one evaluation,
+            # then put back bit for bit: six stores each way instead of a copy of the state.
+            for i in range(3):
+                state[7 + i] = p0[i] + half * first[i]
+                state[10 + i] = l0[i] + half * first[3 + i]
+        wrench = integrated_wrench(state, time, forcing)
+        if midpoint:
+            for i in range(3):
+                state[7 + i] = p0[i]
+                state[10 + i] = l0[i]
         else:
-            first = integrated_wrench(state, time, forcing)
-        # The midpoint is the state itself with p and L moved for the one evaluation, then
-        # put back bit for bit: six stores each way instead of a copy of the whole state.
-        half = 0.5 * duration
-        p0, l0 = (state[7], state[8], state[9]), (state[10], state[11], state[12])
-        for i in range(3):
-            state[7 + i] = p0[i] + half * first[i]
-            state[10 + i] = l0[i] + half * first[3 + i]
-        wrench = integrated_wrench(state, time, forcing)
-        for i in range(3):
-            state[7 + i] = p0[i]
-            state[10 + i] = l0[i]
-        estimate = (2.0 * wrench[0] - first[0], 2.0 * wrench[1] - first[1],
-                    2.0 * wrench[2] - first[2], 2.0 * wrench[3] - first[3],
-                    2.0 * wrench[4] - first[4], 2.0 * wrench[5] - first[5])
-    else:
-        wrench = integrated_wrench(state, time, forcing)
-        estimate = wrench
+            first = wrench
+    estimate = (2.0 * wrench[0] - first[0], 2.0 * wrench[1] - first[1],
+                2.0 * wrench[2] - first[2], 2.0 * wrench[3] - first[3],
+                2.0 * wrench[4] - first[4], 2.0 * wrench[5] - first[5])
     return (duration * wrench[0], duration * wrench[1], duration * wrench[2],
             duration * wrench[3], duration * wrench[4], duration * wrench[5]), estimate
 
