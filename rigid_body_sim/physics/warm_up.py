@@ -1,47 +1,96 @@
 """
-Compile the kernels ahead of use, and tell whether an integrator's are compiled already.
+The compiled kernels as units of work: what an integrator needs, whether it is compiled.
 
-numba compiles a kernel the first time it runs and caches it beside the sources; a cached
-kernel loads in a fraction of a second, a first compile takes seconds (measured on this
-project's reference machine, 2 cores: :data:`COMPILE_SECONDS`).  The set-up (`make venv`,
-`rigid-body-sim compile`) compiles every integrator so that no user waits; the node and
-`simulate` ask :func:`is_compiled` first and say what they compile when they must.
+The kernels fall into independent jobs, each compiled (or loaded from the cache) in one call
+of :func:`compile_job`, so that the ``compile`` command can take them in parallel processes:
 
-The answer comes from a marker file per integrator, written after its kernels compiled,
-named by the fingerprint of the core's sources (kernels/__init__.py): a changed source has
-no marker, and its stale kernels were dropped at import.
+- ``shared``: what every scene uses whatever the integrator: the Model, the effects' terms,
+  flows and constraint, the IMU, the derived quantities the messages are made of;
+- ``controller``: the error controller (error_control.controlled), one for every method;
+- ``run-<module>``: a method's run kernel (``run-buss`` serves buss and buss_plain,
+  ``run-splitting`` splitting and splitting4).
+
+An integrator is compiled when its jobs are marked compiled in the kernel folder of these
+sources and the folder's sealed files are intact (:mod:`.kernels.cache`).  How long a job
+takes: the CPU seconds it took on this machine, read from its marker (of these sources or of
+earlier ones), else :data:`DEFAULT_SECONDS`.
 """
 
 import time
 
 import numpy as np
 
+from . import error_control
 from .body import RigidBody
 from .effects import create_effect
 from .effects import EFFECTS
 from .imu import Imu
 from .imu import ImuModel
+from .integrators import get_integrator
 from .integrators import INTEGRATORS
-from .kernels import compiled_marker
+from .kernels import cache
 from .kernels.derived import derived_quantities
 from .simulator import Simulator
 from .state import State
 
-__all__ = ['COMPILE_SECONDS', 'is_compiled', 'missing', 'warm_up', 'load_kernels',
-           'compile_estimate']
+__all__ = ['SHARED', 'CONTROLLER', 'DEFAULT_SECONDS', 'run_job', 'jobs_of', 'all_jobs',
+           'missing_jobs', 'is_compiled', 'missing', 'job_estimate', 'compile_estimate',
+           'compile_job', 'load_kernels', 'damaged_files']
 
-COMPILE_SECONDS = {'buss': 57.0, 'buss_plain': 1.0, 'exact': 72.0, 'first_order': 16.0,
-                   'rk4': 76.0, 'splitting': 31.0, 'splitting4': 3.0}
-"""Seconds each integrator's kernels took to compile from an empty cache (run, controlled,
-and what they share with the others for the first one), on the reference machine; a guide
-for the announcements, which say 'about'."""
+SHARED = 'shared'
+CONTROLLER = 'controller'
 
-_SHARED = 'shared'
+DEFAULT_SECONDS = {'shared': 4.0, 'controller': 5.5, 'run-buss': 10.0, 'run-exact': 25.0,
+                   'run-first_order': 3.5, 'run-rk4': 22.0, 'run-splitting': 8.0}
+"""CPU seconds each job took to compile on the 2-core development machine (`rigid-body-sim
+compile` prints each job's figure); the estimate where this machine has not compiled a job
+yet.  A job missing here: 10 s."""
+
+
+def run_job(name):
+    """Return the job of integrator `name`'s run kernel (``run-<its module>``)."""
+    return 'run-' + get_integrator(name).run_kernel.__module__.rsplit('.', 1)[-1]
+
+
+def jobs_of(names):
+    """Return the jobs the integrators `names` need, in a fixed order."""
+    runs = sorted({run_job(name) for name in names})
+    return [SHARED, CONTROLLER] + runs
+
+
+def all_jobs():
+    """Return every job (every integrator's)."""
+    return jobs_of(sorted(INTEGRATORS))
+
+
+_verified = {}
+
+
+def damaged_files():
+    """Return the sealed cache files that are not as sealed (checked once per process)."""
+    folder = cache.kernel_dir()
+    if folder not in _verified:
+        _verified[folder] = cache.verify(folder)
+    return _verified[folder]
+
+
+def forget_verification():
+    """Check the sealed files again at the next :func:`damaged_files` (after a compile)."""
+    _verified.clear()
+
+
+def missing_jobs(jobs):
+    """Return the jobs among `jobs` that are not marked compiled (all of them if damaged)."""
+    if not cache.caching_enabled():
+        return list(jobs)
+    if damaged_files():
+        return list(jobs)
+    return [job for job in jobs if not cache.is_marked(job)]
 
 
 def is_compiled(name):
-    """Return True if the kernels of integrator `name` are compiled for these sources."""
-    return compiled_marker(name).exists() and compiled_marker(_SHARED).exists()
+    """Return True if the kernels of integrator `name` are compiled, sealed and intact."""
+    return not missing_jobs(jobs_of([name]))
 
 
 def missing(names=None):
@@ -50,22 +99,27 @@ def missing(names=None):
             if not is_compiled(name)]
 
 
-def compile_estimate(names):
-    """Return the seconds compiling the kernels of `names` takes, roughly (0 if compiled)."""
-    return sum(COMPILE_SECONDS.get(name, 10.0) for name in missing(names))
+def job_estimate(job):
+    """Return the CPU seconds `job` takes to compile here, roughly (see the module)."""
+    measured = cache.measured_seconds(job)
+    return measured if measured is not None else DEFAULT_SECONDS.get(job, 10.0)
 
 
-def _mark(name):
-    marker = compiled_marker(name)
-    try:
-        marker.parent.mkdir(parents=True, exist_ok=True)
-        marker.touch()
-    except OSError:
-        pass  # a read-only installation: its installer compiled it, or every run will
+def compile_estimate(names, workers=1):
+    """
+    Return the seconds compiling the kernels of `names` takes, roughly (0 if compiled).
+
+    With `workers` processes, the longest job or the total shared among them, whichever is
+    longer.
+    """
+    seconds = [job_estimate(job) for job in missing_jobs(jobs_of(names))]
+    if not seconds:
+        return 0.0
+    return max(max(seconds), sum(seconds) / max(1, workers))
 
 
 def _shared():
-    """Compile what every integrator shares: the effects, the model, the IMU, the faces."""
+    """Compile what every integrator shares: the model, the effects, the IMU, the messages."""
     body = RigidBody.box(1.0, (0.3, 0.2, 0.1))
     state = State.from_velocity(body, angular_velocity_body=(0.1, 2.0, 0.1))
     effects = [create_effect(name, cls.example) for name, cls in sorted(EFFECTS.items())]
@@ -85,34 +139,35 @@ def _shared():
     derived_quantities(np.concatenate(state._fields())[None, :],
                        np.ascontiguousarray(body.inertia_inverse).reshape(9), body.mass,
                        np.array([0.0, 0.0, 0.0, 1.0]))
-    _mark(_SHARED)
 
 
-def warm_up(name):
+def compile_job(job):
     """
-    Compile (or load) the kernels of integrator `name` and mark them compiled.
+    Compile (or load from the cache) the kernels of `job` in this process.
 
-    Returns the seconds it took.  One step at a fixed step and one under error control, of
-    a body under every effect: every kernel of the integrator has the one signature, so
-    this compiles all it will ever run.
+    Returns the CPU seconds it took.  Marking it compiled is the compile command's, once
+    every job is done and the folder sealed.
     """
-    started = time.monotonic()
-    if not compiled_marker(_SHARED).exists():
+    started = time.process_time()
+    if job == SHARED:
         _shared()
-    load_kernels(name)
-    _mark(name)
-    return time.monotonic() - started
+    elif job == CONTROLLER:
+        error_control.controlled.dispatcher
+    else:
+        kernels = {run_job(name): integrator.run_kernel
+                   for name, integrator in INTEGRATORS.items()}
+        if job not in kernels:
+            raise ValueError(f'unknown kernel job {job!r}; jobs: {", ".join(all_jobs())}')
+        kernels[job].dispatcher
+    return time.process_time() - started
 
 
 def load_kernels(name):
     """
     Load the kernels of integrator `name` into this process (compiling what is not cached).
 
-    One step at a fixed step and one under error control, of a torque-free box: the kernels
-    take every scene's effects through one signature, so these are the ones a scene runs.
+    The shared kernels, the controller and its run kernel: everything a scene runs with it.
     """
-    body = RigidBody.box(1.0, (0.3, 0.2, 0.1))
-    state = State.from_velocity(body, angular_velocity_body=(0.1, 2.0, 0.1))
-    for tolerance in (None, 1e-6):
-        simulator = Simulator(body, state, integrator=name, tolerance=tolerance)
-        simulator.step(1e-3)
+    for job in jobs_of([name]):
+        compile_job(job)
+    cache.touch_used()

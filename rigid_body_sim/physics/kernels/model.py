@@ -38,7 +38,9 @@ from numba.experimental import structref
 import numpy as np
 
 from . import inline
+from . import cache as kernel_cache
 from . import kernel
+from . import LazyKernel
 from .algebra import rotate
 from .borrow import borrowed
 from .layout import STATE_SIZE
@@ -48,7 +50,7 @@ __all__ = ['Model', 'Forcing', 'MODEL_TYPE', 'new_model', 'unpacked', 'applied_w
            'MAX_FLOWS', 'HELD_FORCE_WORLD', 'HELD_TORQUE_WORLD', 'HELD_FORCE_BODY',
            'HELD_TORQUE_BODY', 'integrated_wrench', 'applied_wrench', 'impulse', 'kick',
            'NO_ESTIMATE', 'apply_flows', 'held_is_zero', 'no_term', 'no_flow', 'no_expand',
-           'no_transmit']
+           'no_transmit', 'compiled']
 
 MAX_TERMS = 8
 """Most wrench terms a model holds (the tuple of function pointers has this fixed length,
@@ -69,13 +71,23 @@ TRANSMIT_SIGNATURE = _wrench(_vector, _wrench, _vector)
 
 def _signed(signature, function):
     """
-    Compile `function` for `signature` now, cached beside its file.
+    Declare `function` compiled for `signature` on first use, cached with the kernels.
 
     A function with no file (``python -c``, a notebook cell) cannot be cached: it is
-    compiled in every process instead, a fraction of a second for an effect's wrench.
+    compiled in every process instead, a fraction of a second for an effect's wrench.  One
+    in a file outside the package (a user's effect) is cached beside the kernels, under
+    their sources' key: it may inline the toolkit.
     """
-    cache = os.path.isfile(function.__code__.co_filename)
-    return numba.njit(signature, cache=cache, nogil=True, error_model='numpy')(function)
+    filename = function.__code__.co_filename
+    cached = os.path.isfile(filename)
+    if cached:
+        kernel_cache.claim_file(filename)
+    return LazyKernel(signature, function, cached)
+
+
+def compiled(function):
+    """Return the compiled function of a declared term, flow or constraint function."""
+    return function.dispatcher if isinstance(function, LazyKernel) else function
 
 
 def wrench_term(function):
@@ -165,16 +177,18 @@ Reading a field of the Model in the hot loop costs a load through its reference 
 (and a function pointer's ~10 ns); the kernels pass this tuple down instead (all inlined)."""
 
 
-@kernel(MODEL_TYPE(*(kind for name, kind in _FIELDS[:17])))
-def _new_model(body, held, terms, term_count, term_parameters, term_offsets,
-               momentum_dependent, flows, flow_count, flow_parameters, flow_offsets,
-               constrained, needs_physical, reads_state, expand, transmit,
-               constraint_parameters):
+def _model_of(body, held, terms, term_count, term_parameters, term_offsets,
+              momentum_dependent, flows, flow_count, flow_parameters, flow_offsets,
+              constrained, needs_physical, reads_state, expand, transmit,
+              constraint_parameters):
     return Model(body, held, terms, term_count, term_parameters, term_offsets,
                  momentum_dependent, flows, flow_count, flow_parameters, flow_offsets,
                  constrained, needs_physical, reads_state, expand, transmit,
                  constraint_parameters,
                  np.zeros(STATE_SIZE), np.zeros(STATE_SIZE), np.zeros(STATE_SIZE))
+
+
+_new_model = LazyKernel(MODEL_TYPE(*(kind for name, kind in _FIELDS[:17])), _model_of)
 
 
 @kernel
@@ -226,14 +240,15 @@ def unpacked(model):
 
 
 def _packed(functions, parameters, limit, filler, kind):
-    functions = tuple(functions)
+    functions = tuple(compiled(function) for function in functions)
     if len(functions) > limit:
         raise ValueError(f'at most {limit} {kind} can act on a body; got {len(functions)}')
     arrays = [np.ascontiguousarray(p, dtype=float).reshape(-1) for p in parameters]
     offsets = np.zeros(len(arrays) + 1, dtype=np.int64)
     offsets[1:] = np.cumsum([a.size for a in arrays])
     values = np.concatenate(arrays) if arrays else np.zeros(0)
-    return functions + (filler,) * (limit - len(functions)), len(functions), values, offsets
+    return (functions + (compiled(filler),) * (limit - len(functions)), len(functions), values,
+            offsets)
 
 
 def new_model(body, held, terms=(), flows=(), constraint=None, momentum_dependent=False,
@@ -266,7 +281,7 @@ def new_model(body, held, terms=(), flows=(), constraint=None, momentum_dependen
                           term_count, term_parameters, term_offsets, bool(momentum_dependent),
                           flow_functions, flow_count, flow_parameters, flow_offsets,
                           constraint is not None, bool(reads_state and constraint is not None),
-                          bool(reads_state), expand, transmit,
+                          bool(reads_state), compiled(expand), compiled(transmit),
                           np.ascontiguousarray(constraint_parameters, dtype=float))
 
 

@@ -1,0 +1,407 @@
+"""
+Where the compiled kernels are cached: by what they are, not by where the package sits.
+
+numba caches a compiled function beside its source file (``__pycache__``) or under
+``NUMBA_CACHE_DIR`` in a folder named after the source's path, and checks the function's own
+file only.  Both fail this package: every copy of it (a second clone, a colcon install, a
+``pip install --target``) compiled its kernels again, and an edit to a helper in another
+file (kernels/algebra.py, inlined into every kernel) left the cached kernels stale.  So the
+kernels live in one folder per machine, named by what they are compiled from:
+
+    <cache root>/kernels-<sources>-<cpu>/
+
+- ``<sources>``: the SHA-256 of every source of the physics core but the effects (names
+  and contents: a kernel may inline a helper from any of them), numba's, llvmlite's and
+  Python's versions.  A changed source is a new folder: nothing stale can be found;
+- ``<cpu>``: the CPU numba compiles for (``NUMBA_CPU_NAME``/``NUMBA_CPU_FEATURES`` or the
+  host's name and features), so that a machine's kernels never load on another CPU.
+
+Inside, numba's own files, one folder per package folder (``integrators/``, ``effects/``,
+...; numba checks each function's own file by its content).  The effects are left out of
+``<sources>``: the kernels reach an effect only through a Model's function pointers, never
+inline its code, so a new or edited effect compiles its own small functions and no kernel
+again; an effect's code may inline the toolkit (in ``<sources>``) and its own file.
+
+The root is the first of: ``RIGID_BODY_SIM_CACHE_DIR``; ``NUMBA_CACHE_DIR``/rigid_body_sim
+(the user chose where numba caches); ``XDG_CACHE_HOME``/rigid_body_sim, else
+``~/.cache/rigid_body_sim``.  If it cannot be written, the kernels compile in memory in
+every process (minutes) and :data:`PROBLEM` says, in one line, what to set.
+
+Trust: a compile (the ``compile`` command, tools/compile.py) writes the folder under an
+exclusive lock, then seals it: ``manifest.json`` records each file's size and SHA-256, and
+a marker per job (``compiled/<job>``) says what is complete.  :func:`verify` re-hashes the
+sealed files (4 ms for the 3 MB of kernels); a file that differs is damaged (a truncated
+copy, a disk error), is dropped with the markers, and compiled again by a compile in another
+process: a damaged object file would abort the process that loads it (LLVM reads it
+unchecked).  Folders of other sources are removed once unused for :data:`KEEP_DAYS` days.
+
+numba is told to ask :class:`KernelCacheLocator` first (numba's ``CACHE_LOCATOR_CLASSES``
+setting, documented in its caching notes), for this package's files only; any other
+function keeps numba's own locators.
+"""
+
+import contextlib
+import errno
+import fcntl
+import hashlib
+import json
+import os
+from pathlib import Path
+import shutil
+import sys
+import time
+
+import llvmlite
+import llvmlite.binding
+import numba
+from numba.core import caching
+
+__all__ = ['KernelCacheLocator', 'PHYSICS_ROOT', 'SOURCES', 'CACHE_DIR_VARIABLE', 'PROBLEM',
+           'cache_root', 'kernel_dir', 'install_locator', 'source_key', 'cpu_key', 'caching_enabled',
+           'compile_lock', 'seal', 'verify', 'marker', 'is_marked', 'mark', 'unmark_all',
+           'drop', 'drop_unsealed', 'prune', 'clear', 'claim_file', 'measured_seconds',
+           'touch_used', 'KEEP_DAYS']
+
+PHYSICS_ROOT = Path(__file__).resolve().parent.parent
+"""The directory of the physics core, whose sources the kernels are compiled from."""
+CACHE_DIR_VARIABLE = 'RIGID_BODY_SIM_CACHE_DIR'
+"""Environment variable: the folder to cache the compiled kernels in (see the module)."""
+KEEP_DAYS = 30
+"""A folder of other sources' kernels unused this long is removed (by the next compile)."""
+
+_MANIFEST = 'manifest.json'
+_LOCK = 'compile.lock'
+_MARKERS = 'compiled'
+_LAST_USED = 'last-used'
+_CACHE_SUFFIXES = ('.nbi', '.nbc')
+
+
+def source_key(root=PHYSICS_ROOT):
+    """
+    Return the SHA-256 (hex) of what the kernels are compiled from.
+
+    The names and contents of the ``*.py`` files under `root` but ``effects/`` (see the
+    module docstring), and the versions of numba, llvmlite and Python.
+    """
+    digest = hashlib.sha256()
+    for version in (numba.__version__, llvmlite.__version__, sys.version):
+        digest.update(version.encode() + b'\0')
+    for path in sorted(root.rglob('*.py')):
+        relative = path.relative_to(root)
+        if relative.parts[0] == 'effects':
+            continue
+        digest.update(str(relative).encode() + b'\0')
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def cpu_key():
+    """Return a short hash of the CPU numba compiles for (name and features, as numba takes them)."""
+    config = numba.config
+    name = config.CPU_NAME or llvmlite.binding.get_host_cpu_name()
+    features = (config.CPU_FEATURES if config.CPU_FEATURES is not None
+                else llvmlite.binding.get_host_cpu_features().flatten())
+    return hashlib.sha256(f'{name}\0{features}'.encode()).hexdigest()[:12]
+
+
+def cache_root():
+    """Return the folder the kernel folders live in (see the module docstring)."""
+    explicit = os.environ.get(CACHE_DIR_VARIABLE)
+    if explicit:
+        return Path(explicit).expanduser()
+    numba_dir = os.environ.get('NUMBA_CACHE_DIR')
+    if numba_dir:
+        return Path(numba_dir).expanduser() / 'rigid_body_sim'
+    base = os.environ.get('XDG_CACHE_HOME') or os.path.join(os.path.expanduser('~'), '.cache')
+    return Path(base) / 'rigid_body_sim'
+
+
+SOURCES = source_key()
+"""The key of the sources this process compiles and loads (read once, at import)."""
+
+
+def kernel_dir(sources=None):
+    """Return the folder of the kernels of `sources` (default: this process's) for this CPU."""
+    return cache_root() / f'kernels-{(sources or SOURCES)[:20]}-{cpu_key()}'
+
+
+def _usable(folder):
+    """Return None if `folder` can be created and written, else the reason (one phrase)."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        probe = folder / f'.probe-{os.getpid()}'
+        probe.write_bytes(b'')
+        probe.unlink()
+    except OSError as error:
+        return f'{folder}: {error.strerror or error}'
+    return None
+
+
+def _problem():
+    reason = _usable(kernel_dir())
+    if reason is None:
+        return None
+    return (f'rigid_body_sim: cannot cache the compiled kernels ({reason}): every process '
+            f'compiles them again, for minutes; set {CACHE_DIR_VARIABLE} to a writable folder '
+            '(docs/install.md, "Where the kernels are cached")')
+
+
+PROBLEM = _problem()
+"""None, or the one line that says why the kernels cannot be cached and what to set."""
+
+
+def caching_enabled():
+    """Return whether compiled kernels are cached (False: see :data:`PROBLEM`)."""
+    return PROBLEM is None
+
+
+_claimed = set()
+
+
+def claim_file(path):
+    """
+    Cache the compiled functions of the source file `path` with the kernels.
+
+    For an effect written outside the package (its wrench may inline the toolkit, so its
+    cache must follow the toolkit's sources): the effects' decorators claim their file.
+    """
+    _claimed.add(os.path.realpath(path))
+
+
+class KernelCacheLocator(caching.InTreeCacheLocator):
+    """
+    numba's cache locator for this package's compiled functions (see the module docstring).
+
+    A function in the physics core is cached under :func:`kernel_dir`, in the folder of its
+    file relative to the core (one location whatever the package's path); a function of a
+    claimed file (:func:`claim_file`) under ``external/<hash of its folder>``.  The freshness
+    stamp is numba's own: the content of the function's file.  Any other function is left
+    to numba's other locators.
+    """
+
+    def __init__(self, py_func, py_file):
+        super().__init__(py_func, py_file)
+        path = Path(os.path.realpath(py_file))
+        try:
+            relative = path.parent.relative_to(PHYSICS_ROOT)
+        except ValueError:
+            relative = Path('external') / hashlib.sha256(
+                str(path.parent).encode()).hexdigest()[:16]
+        self._kernel_folder = str(kernel_dir() / relative)
+
+    def get_cache_path(self):
+        """Return the folder this function's cache files go to."""
+        return self._kernel_folder
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        """Return a locator for a function of this package, else None (numba's decide)."""
+        if not caching_enabled() or not os.path.isfile(py_file):
+            return None
+        real = os.path.realpath(py_file)
+        if not (real.startswith(str(PHYSICS_ROOT) + os.sep) or real in _claimed):
+            return None
+        locator = cls(py_func, py_file)
+        locator.ensure_cache_path()
+        return locator
+
+
+# numba's own locators, in its default order (its caching notes list them).
+_NUMBA_LOCATORS = ('UserProvidedCacheLocator,InTreeCacheLocator,UserWideCacheLocator,'
+                   'IPythonCacheLocator,ZipCacheLocator')
+
+
+def install_locator():
+    """
+    Tell numba to ask :class:`KernelCacheLocator` first, then its own locators.
+
+    numba reads the setting (``NUMBA_CACHE_LOCATOR_CLASSES``) each time a function with
+    ``cache=True`` is decorated; the package's decorators call this first.  Not set in the
+    environment: a child process without this package would fail to import the class.
+    """
+    ours = f'{__name__}.{KernelCacheLocator.__name__}'
+    current = numba.config.CACHE_LOCATOR_CLASSES
+    if current.split(',')[0].strip() == ours:
+        return
+    rest = current or _NUMBA_LOCATORS
+    numba.config.CACHE_LOCATOR_CLASSES = f'{ours},{rest}'
+
+
+# -- the compile lock, the seal and the markers
+
+
+@contextlib.contextmanager
+def compile_lock(folder=None, waiting=None):
+    """
+    Hold the exclusive lock of a kernel folder while compiling into it.
+
+    Two compiles of the same kernels at once: the second waits (`waiting`, if given, is
+    called once with the folder first) and then finds them compiled.
+    """
+    folder = folder or kernel_dir()
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / _LOCK, 'a') as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as error:
+            if error.errno not in (errno.EAGAIN, errno.EACCES):
+                raise
+            if waiting is not None:
+                waiting(folder)
+            fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield folder
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def _cache_files(folder):
+    return sorted(path for path in folder.rglob('*')
+                  if path.suffix in _CACHE_SUFFIXES and path.is_file())
+
+
+def _digest(path):
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _write_atomically(path, text):
+    temporary = path.with_name(f'.{path.name}.{os.getpid()}.tmp')
+    temporary.write_text(text)
+    os.replace(temporary, path)
+
+
+def _manifest(folder):
+    try:
+        return json.loads((folder / _MANIFEST).read_text())
+    except (OSError, ValueError):
+        return {}
+
+
+def seal(folder=None):
+    """Record the size and SHA-256 of every cache file in the folder (under the lock)."""
+    folder = folder or kernel_dir()
+    entries = {str(path.relative_to(folder)): [path.stat().st_size, _digest(path)]
+               for path in _cache_files(folder)}
+    _write_atomically(folder / _MANIFEST, json.dumps(entries, indent=0, sort_keys=True))
+    return len(entries)
+
+
+def verify(folder=None):
+    """
+    Return the sealed files of the folder that are missing or not as sealed (relative paths).
+
+    Files numba wrote since the seal (a helper compiled in some process) are not checked.
+    """
+    folder = folder or kernel_dir()
+    damaged = []
+    for name, (size, digest) in _manifest(folder).items():
+        path = folder / name
+        try:
+            if path.stat().st_size != size or _digest(path) != digest:
+                damaged.append(name)
+        except OSError:
+            damaged.append(name)
+    return damaged
+
+
+def drop(names, folder=None):
+    """Delete the named cache files and every marker (their jobs compile again)."""
+    folder = folder or kernel_dir()
+    for name in names:
+        with contextlib.suppress(OSError):
+            (folder / name).unlink()
+    unmark_all(folder)
+
+
+def drop_unsealed(folder=None):
+    """Delete the cache files the seal does not know (a compile whose sources changed)."""
+    folder = folder or kernel_dir()
+    sealed = set(_manifest(folder))
+    count = 0
+    for path in _cache_files(folder):
+        if str(path.relative_to(folder)) not in sealed:
+            with contextlib.suppress(OSError):
+                path.unlink()
+                count += 1
+    return count
+
+
+def marker(job, folder=None):
+    """Return the marker file that says `job`'s kernels are compiled and sealed."""
+    return (folder or kernel_dir()) / _MARKERS / job
+
+
+def is_marked(job, folder=None):
+    """Return whether `job`'s kernels are compiled and sealed in the folder."""
+    return marker(job, folder).exists()
+
+
+def mark(job, seconds, folder=None):
+    """Mark `job` compiled; the marker holds the CPU seconds it took (estimates read it)."""
+    path = marker(job, folder)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    _write_atomically(path, f'{seconds:.3f}\n')
+
+
+def unmark_all(folder=None):
+    """Delete every marker of the folder."""
+    shutil.rmtree((folder or kernel_dir()) / _MARKERS, ignore_errors=True)
+
+
+def measured_seconds(job):
+    """
+    Return the CPU seconds `job` took to compile on this machine, or None if never measured.
+
+    From this folder's marker or, for sources compiled before (any kernel folder of this
+    CPU under the root), the most recent one: so estimates follow the machine's speed.
+    """
+    candidates = [marker(job)]
+    try:
+        folders = sorted(cache_root().glob(f'kernels-*-{cpu_key()}'),
+                         key=lambda folder: folder.stat().st_mtime, reverse=True)
+        candidates += [marker(job, folder) for folder in folders]
+    except OSError:
+        pass
+    for path in candidates:
+        try:
+            return float(path.read_text())
+        except (OSError, ValueError):
+            continue
+    return None
+
+
+def touch_used(folder=None):
+    """Stamp the folder as used now (pruning keeps what is used)."""
+    folder = folder or kernel_dir()
+    with contextlib.suppress(OSError):
+        (folder / _LAST_USED).touch()
+
+
+def prune(keep_days=KEEP_DAYS):
+    """Remove the kernel folders of other sources unused for `keep_days` days; return them."""
+    removed = []
+    now = time.time()
+    current = kernel_dir()
+    for folder in cache_root().glob('kernels-*'):
+        if folder == current or not folder.is_dir():
+            continue
+        stamp = folder / _LAST_USED
+        try:
+            used = stamp.stat().st_mtime if stamp.exists() else folder.stat().st_mtime
+        except OSError:
+            continue
+        if now - used > keep_days * 86400:
+            shutil.rmtree(folder, ignore_errors=True)
+            removed.append(folder)
+    return removed
+
+
+def clear():
+    """Remove every cached kernel folder under the root; return how many."""
+    folders = [folder for folder in cache_root().glob('kernels-*') if folder.is_dir()]
+    for folder in folders:
+        shutil.rmtree(folder, ignore_errors=True)
+    return len(folders)
+
+
+install_locator()
