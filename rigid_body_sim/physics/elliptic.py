@@ -14,16 +14,16 @@ Parameter convention: m = k^2 (A&S), and the complementary parameter m1 = 1 - m 
 passed alongside m.  Near m = 1 the motion of a rigid body close to its separatrix is governed
 by m1, and 1 - m computed from a rounded m has a relative error eps / m1 (1e-8 at
 m1 = 1e-8): both are given so neither is formed by subtraction.
+
+scipy is imported by the readable functions when they are called, not with the module: the
+integrators run the compiled ones, and a run set-up has no scipy (requirements.txt).
 """
 
-import functools
 import math
 
-import numba
 import numpy as np
-from scipy.special import ellipj
-from scipy.special import elliprf
-from scipy.special import elliprj
+
+from .kernels import outlined as _jit
 
 __all__ = [
     'jacobi_elliptic',
@@ -33,8 +33,6 @@ __all__ = [
     'carlson_rf_compiled',
     'carlson_rj_compiled',
 ]
-
-_jit = functools.partial(numba.njit, cache=True, nogil=True, error_model='numpy')
 
 # Below this parameter the first-order expansion in m (A&S 16.13) is exact to ~m^2 < 1e-18
 # relative, so the compiled Landen descent stops there.
@@ -93,6 +91,7 @@ def jacobi_elliptic(u, parameter, complement):
     if complement == 0.0:
         return math.tanh(u), 1.0 / math.cosh(u), 1.0 / math.cosh(u)
     if parameter <= 0.5:
+        from scipy.special import ellipj
         sn, cn, dn, _ = ellipj(u, parameter)
         return float(sn), float(cn), float(dn)
     root, reduced, reduced_complement, one_minus_root = _landen_step(parameter, complement)
@@ -102,11 +101,13 @@ def jacobi_elliptic(u, parameter, complement):
 
 def carlson_rf(x, y, z):
     """Return Carlson's R_F(x, y, z) = 1/2 int_0^inf dt / sqrt((t+x)(t+y)(t+z)) (scipy)."""
+    from scipy.special import elliprf
     return float(elliprf(x, y, z))
 
 
 def carlson_rj(x, y, z, p):
     """Return Carlson's R_J(x, y, z, p) = 3/2 int_0^inf dt / ((t+p) sqrt((t+x)(t+y)(t+z)))."""
+    from scipy.special import elliprj
     return float(elliprj(x, y, z, p))
 
 

@@ -20,6 +20,8 @@ from .kernels.model import HELD_FORCE_BODY
 from .kernels.model import HELD_FORCE_WORLD
 from .kernels.model import HELD_TORQUE_BODY
 from .kernels.model import HELD_TORQUE_WORLD
+from .kernels import interpreting
+from .kernels.interpreted import ARITHMETIC_ERRORS
 from .kernels.model import new_model
 from .stability import stiffness_problem
 from .state import State
@@ -41,6 +43,7 @@ _PROGRESS_CHUNK = 20000
 
 # What takes the steps (Simulator.path).
 COMPILED = 'compiled'  # the integrator's kernel, every effect compiled (kernels/model.py)
+INTERPRETED = 'interpreted'  # the kernels' own source, interpreted (kernels/interpreted.py)
 READABLE = 'readable'  # the readable step functions and the effects' Python faces
 
 
@@ -130,6 +133,7 @@ class Simulator:
         self._effects = tuple(effects)
         # The held wrench, rows kernels.model.HELD_*: shared with the compiled model.
         self._held = np.zeros((4, 3))
+        self._interpreted = interpreting()
         self._sort_effects()
         # The error controller's state (error_control.new_control).
         self._control = error_control.new_control(2)
@@ -138,6 +142,7 @@ class Simulator:
         self._values = np.zeros(STATE_SIZE)
         self.state = state
         self._fast = bool(fast)
+        self._interpreted = interpreting()
         # The last finite packed state (restored if a step turns the state non-finite), and
         # the configuration whose steps were last checked against the stiff effects.
         self._checkpoint = np.zeros(STATE_SIZE)
@@ -172,8 +177,8 @@ class Simulator:
                                  else self._constraint.body)
         body = self._integrated_body
         constraint = self._constraint
-        self._model = new_model(
-            body_values(body.inertia, body.inertia_inverse, body.mass), self._held,
+        self._model_arguments = dict(
+            body=body_values(body.inertia, body.inertia_inverse, body.mass), held=self._held,
             terms=[(effect.compiled_wrench, effect.wrench_parameters(self._body))
                    for effect in wrenches],
             flows=[(effect.compiled_flow, effect.flow_parameters(body)) for effect in flows],
@@ -182,6 +187,7 @@ class Simulator:
                 constraint.parameters),
             momentum_dependent=any(effect.momentum_dependent for effect in wrenches),
             reads_state=any(effect.reads_state for effect in wrenches))
+        self._model = new_model(**self._model_arguments, interpreted=self._interpreted)
 
     # -- configuration
 
@@ -197,8 +203,35 @@ class Simulator:
 
     @property
     def path(self):
-        """Get what takes the steps: 'compiled' (the kernels) or 'readable' (fast=False)."""
-        return COMPILED if self._fast else READABLE
+        """
+        Get what takes the steps: 'compiled' (the kernels), 'interpreted' or 'readable'.
+
+        'interpreted': the kernels' source run as Python (:attr:`interpreted`), 'readable':
+        the readable step functions (fast=False).
+        """
+        if not self._fast:
+            return READABLE
+        return INTERPRETED if self._interpreted else COMPILED
+
+    @property
+    def interpreted(self):
+        """
+        Whether the kernels run as their Python source instead of compiled (settable).
+
+        The same steps, ~1000x slower, with nothing to compile (kernels/interpreted.py): what
+        a process that must not wait runs while the kernels compile elsewhere.  Defaults to
+        kernels.interpreting() when the Simulator is made; set it False once they are
+        compiled, and the next step loads them (the state is kept).
+        """
+        return self._interpreted
+
+    @interpreted.setter
+    def interpreted(self, interpreted):
+        interpreted = bool(interpreted)
+        if interpreted != self._interpreted:
+            self._interpreted = interpreted
+            self._model = new_model(**self._model_arguments, interpreted=interpreted)
+            self._run = None
 
     @property
     def integrator(self):
@@ -407,7 +440,8 @@ class Simulator:
         A constraint's reaction is not in it (the IMU's accelerations start from this).
         """
         values = np.concatenate(self.state._fields())
-        wrench = applied_wrench_of(values, self._time, self._model)
+        applied = applied_wrench_of.source if self._interpreted else applied_wrench_of
+        wrench = applied(values, self._time, self._model)
         return np.array(wrench[:3]), np.array(wrench[3:])
 
     def wrench_function(self):
@@ -579,7 +613,7 @@ class Simulator:
         if self._fast:
             run = self._run
             if run is None:
-                run = self._run = self._integrator.run
+                run = self._load_kernels()
             # The kernel tests the state it leaves (kernels/loop.py): -1 if not finite.
             finite = run(values, self._model, self._integrator.method, dt, steps,
                          self._time) >= 0
@@ -598,16 +632,29 @@ class Simulator:
         values = self._values
         self._checkpoint[:] = values
         integrator = self._integrator
+        finite = True
         if self._fast:
             if self._run is None:
-                self._run = integrator.run
-            error_control.controlled.dispatcher(self._run, values, self._model,
-                                                integrator.method, tick, ticks, self._time,
-                                                self._control)
+                self._load_kernels()
+            finite = self._controller(self._controlled_run, values, self._model,
+                                      integrator.method, tick, ticks, self._time,
+                                      self._control) >= 0
         else:
             error_control.controlled_ticks(self._readable_run, values, self._model, None, tick,
                                            ticks, self._time, self._control)
-        self._advanced(ticks * tick, _all_finite(values))
+        self._advanced(ticks * tick, finite and _all_finite(values))
+
+    def _load_kernels(self):
+        """Fetch the run kernel and the controller, compiled or interpreted; return the run."""
+        if self._interpreted:
+            # The controller calls the run as it is (an error ends the whole call: -1).
+            self._controlled_run = self._integrator.run_kernel.source
+            self._run = _interpreted(self._controlled_run)
+            self._controller = _interpreted(error_control.controlled.source)
+        else:
+            self._run = self._controlled_run = self._integrator.run
+            self._controller = error_control.controlled.dispatcher
+        return self._run
 
     def _readable_run(self, values, model, method, dt, steps, time):
         """
@@ -638,6 +685,16 @@ class Simulator:
         total = self._time + y
         self._time_compensation = (total - self._time) - y
         self._time = total
+
+
+def _interpreted(function):
+    """Return an interpreted kernel that says -1 (not finite) where Python's math raises."""
+    def guarded(*arguments):
+        try:
+            return function(*arguments)
+        except ARITHMETIC_ERRORS:
+            return -1
+    return guarded
 
 
 def _all_finite(values):

@@ -134,6 +134,8 @@ def status_values(scene, simulator, rate, real_time_factor, figures, clock_secon
         ('scene', scene.name),
         ('effects', ', '.join(scene.effect_names()) or 'none'),
         ('integrator', simulator.integrator),
+        # compiled, or interpreted while the kernels compile (physics/kernels/interpreted.py)
+        ('kernels', simulator.path),
         ('requested rate [Hz]', f'{rate:g}'),
         ('real-time factor', factor),
         # Ticks per wall-clock second: rate x real-time factor when the node keeps up.

@@ -1,14 +1,15 @@
 """
 The integrators' compiled kernels, as the node gets them: compiled in a process of their own.
 
-A kernel not compiled yet (a colcon install not followed by ``rigid-body-sim compile``, an
-edited source) takes seconds to minutes to compile (about
-:data:`rigid_body_sim.physics.warm_up.COMPILE_SECONDS`, several times that on a loaded
-machine), and the process compiling it runs no other Python meanwhile: in the node's process
-its services, inputs, timers and signals would wait that long.  So the node asks
-:func:`kernels_compiled` first; if they are not, a :class:`BackgroundCompilation` runs
-``python -m rigid_body_sim.cli compile NAME --quiet`` beside it, the node polls it from a
-timer, and loads the kernels numba cached (tens of milliseconds) once it succeeded.
+A kernel not compiled yet on this machine (a fresh install, an edited source) takes tens of
+seconds to compile (``rigid-body-sim compile`` prints each job's time), and the process
+compiling it runs no other Python meanwhile: in the node's process its services, inputs,
+timers and signals would wait that long.  So the node asks :func:`kernels_compiled` first;
+if they are not, a :class:`BackgroundCompilation` runs ``python -m rigid_body_sim.cli compile
+NAME --quiet`` beside it (at a lower priority: the node comes first), the node integrates
+with the kernels' source interpreted meanwhile (kernels/interpreted.py), polls the compile
+from a timer, and loads the kernels it cached (tens of milliseconds) once it succeeded.  A
+damaged cache file is the compile's to find and replace, never the node's to load.
 
 ``RIGID_BODY_SIM_ASSUME_UNCOMPILED`` (a test hook, read by the node only): a comma-separated
 list of integrators the node takes for not compiled whatever the cache holds, so that a test
@@ -23,13 +24,16 @@ import time
 
 from .text import shortened
 from ..physics.warm_up import compile_estimate
-from ..physics.warm_up import COMPILE_SECONDS
 from ..physics.warm_up import is_compiled
+from ..physics.warm_up import job_estimate
+from ..physics.warm_up import jobs_of
 
-__all__ = ['ASSUME_UNCOMPILED', 'BackgroundCompilation', 'kernels_compiled']
+__all__ = ['ASSUME_UNCOMPILED', 'BackgroundCompilation', 'kernels_compiled', 'NICENESS']
 
 ASSUME_UNCOMPILED = 'RIGID_BODY_SIM_ASSUME_UNCOMPILED'
 """Environment variable (test hook): integrators taken for not compiled, comma-separated."""
+NICENESS = 10
+"""How much lower the compile's CPU priority is than the node's (nice(2) increment)."""
 
 
 def kernels_compiled(name):
@@ -37,6 +41,17 @@ def kernels_compiled(name):
     if name in os.environ.get(ASSUME_UNCOMPILED, '').split(','):
         return False
     return is_compiled(name)
+
+
+def _workers():
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:
+        return max(1, os.cpu_count() or 1)
+
+
+def _lower_priority():
+    os.nice(NICENESS)
 
 
 class BackgroundCompilation:
@@ -54,13 +69,15 @@ class BackgroundCompilation:
 
     def __init__(self, name):
         self.name = name
-        # (Under the test hook the cache has them: the reference machine's figure.)
-        self.estimate = compile_estimate([name]) or COMPILE_SECONDS.get(name, 10.0)
+        # (Under the test hook the cache has them: what the jobs took here.)
+        self.estimate = compile_estimate([name], _workers()) or max(
+            job_estimate(job) for job in jobs_of([name]))
         self._started = time.monotonic()
         self._output = tempfile.TemporaryFile()
         self._process = subprocess.Popen(
             [sys.executable, '-m', 'rigid_body_sim.cli', 'compile', name, '--quiet'],
-            stdin=subprocess.DEVNULL, stdout=self._output, stderr=subprocess.STDOUT)
+            stdin=subprocess.DEVNULL, stdout=self._output, stderr=subprocess.STDOUT,
+            preexec_fn=_lower_priority)
 
     def poll(self):
         """

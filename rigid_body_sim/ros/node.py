@@ -108,6 +108,7 @@ from ..physics import unresolved_rotation
 from ..physics.error_control import MAX_SUBSTEPS
 from ..physics.simulator import DivergedError
 from ..physics.stability import step_problem
+from ..physics.kernels import set_interpreted
 from ..physics.warm_up import load_kernels
 from ..scenes import load_scene
 
@@ -202,13 +203,18 @@ class RigidBodyNode(Node):
         kernels_ready = kernels_compiled(scene.integrator)
         if kernels_ready:
             # The integrator's compiled kernels loaded (~0.5 s) now rather than in the
-            # first tick; then a scene whose fixed step cannot carry its stiff effect is
-            # refused, with what to change.
+            # first tick.
             load_kernels(scene.integrator)
-            reason = self._step_refusal(scene.integrator, values['substeps'],
-                                        values['tolerance'])
-            if reason is not None:
-                raise ValueError(reason)
+        else:
+            # Not compiled on this machine: the kernels' source runs interpreted, nothing
+            # compiled in this process, until a compile beside the node has them ready.
+            set_interpreted(True)
+            self._simulator.interpreted = True
+        # A scene whose fixed step cannot carry its stiff effect is refused, with what to
+        # change (interpreted, the check runs the same steps).
+        reason = self._step_refusal(scene.integrator, values['substeps'], values['tolerance'])
+        if reason is not None:
+            raise ValueError(reason)
         self._substeps = values['substeps']
         self._input_timeout_ns = int(values['input_timeout'] * 1e9)
         self._max_wrench = values['max_wrench']
@@ -294,10 +300,8 @@ class RigidBodyNode(Node):
                           clock=self._steady_clock)
         self.create_timer(_DIAGNOSTICS_PERIOD, self._publish_diagnostics,
                           clock=self._steady_clock)
-        if kernels_ready:
-            self._start_ticking(time.monotonic())
-        else:
-            # Services, parameters and diagnostics first; the ticks once compiled.
+        self._start_ticking(time.monotonic())
+        if not kernels_ready:
             self._compile_in_background(scene.integrator)
 
     def _start_tf(self, imu_frame):
@@ -600,8 +604,9 @@ class RigidBodyNode(Node):
             if parameter.name in proposed:
                 proposed[parameter.name] = parameter.value
         # A fixed step too long for a stiff effect would turn the state non-finite: refused
-        # here, with what to change.  (An integrator still to compile is checked when it is.)
-        if kernels_compiled(proposed['integrator']):
+        # here, with what to change.  (An integrator still to compile is checked when it is,
+        # unless the node runs interpreted: then it is checked interpreted.)
+        if self._simulator.interpreted or kernels_compiled(proposed['integrator']):
             reason = self._step_refusal(**proposed)
             if reason is not None:
                 return SetParametersResult(successful=False, reason=reason)
@@ -650,6 +655,13 @@ class RigidBodyNode(Node):
         pending = self._compilation
         if pending is not None and pending.name == name:
             return  # on its way
+        if self._simulator.interpreted and not kernels_compiled(name):
+            # Nothing compiled runs yet: the new method runs interpreted at once, and the
+            # compile beside the node is for it now.
+            self._simulator.integrator = name
+            self.get_logger().info(f'integrator is now {name} (interpreted until compiled)')
+            self._compile_in_background(name)
+            return
         running = self._timer is not None and name == self._simulator.integrator
         if not running and not kernels_compiled(name):
             self._compile_in_background(name)
@@ -661,8 +673,11 @@ class RigidBodyNode(Node):
 
     def _use_integrator(self, name, how=''):
         # Kernels loaded from the cache (tens of ms), then the simulator keeps its state:
-        # the switch is continuous.
+        # the switch is continuous (from interpreted too: the same steps, compiled).
         load_kernels(name)
+        if self._simulator.interpreted:
+            set_interpreted(False)
+            self._simulator.interpreted = False
         reason = self._step_refusal(name, self._substeps, self._simulator.tolerance or 0.0)
         if reason is not None:
             self._refuse_integrator(name, reason)
@@ -683,8 +698,9 @@ class RigidBodyNode(Node):
         self._compilation_timer = self.create_timer(
             _COMPILATION_POLL_PERIOD, self._poll_compilation, clock=self._steady_clock)
         until = (f'integrating with {self._simulator.integrator} until then'
-                 if self._timer is not None else
-                 'services and parameters are up, the simulation starts when they are')
+                 if not self._simulator.interpreted else
+                 f'integrating with the source of {name} interpreted until then (the same '
+                 'steps, slower)')
         self.get_logger().info(
             f'the kernels of {name} are not compiled: compiling them in the background '
             f'(about {self._compilation.estimate:.0f} s; `rigid-body-sim compile` after an '
@@ -705,6 +721,11 @@ class RigidBodyNode(Node):
         succeeded, what = result
         if succeeded:
             self._use_integrator(compilation.name, f' (its kernels {what} in the background)')
+        elif self._simulator.interpreted and compilation.name == self._simulator.integrator:
+            self.get_logger().error(
+                f'compiling the kernels of {compilation.name} failed ({what}; '
+                f'`rigid-body-sim compile {compilation.name}` shows why): integrating on with '
+                'its source interpreted (the same steps, slower)')
         else:
             self._refuse_integrator(
                 compilation.name, f'compiling the kernels of {compilation.name} failed ({what}; '
@@ -788,7 +809,10 @@ class RigidBodyNode(Node):
                 message += f' (error control at its cap of {MAX_SUBSTEPS} substeps a tick)'
         self._report_falling_behind(level == DiagnosticStatus.WARN, message)
         if compiling and self._timer is not None:
-            message += f'; {compiling}, {self._simulator.integrator} until then'
+            message += f'; {compiling}, {self._simulator.integrator} ' + (
+                'interpreted until then' if self._simulator.interpreted else 'until then')
+        elif self._simulator.interpreted:
+            message += '; interpreted: the kernels are not compiled'
         stamp = self._simulated_nanoseconds() if self._publish_clock \
             else self.get_clock().now().nanoseconds
         self._diagnostics_publisher.publish(diagnostic_array(

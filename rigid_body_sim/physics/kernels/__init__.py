@@ -18,7 +18,28 @@ from . import cache
 
 import numba
 
-__all__ = ['kernel', 'helper', 'outlined', 'inline', 'LazyKernel', 'cache']
+__all__ = ['kernel', 'helper', 'outlined', 'inline', 'LazyKernel', 'cache', 'interpreting',
+           'set_interpreted']
+
+
+class _Mode:
+    interpreted = False
+
+
+def interpreting():
+    """Return whether entry points called from Python run their source interpreted."""
+    return _Mode.interpreted
+
+
+def set_interpreted(interpreted):
+    """
+    Run every entry point called from Python as its source, interpreted (or compiled again).
+
+    While the kernels compile in another process, a process that must not wait (the node)
+    runs their source with nothing compiled (:mod:`.interpreted`); a Simulator follows
+    through its own ``interpreted`` switch.
+    """
+    _Mode.interpreted = bool(interpreted)
 
 
 def _njit(signature=None, cached=True, **options):
@@ -38,7 +59,7 @@ def _njit(signature=None, cached=True, **options):
 
 def kernel(function):
     """Decorate an entry point called from Python: compiled on first use, cached to disk."""
-    return _njit()(function)
+    return LazyKernel(None, function)
 
 
 def helper(function):
@@ -75,21 +96,26 @@ def inline(function):
 
 class LazyKernel:
     """
-    An entry point declared with its one signature, compiled (or loaded) on first use.
+    An entry point called from Python, compiled (or loaded from the cache) on first use.
 
-    numba compiles a function given a signature at once, when it is decorated; declared
-    this way the compile waits until :attr:`dispatcher` is first read, so that importing
-    the package compiles nothing.  One signature, declared: numba never compiles a second
-    specialisation (a literal argument, a new tuple length) behind the caller's back, and a
+    Given a signature, numba compiles a function at once, when it is decorated; declared this
+    way the compile waits until :attr:`dispatcher` is first read, so that importing the
+    package compiles nothing.  With one declared signature numba never compiles a second
+    specialisation behind the caller's back (a literal argument, a new tuple length), and a
     kernel that takes another kernel takes it as a first-class function of that signature
-    (cached, where a kernel passed as a dispatcher is not).
+    (cached, where a kernel passed as a dispatcher is not).  Without one (signature None),
+    it is typed from its first call's arguments, as numba's njit.
+
+    Called while :func:`interpreting`, it runs its source instead (:attr:`source`).
 
     Attributes
     ----------
-    signature : numba signature
+    signature : numba signature or None
         What it is compiled for.
     py_func : function
-        Its source as a Python function (``dispatcher.py_func``, without compiling).
+        Its source as a Python function (without compiling).
+    cached : bool
+        Whether its compiled code is cached (not for a function with no source file).
 
     """
 
@@ -102,6 +128,7 @@ class LazyKernel:
         self.__module__ = function.__module__
         self.__doc__ = function.__doc__
         self._dispatcher = None
+        self._source = None
 
     @property
     def dispatcher(self):
@@ -111,12 +138,22 @@ class LazyKernel:
         return self._dispatcher
 
     @property
+    def source(self):
+        """Get its source as Python, every compiled function it calls interpreted too."""
+        if self._source is None:
+            from .interpreted import source_function
+            self._source = source_function(self)
+        return self._source
+
+    @property
     def loaded(self):
         """Get whether :attr:`dispatcher` was made in this process."""
         return self._dispatcher is not None
 
     def __call__(self, *arguments):
-        """Call the compiled function (a caller in a loop keeps :attr:`dispatcher`)."""
+        """Call the compiled function, or the source while interpreting."""
+        if _Mode.interpreted:
+            return self.source(*arguments)
         return self.dispatcher(*arguments)
 
     def __repr__(self):

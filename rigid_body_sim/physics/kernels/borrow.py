@@ -3,32 +3,62 @@ Borrowed array views: the kernels' hot loops without reference counting.
 
 numba counts references to every array it passes or stores (an atomic increment and
 decrement, ~5 ns a pair here), and the kernels pass the Model's arrays down through their
-steps, kicks and wrench terms several times a step: measured, that counting cost more than
-the steps' arithmetic (a torque-free Buss step 0.05 -> 0.14 us, a kick under a held wrench
-~40 ns).  A borrowed view is the same array without its reference (numba's own views of
-foreign memory, numba.carray, are made the same way): counting it is a no-op.  It is valid
-while the array it borrows from is alive, which the kernel's caller guarantees for the
-duration of the call; the kernels never store one.
+steps, kicks and wrench terms several times a step.  A borrowed view is the same array
+without its reference (numba's own views of foreign memory, numba.carray, are made the same
+way): counting it is a no-op.  It is valid while the array it borrows from is alive, which
+the kernel's caller guarantees for the duration of the call; the kernels never store one.
+What it saves is measured by benchmarks/borrowed_views.py (the kernels with and without it,
+side by side).
+
+Written with numba's public extension API (``overload``, ``intrinsic``) and llvmlite's IR
+builder.  It relies on one fact of numba's array data model: its first two members are the
+reference (``meminfo``) and the parent object; test/test_kernel_cache.py checks that fact
+and says so if a numba release changes it.  Run as Python (the kernels interpreted), a
+borrowed view is the array itself.
 """
 
-from numba import types
-from numba.core import cgutils
-from numba.extending import intrinsic
+import os
 
-__all__ = ['borrowed']
+from llvmlite import ir
+from numba import types
+from numba.extending import intrinsic
+from numba.extending import overload
+
+__all__ = ['borrowed', 'BORROWED_MEMBERS', 'borrowing']
+
+BORROWED_MEMBERS = ('meminfo', 'parent')
+"""The members of numba's array structure a borrowed view sets to null, by position 0, 1."""
+
+borrowing = os.environ.get('RIGID_BODY_SIM_BORROW', '1') != '0'
+"""False (``RIGID_BODY_SIM_BORROW=0``) makes :func:`borrowed` count references like any
+array: for benchmarks/borrowed_views.py only, which compiles such kernels in a cache folder
+of their own (the cache's key does not see this switch)."""
+
+
+def borrowed(array):
+    """Return `array` as a view without a reference (see the module docstring)."""
+    return array
 
 
 @intrinsic
-def borrowed(typingctx, array):
-    """Return `array` as a view without a reference (see the module docstring)."""
+def _view_without_reference(typingctx, array):
     if not isinstance(array, types.Array):
         return None
 
     def codegen(context, builder, signature, arguments):
-        view = cgutils.create_struct_proxy(signature.return_type)(
-            context, builder, value=arguments[0])
-        view.meminfo = cgutils.get_null_value(view.meminfo.type)
-        view.parent = cgutils.get_null_value(view.parent.type)
-        return view._getvalue()
+        view = arguments[0]
+        for position in range(len(BORROWED_MEMBERS)):
+            member = view.type.elements[position]
+            view = builder.insert_value(view, ir.Constant(member, None), position)
+        return view
 
     return array(array), codegen
+
+
+@overload(borrowed, inline='always')
+def _borrowed_compiled(array):
+    if not isinstance(array, types.Array):
+        return None
+    if not borrowing:
+        return lambda array: array
+    return lambda array: _view_without_reference(array)

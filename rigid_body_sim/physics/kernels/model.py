@@ -41,6 +41,7 @@ from . import inline
 from . import cache as kernel_cache
 from . import kernel
 from . import LazyKernel
+from .interpreted import stand_in
 from .algebra import rotate
 from .borrow import borrowed
 from .layout import STATE_SIZE
@@ -85,9 +86,15 @@ def _signed(signature, function):
     return LazyKernel(signature, function, cached)
 
 
-def compiled(function):
-    """Return the compiled function of a declared term, flow or constraint function."""
-    return function.dispatcher if isinstance(function, LazyKernel) else function
+def compiled(function, interpreted=False):
+    """
+    Return what a Model holds of a declared term, flow or constraint function.
+
+    Its compiled function; for an interpreted Model, its source (kernels/interpreted.py).
+    """
+    if not isinstance(function, LazyKernel):
+        return function
+    return function.source if interpreted else function.dispatcher
 
 
 def wrench_term(function):
@@ -166,6 +173,8 @@ _FIELDS = (('body', _vector), ('held', types.float64[:, ::1]),
            ('physical', _vector), ('stage', _vector), ('carry', _vector))
 _NAMES = tuple(name for name, _ in _FIELDS)
 structref.define_proxy(Model, ModelType, list(_NAMES))
+# The kernels run as Python (kernels/interpreted.py) see a Model as a named tuple.
+stand_in(Model, collections.namedtuple('InterpretedModel', _NAMES))
 MODEL_TYPE = ModelType(list(_FIELDS))
 """numba's type of every Model: one type, so each kernel compiles once."""
 
@@ -239,20 +248,20 @@ def unpacked(model):
                    not held_is_zero(model.held))
 
 
-def _packed(functions, parameters, limit, filler, kind):
-    functions = tuple(compiled(function) for function in functions)
+def _packed(functions, parameters, limit, filler, kind, interpreted):
+    functions = tuple(compiled(function, interpreted) for function in functions)
     if len(functions) > limit:
         raise ValueError(f'at most {limit} {kind} can act on a body; got {len(functions)}')
     arrays = [np.ascontiguousarray(p, dtype=float).reshape(-1) for p in parameters]
     offsets = np.zeros(len(arrays) + 1, dtype=np.int64)
     offsets[1:] = np.cumsum([a.size for a in arrays])
     values = np.concatenate(arrays) if arrays else np.zeros(0)
-    return (functions + (compiled(filler),) * (limit - len(functions)), len(functions), values,
-            offsets)
+    return (functions + (compiled(filler, interpreted),) * (limit - len(functions)),
+            len(functions), values, offsets)
 
 
 def new_model(body, held, terms=(), flows=(), constraint=None, momentum_dependent=False,
-              reads_state=False):
+              reads_state=False, interpreted=False):
     """
     Return a :class:`Model`.
 
@@ -263,12 +272,14 @@ def new_model(body, held, terms=(), flows=(), constraint=None, momentum_dependen
     kicks then take the midpoint rule, keeping their order); reads_state : some term reads
     more of the state than the orientation (the methods then give it their stages' whole
     state, and under the constraint the physical state is expanded for it; the
-    orientation is the same in both).
+    orientation is the same in both); interpreted : a Model for the kernels run as
+    Python (kernels/interpreted.py), made without compiling anything.
     """
     term_functions, term_count, term_parameters, term_offsets = _packed(
-        [f for f, _ in terms], [p for _, p in terms], MAX_TERMS, no_term, 'wrench terms')
+        [f for f, _ in terms], [p for _, p in terms], MAX_TERMS, no_term, 'wrench terms',
+        interpreted)
     flow_functions, flow_count, flow_parameters, flow_offsets = _packed(
-        [f for f, _ in flows], [p for _, p in flows], MAX_FLOWS, no_flow, 'flows')
+        [f for f, _ in flows], [p for _, p in flows], MAX_FLOWS, no_flow, 'flows', interpreted)
     if constraint is None:
         expand, transmit, constraint_parameters = no_expand, no_transmit, np.zeros(0)
     else:
@@ -277,12 +288,14 @@ def new_model(body, held, terms=(), flows=(), constraint=None, momentum_dependen
         # numba labels first-class functions experimental (stable since 0.49; tested here),
         # and says so whenever it types a tuple of them: here, once per model.
         warnings.simplefilter('ignore', NumbaExperimentalFeatureWarning)
-        return _new_model(np.ascontiguousarray(body, dtype=float), held, term_functions,
-                          term_count, term_parameters, term_offsets, bool(momentum_dependent),
-                          flow_functions, flow_count, flow_parameters, flow_offsets,
-                          constraint is not None, bool(reads_state and constraint is not None),
-                          bool(reads_state), compiled(expand), compiled(transmit),
-                          np.ascontiguousarray(constraint_parameters, dtype=float))
+        make = _new_model.source if interpreted else _new_model.dispatcher
+        return make(np.ascontiguousarray(body, dtype=float), held, term_functions,
+                    term_count, term_parameters, term_offsets, bool(momentum_dependent),
+                    flow_functions, flow_count, flow_parameters, flow_offsets,
+                    constraint is not None, bool(reads_state and constraint is not None),
+                    bool(reads_state), compiled(expand, interpreted),
+                    compiled(transmit, interpreted),
+                    np.ascontiguousarray(constraint_parameters, dtype=float))
 
 
 @inline
