@@ -47,6 +47,7 @@ import hashlib
 import json
 import os
 from pathlib import Path
+import pickle
 import shutil
 import sys
 import time
@@ -286,20 +287,38 @@ def seal(folder=None):
     return len(entries)
 
 
+def _index_readable(path):
+    """Return whether an index file (numba's: pickles one after another) reads to its end."""
+    try:
+        with open(path, 'rb') as handle:
+            size = os.fstat(handle.fileno()).st_size
+            while handle.tell() < size:
+                pickle.load(handle)
+    except Exception:  # noqa: B902 (any failure to read it back is damage)
+        return False
+    return True
+
+
 def verify(folder=None):
     """
-    Return the sealed files of the folder that are missing or not as sealed (relative paths).
+    Return the sealed files of the folder that are missing or damaged (relative paths).
 
-    Files numba wrote since the seal (a helper compiled in some process) are not checked.
+    A data file (``.nbc``: object code, which LLVM loads unchecked) must be as sealed.  An
+    index (``.nbi``) numba rewrites when it adds a compiled signature (a Python caller's new
+    argument types): one that differs from its seal must still read to its end.  Files
+    numba wrote since the seal are not checked.
     """
     folder = folder or kernel_dir()
     damaged = []
     for name, (size, digest) in _manifest(folder).items():
         path = folder / name
         try:
-            if path.stat().st_size != size or _digest(path) != digest:
-                damaged.append(name)
+            if path.stat().st_size == size and _digest(path) == digest:
+                continue
         except OSError:
+            damaged.append(name)
+            continue
+        if not (path.suffix == '.nbi' and _index_readable(path)):
             damaged.append(name)
     return damaged
 
