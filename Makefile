@@ -1,13 +1,18 @@
 # Two commands on a clean machine: `make run` and `make test`.
-# Both create (or reuse) .venv from the pinned requirements.txt and install this package
-# into it in editable mode; the stamp .venv/.installed is redone when the inputs change.
+# Both create (or reuse) .venv from the pinned run-time set requirements.txt and install this
+# package into it in editable mode; the stamp .venv/.installed is redone when the inputs
+# change.  `make test` adds the test set requirements-test.txt (pytest, hypothesis, mujoco,
+# colcon, the linters), stamped .venv/.installed-test.
 
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+TEST_STAMP := $(VENV)/.installed-test
 # tf2_msgs (TF) built into the venv where cmake and a C/C++ compiler exist: interfaces/.
+# Its build tools (requirements-tf2.txt) go into a build venv of their own, not into .venv.
 TF2_STAMP := $(VENV)/.tf2_msgs
+TF2_BUILD_VENV := build/tf2_msgs-venv
 PYTEST_ARGS ?=
 NODE_ARGS ?=
 
@@ -27,7 +32,11 @@ $(STAMP): requirements.txt setup.py setup.cfg package.xml
 $(TF2_STAMP): $(STAMP) requirements-tf2.txt interfaces/build_tf2_msgs.sh \
 		interfaces/tf2_msgs/package.xml interfaces/tf2_msgs/CMakeLists.txt \
 		interfaces/tf2_msgs/msg/TFMessage.msg
-	interfaces/build_tf2_msgs.sh $(VENV)
+	interfaces/build_tf2_msgs.sh $(VENV) $(TF2_BUILD_VENV)
+	touch $@
+
+$(TEST_STAMP): $(STAMP) requirements-test.txt
+	$(BIN)/python -m pip install -r requirements-test.txt
 	touch $@
 
 run: $(STAMP) $(TF2_STAMP)
@@ -46,7 +55,7 @@ run: $(STAMP) $(TF2_STAMP)
 	$(BIN)/rigid_body_node $(NODE_ARGS)
 
 test: export ROS_AUTOMATIC_DISCOVERY_RANGE = LOCALHOST
-test: $(STAMP) $(TF2_STAMP)
+test: $(STAMP) $(TF2_STAMP) $(TEST_STAMP)
 	@# The numba kernels (compiled by the set-up; a changed source is compiled again here),
 	@# so that no test's node spends its start-up compiling them.
 	$(BIN)/rigid-body-sim compile --quiet

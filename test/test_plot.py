@@ -56,8 +56,16 @@ def test_rotational_energy_and_momentum_from_the_messages_equal_the_simulators(v
     assert np.max(np.abs(motion.rotational_energy - energies) / energies) <= ROUND_OFF
     np.testing.assert_allclose(motion.angular_velocity_body, omegas, rtol=0,
                                atol=ROUND_OFF * np.abs(omegas).max())
-    # Torque-free, L is untouched: |L| is the same number in every message.
-    assert np.all(motion.momentum_magnitude == np.linalg.norm(scene.state.angular_momentum))
+    # Torque-free, buss never writes L: every message carries the initial L, bit for bit.
+    assert np.all(motion.angular_momentum == scene.state.angular_momentum)
+    # |L| of the rows (numpy's sum of squares) against |L| of one vector (a BLAS dot
+    # product, whose kernel, so the order of the sum and whether it fuses, is chosen per
+    # CPU): two ways to one number.  Each rounds three squares and two sums of positive terms
+    # (<= 3 u relative, u = 2^-53), which the square root halves and rounds once more:
+    # <= 2.5 u each, 5 u between the two.
+    np.testing.assert_allclose(motion.momentum_magnitude,
+                               np.linalg.norm(scene.state.angular_momentum), rtol=5 * 2.0**-53,
+                               atol=0)
     assert motion.custom_data['rigid_body_sim.scene'] == 'van_zon'
 
 

@@ -29,9 +29,12 @@ MUJOCO_INTEGRATORS = {
     'mujoco_implicitfast': 'implicitfast',
 }
 
+# What to install for the peer, for the one line `rigid-body-sim bench` prints without it.
+INSTALL_HINT = 'pip install -r requirements-test.txt (make test installs it)'
+
 try:
     import mujoco
-except ImportError:  # optional extra: the benchmark runs without the peer and says so
+except ImportError:  # test set only: the benchmark runs without the peer and says so
     mujoco = None
 
 
@@ -104,7 +107,7 @@ class MujocoPeer:
 
     def __init__(self, body, state, integrator, dt):
         if mujoco is None:
-            raise RuntimeError('mujoco is not installed (pip install .[mujoco])')
+            raise RuntimeError(f'mujoco is not installed ({INSTALL_HINT})')
         if integrator not in MUJOCO_INTEGRATORS:
             raise ValueError(f'unknown MuJoCo integrator {integrator!r}; valid: '
                              f'{", ".join(MUJOCO_INTEGRATORS)}')

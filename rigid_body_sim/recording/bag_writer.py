@@ -1,5 +1,5 @@
 """
-Write rosbag2 bags (MCAP by default, or sqlite3) with the ``rosbags`` library.
+Write rosbag2 bags (MCAP by default, or sqlite3) through public APIs only.
 
 A bag is a directory with one storage file and ``metadata.yaml``, in rosbag2's format
 version 9 (ROS 2 Jazzy), so ``ros2 bag info/play``, rosbags and the ``mcap`` tools read it.
@@ -12,6 +12,26 @@ own pure-Python serializer would be a second CDR implementation to keep in step 
 node's and several times slower.  rosbags' ROS2_JAZZY typestore supplies only what a bag
 needs beside the bytes: each type's message definition (the MCAP schema) and its RIHS01
 type hash (equal to the installed interfaces' hashes; tested).
+
+What writes the bytes.  Only documented, exported names of the libraries (a test checks
+every import of this module and of :mod:`.recovery`), none of their private state:
+
+- MCAP: the records of the MCAP specification (https://mcap.dev/spec), each built by the
+  ``mcap`` library's public record classes (:mod:`mcap.records`: Header, Schema, Channel,
+  Chunk, ChunkIndex, Metadata, MetadataIndex, Statistics, SummaryOffset, DataEnd, Footer,
+  serialised by :class:`mcap.data_stream.RecordBuilder`), except the two kinds written per
+  message, Message and MessageIndex, which are packed here from the specification with
+  ``struct`` and numpy (a test compares them with the library's ``Message`` and
+  ``MessageIndex`` records byte for byte).  Not :class:`mcap.writer.Writer`: it has no hook
+  for a provisional end (below), nor for many messages at once, and its ``add_message``
+  (a Message instance, six RecordBuilder writes, a MessageIndex entry each) cost 3.4 us
+  more a message: ``simulate`` at 1 kHz wrote 147,000 messages per CPU second through it
+  against 299,000 here (303,000 with the rosbags internals this module used before).
+- sqlite3: Python's :mod:`sqlite3`, in rosbag2 Jazzy's schema (version 4: tables schema,
+  metadata, topics, message_definitions, messages).
+- ``metadata.yaml``: written here (ruamel.yaml, json).  From rosbags only its typestore and
+  the QoS types of its interface (:mod:`rosbags.interfaces`: Qos, whose profiles
+  :meth:`BagWriter.add_topic` takes and rosbags' Reader gives back).
 
 QoS.  Each topic's ``offered_qos_profiles`` are written as rosbag2 Jazzy writes them:
 metadata version 9, policies as lower-case names, in ``metadata.yaml`` as a YAML list and in
@@ -37,14 +57,28 @@ an MCAP file is cut back to that flush's provisional end.
 
 from collections import defaultdict
 import errno
-from io import BytesIO
 from io import StringIO
 import json
 import os
 from pathlib import Path
 import sqlite3
 import struct
+from typing import NamedTuple
+import zlib
 
+from mcap.data_stream import RecordBuilder
+from mcap.opcode import Opcode
+from mcap.records import Channel
+from mcap.records import Chunk
+from mcap.records import ChunkIndex
+from mcap.records import DataEnd
+from mcap.records import Footer
+from mcap.records import Header
+from mcap.records import Metadata
+from mcap.records import MetadataIndex
+from mcap.records import Schema
+from mcap.records import Statistics
+from mcap.records import SummaryOffset
 import numpy as np
 from rosbags.interfaces import Qos
 from rosbags.interfaces import QosDurability
@@ -52,15 +86,6 @@ from rosbags.interfaces import QosHistory
 from rosbags.interfaces import QosLiveliness
 from rosbags.interfaces import QosReliability
 from rosbags.interfaces import QosTime
-from rosbags.rosbag2 import StoragePlugin
-from rosbags.rosbag2 import Writer
-from rosbags.rosbag2.metadata import dump_qos_v9
-from rosbags.rosbag2.storage_mcap import Channel
-from rosbags.rosbag2.storage_mcap import McapWriter
-from rosbags.rosbag2.storage_mcap import PendingChunk
-from rosbags.rosbag2.storage_mcap import write_channel
-from rosbags.rosbag2.storage_mcap import write_string
-from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 from rosbags.typesys import get_typestore
 from rosbags.typesys import Stores
 from ruamel.yaml import YAML
@@ -86,25 +111,10 @@ ROS_DISTRO = 'jazzy'
 STORAGES = ('mcap', 'sqlite3')
 """Storage formats: MCAP (rosbag2's default since Iron) and sqlite3."""
 
-_PLUGINS = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}
 _SUFFIXES = {'mcap': '.mcap', 'sqlite3': '.db3'}
 
 INFINITE_DURATION = QosTime(9223372036, 854775807)
 """RMW_DURATION_INFINITE (2^63 - 1 ns) as (sec, nsec): what discovery reports for 'none'."""
-
-# MCAP records (https://mcap.dev/spec), little-endian.  A Message record is opcode 0x05,
-# its length, then channel id (uint16), sequence (uint32), log time and publish time
-# (uint64, ns), then the data.
-_MESSAGE_HEADER = struct.Struct('<BQHIQQ')
-_MESSAGE_FIELDS_SIZE = 2 + 4 + 8 + 8
-_MAGIC = b'\x89MCAP0\r\n'
-# The provisional end of an MCAP file that is still being written: a DataEnd record (data
-# section CRC 0: not computed), a Footer with no summary (summary start 0, summary offset
-# start 0, CRC 0), and the closing magic.  Readers then scan the data section linearly.
-_PROVISIONAL_END = (struct.pack('<BQI', 0x0F, 4, 0) + struct.pack('<BQQQI', 0x02, 20, 0, 0, 0)
-                    + _MAGIC)
-# Close the pending chunk at this size (rosbags' own threshold, 1 MiB).
-_CHUNK_SIZE = 1 << 20
 
 _TYPESTORE = None
 
@@ -176,135 +186,305 @@ def storage_file(path, storage):
     return path / f'{path.name}{_SUFFIXES[storage]}'
 
 
-# -- storage plugins: rosbags' writers with a fast message write and flush()
+# -- MCAP records (https://mcap.dev/spec)
+
+_MAGIC = b'\x89MCAP0\r\n'
+"""The magic that opens and closes an MCAP file (spec: Magic)."""
+
+_NO_TIME = 2**63 - 1
+
+# The two records written per message, packed here (the spec's layout, little-endian): a
+# Message record is its opcode, its length (uint64), then channel id (uint16), sequence
+# (uint32), log time and publish time (uint64, ns), then the data; a MessageIndex record is
+# its opcode, its length, channel id (uint16), the byte length of its (log time, offset)
+# pairs (uint32), then the pairs (uint64 each).
+_MESSAGE = int(Opcode.MESSAGE)
+_MESSAGE_INDEX = int(Opcode.MESSAGE_INDEX)
+_MESSAGE_HEADER = struct.Struct('<BQHIQQ')
+_MESSAGE_FIELDS_SIZE = 2 + 4 + 8 + 8
+_MESSAGE_INDEX_HEADER = struct.Struct('<BQHI')
+
+# Close the pending chunk at this size (1 MiB, as rosbags and the mcap library do).
+_CHUNK_SIZE = 1 << 20
+
+_LIBRARY = 'rigid_body_sim.recording.bag_writer'
+"""The MCAP header's library field: who wrote the file."""
 
 
-class _McapStorage(McapWriter):
-    """rosbags' MCAP writer, plus topic_type_hash, a fast write and a durable flush."""
+def _record_bytes(*records):
+    """Return the bytes of MCAP records (mcap.records instances), one after the other."""
+    builder = RecordBuilder()
+    for record in records:
+        record.write(builder)
+    return builder.end()
 
-    def __init__(self, path, compression):
-        super().__init__(path, compression)
-        self._provisional_end_at = None
+
+# The provisional end of an MCAP file that is still being written: a DataEnd record (data
+# section CRC 0: not computed), a Footer with no summary (summary start 0, summary offset
+# start 0, CRC 0), and the closing magic.  Readers then scan the data section linearly.
+_PROVISIONAL_END = _record_bytes(
+    DataEnd(data_section_crc=0),
+    Footer(summary_start=0, summary_offset_start=0, summary_crc=0)) + _MAGIC
+
+
+class _Connection(NamedTuple):
+    """A topic of the bag, as :meth:`BagWriter.add_topic` returns it (id 1, 2, ...)."""
+
+    id: int  # noqa: A003 (the name rosbags gives it, which callers use)
+    topic: str
+    msgtype: str
+    definition: str
+    encoding: str  # of the definition: 'ros2msg' or 'ros2idl'
+    digest: str  # RIHS01 type hash
+    serialization_format: str
+    offered_qos_profiles: tuple
+
+
+def _qos_dicts(profiles):
+    """Return rosbags Qos profiles as rosbag2 Jazzy writes them (metadata version 9)."""
+    def duration(value):
+        return {'sec': value.sec, 'nsec': value.nsec}
+
+    return [{'history': profile.history.name.lower(),
+             'depth': profile.depth,
+             'reliability': profile.reliability.name.lower(),
+             'durability': profile.durability.name.lower(),
+             'deadline': duration(profile.deadline),
+             'lifespan': duration(profile.lifespan),
+             'liveliness': profile.liveliness.name.lower(),
+             'liveliness_lease_duration': duration(profile.liveliness_lease_duration),
+             'avoid_ros_namespace_conventions': profile.avoid_ros_namespace_conventions}
+            for profile in profiles]
+
+
+def _safe_yaml(document):
+    """Return `document` as block-style YAML text without the final newline."""
+    stream = StringIO()
+    yaml = YAML(typ='safe')
+    yaml.default_flow_style = False
+    yaml.dump(document, stream)
+    return stream.getvalue().strip()
+
+
+# -- storages: an MCAP file and a pair of sqlite3 files, both with a durable flush()
+
+
+class _McapStorage:
+    """
+    An MCAP file being written, in chunks of 1 MiB, with a provisional end at each flush.
+
+    The data section is the Header, then Chunks, each followed by the MessageIndex records
+    of its channels; a Schema (once per type) and a Channel record go into the chunk being
+    filled when a topic is added, before its first message.  Closing writes the 'rosbag2'
+    Metadata record, DataEnd, and the summary: Schemas, Channels, Statistics, ChunkIndexes,
+    MetadataIndex, each group's SummaryOffset; then the Footer and the magic.  No
+    compression; chunk CRCs are 0 (the spec's 'not computed'), the summary's is computed.
+    """
+
+    def __init__(self, path):
+        self.path = path
         self.closed = False
-        # Where the provisional end that metadata.yaml counts up to is (None: no flush yet).
+        self.published = path
+        self.file = open(path, 'xb')
+        self.file.write(_MAGIC + _record_bytes(Header(profile='ros2', library=_LIBRARY)))
+        self._schemas = {}  # message type -> Schema
+        self._channels = []
+        self._chunk_indexes = []
+        self._counts = {}  # channel id -> messages
+        self._message_start_time = _NO_TIME
+        self._message_end_time = 0
+        self._new_chunk()
+        # Where the provisional end is (None: none now), and where the one that
+        # metadata.yaml counts up to is (None: no flush yet).
+        self._provisional_end_at = None
         self._published_end_at = None
-        self.published = self.path
+
+    def _new_chunk(self):
+        # The records of the pending chunk, as a list of bytes joined when it is written
+        # (one copy, instead of a BytesIO's copies as it grows), and their total size.
+        self._chunk = []
+        self._chunk_size = 0
+        self._chunk_start_time = _NO_TIME
+        self._chunk_end_time = 0
+        # Channel id -> its messages' (log time, offset) pairs in the chunk: tuples, or
+        # (n, 2) arrays of them from write_rows.
+        self._chunk_messages = defaultdict(list)
 
     def add_connection(self, connection, offered_qos_profiles):
-        # As rosbags writes a channel, with the topic_type_hash entry that rosbag2's MCAP
-        # plugin adds (keys in sorted order, as its std::map has them).
-        metadata = BytesIO()
-        for key, value in (('offered_qos_profiles', offered_qos_profiles),
-                           ('topic_type_hash', connection.digest)):
-            write_string(metadata, key)
-            write_string(metadata, value)
-        channel = Channel(connection.id, connection.msgtype, connection.topic,
-                          connection.ext.serialization_format, metadata.getvalue())
-        self.channels.append(channel)
-        self.channel_stats[connection.id] = 0
-        write_channel(self.chunk.bio, channel, self.schemas)
+        """Write the connection's Schema (the first of its type) and Channel records."""
+        schema = self._schemas.get(connection.msgtype)
+        records = []
+        if schema is None:
+            schema = Schema(id=len(self._schemas) + 1, name=connection.msgtype,
+                            encoding=connection.encoding, data=connection.definition.encode())
+            self._schemas[connection.msgtype] = schema
+            records.append(schema)
+        # With the topic_type_hash entry that rosbag2's MCAP plugin adds (keys in sorted
+        # order, as its std::map has them).
+        channel = Channel(id=connection.id, topic=connection.topic,
+                          message_encoding=connection.serialization_format,
+                          metadata={'offered_qos_profiles': offered_qos_profiles,
+                                    'topic_type_hash': connection.digest},
+                          schema_id=schema.id)
+        records.append(channel)
+        self._channels.append(channel)
+        self._counts[connection.id] = 0
+        self._append(_record_bytes(*records))
+
+    def _append(self, records):
+        self._chunk.append(records)
+        self._chunk_size += len(records)
 
     def write(self, connection, timestamp, data, publish_time=None, sequence=0):
-        # rosbags' write packs each field through a BytesIO of its own; one struct call
-        # per message makes a 1 kHz bag several times cheaper to write.
-        chunk = self.chunk
-        if timestamp < chunk.message_start_time:
-            chunk.message_start_time = timestamp
-        if timestamp > chunk.message_end_time:
-            chunk.message_end_time = timestamp
-        if timestamp < self.message_start_time:
-            self.message_start_time = timestamp
-        if timestamp > self.message_end_time:
-            self.message_end_time = timestamp
+        """Write one Message record into the pending chunk."""
+        if timestamp < self._chunk_start_time:
+            self._chunk_start_time = timestamp
+        if timestamp > self._chunk_end_time:
+            self._chunk_end_time = timestamp
         channel_id = connection.id
-        self.channel_stats[channel_id] += 1
-        bio = chunk.bio
-        chunk.msgs[channel_id].append((timestamp, bio.tell()))
-        bio.write(_MESSAGE_HEADER.pack(
-            0x05, _MESSAGE_FIELDS_SIZE + len(data), channel_id, sequence & 0xFFFFFFFF,
-            timestamp, timestamp if publish_time is None else publish_time))
-        bio.write(data)
-        if bio.tell() > _CHUNK_SIZE:
+        self._counts[channel_id] += 1
+        if type(data) is not bytes:
+            data = bytes(data)  # kept until the chunk is written: a copy the caller cannot change
+        offset = self._chunk_size
+        self._chunk_messages[channel_id].append((timestamp, offset))
+        self._chunk += (_MESSAGE_HEADER.pack(
+            _MESSAGE, _MESSAGE_FIELDS_SIZE + len(data), channel_id, sequence & 0xFFFFFFFF,
+            timestamp, timestamp if publish_time is None else publish_time), data)
+        self._chunk_size = offset = offset + _MESSAGE_HEADER.size + len(data)
+        if offset > _CHUNK_SIZE:
             self.close_chunk()
 
     def write_rows(self, connections, datas, log_times):
         """Write, for each i, the message datas[j][i] of every connection j at log_times[i]."""
         records, offsets = _message_records(connections, datas, log_times)
-        chunk = self.chunk
-        base = chunk.bio.tell()
-        first, last = int(log_times[0]), int(log_times[-1])
-        chunk.message_start_time = min(chunk.message_start_time, first)
-        chunk.message_end_time = max(chunk.message_end_time, last)
-        self.message_start_time = min(self.message_start_time, first)
-        self.message_end_time = max(self.message_end_time, last)
+        base = self._chunk_size
+        self._chunk_start_time = min(self._chunk_start_time, int(log_times[0]))
+        self._chunk_end_time = max(self._chunk_end_time, int(log_times[-1]))
         for connection, offset in zip(connections, offsets):
             index = np.empty((len(log_times), 2), dtype=np.uint64)
             index[:, 0] = log_times
             index[:, 1] = base + offset
-            chunk.msgs[connection.id].append(index)
-            self.channel_stats[connection.id] += len(log_times)
-        chunk.bio.write(records)
-        if chunk.bio.tell() > _CHUNK_SIZE:
+            self._chunk_messages[connection.id].append(index)
+            self._counts[connection.id] += len(log_times)
+        self._append(records)
+        if self._chunk_size > _CHUNK_SIZE:
             self.close_chunk()
 
     def close_chunk(self):
-        # rosbags' close_chunk, with each message index packed in one go (it writes two
-        # integers per message through BytesIO calls); entries are (time, offset) pairs or
-        # arrays of them.  Chunk CRC 0: not computed, as rosbag2 writes by default.
-        # Once the bag has been flushed, a full chunk is followed at once by a new
-        # provisional end: else, between this chunk and the next flush (most of the time
-        # when a chunk fills many times per flush period, as simulate's do), a SIGKILL
-        # would leave a file without its end that no reader opens.
+        """
+        Write the pending chunk: its Chunk record and its channels' MessageIndex records.
+
+        Once the bag has been flushed, a full chunk is followed at once by a new provisional
+        end: else, between this chunk and the next flush (most of the time when a chunk
+        fills many times per flush period, as simulate's do), a SIGKILL would leave a file
+        without its end that no reader opens.
+        """
         flushed = self._provisional_end_at is not None
         self._drop_provisional_end()
-        chunk = self.chunk
-        uncompressed = chunk.bio.getvalue()
-        compressed = self.compressor(uncompressed)
-        compression = self.compression.encode()
-        chunk_start = self.bio.tell()
-        body = (struct.pack('<QQQI', chunk.message_start_time, chunk.message_end_time,
-                            len(uncompressed), 0)
-                + struct.pack('<I', len(compression)) + compression
-                + struct.pack('<Q', len(compressed)))
-        self.bio.write(struct.pack('<BQ', 0x06, len(body) + len(compressed)))
-        self.bio.write(body)
-        self.bio.write(compressed)
-        chunk_end = self.bio.tell()
-        index_offsets = []
-        for channel_id, entries in chunk.msgs.items():
+        records = b''.join(self._chunk)
+        if self._chunk_messages:
+            start, end = self._chunk_start_time, self._chunk_end_time
+            self._message_start_time = min(self._message_start_time, start)
+            self._message_end_time = max(self._message_end_time, end)
+        else:
+            start = end = 0  # the spec's times of a chunk without messages
+        file = self.file
+        chunk_start = file.tell()
+        file.write(_record_bytes(Chunk(
+            compression='', data=records, message_start_time=start, message_end_time=end,
+            uncompressed_crc=0, uncompressed_size=len(records))))
+        index_start = file.tell()
+        index_offsets = {}
+        for channel_id, entries in self._chunk_messages.items():
             index = _index_array(entries)
-            index_offsets.append(struct.pack('<HQ', channel_id, self.bio.tell()))
-            self.bio.write(struct.pack('<BQHI', 0x07, 2 + 4 + index.nbytes, channel_id,
-                                       index.nbytes))
-            self.bio.write(index.tobytes())
-        record = BytesIO()
-        record.write(struct.pack('<QQQQI', chunk.message_start_time, chunk.message_end_time,
-                                 chunk_start, chunk_end - chunk_start, 10 * len(index_offsets)))
-        record.write(b''.join(index_offsets))
-        record.write(struct.pack('<Q', self.bio.tell() - chunk_end))
-        record.write(struct.pack('<I', len(compression)) + compression)
-        record.write(struct.pack('<QQ', len(compressed), len(uncompressed)))
-        self.chunks.append(record)
-        self.chunk = PendingChunk(2**63 - 1, 0, BytesIO(), defaultdict(list))
+            index_offsets[channel_id] = file.tell()
+            file.write(_MESSAGE_INDEX_HEADER.pack(_MESSAGE_INDEX, 2 + 4 + index.nbytes,
+                                                  channel_id, index.nbytes))
+            file.write(index.tobytes())
+        self._chunk_indexes.append(ChunkIndex(
+            message_start_time=start, message_end_time=end, chunk_start_offset=chunk_start,
+            chunk_length=index_start - chunk_start, message_index_offsets=index_offsets,
+            message_index_length=file.tell() - index_start, compression='',
+            compressed_size=len(records), uncompressed_size=len(records)))
+        self._new_chunk()
         if flushed:
             self._write_provisional_end()
 
     def _write_provisional_end(self):
-        self._provisional_end_at = self.bio.tell()
-        self.bio.write(_PROVISIONAL_END)
-        self.bio.flush()
+        self._provisional_end_at = self.file.tell()
+        self.file.write(_PROVISIONAL_END)
+        self.file.flush()
+
+    def _drop_provisional_end(self):
+        # Whatever comes next (a chunk, the summary) is longer than the provisional end
+        # and overwrites it completely.
+        if self._provisional_end_at is not None:
+            self.file.seek(self._provisional_end_at)
+            self._provisional_end_at = None
 
     def flush(self, sync, publish):
         """Write the pending chunk and a provisional end (a valid MCAP), then ``publish``."""
-        if self.chunk.bio.tell():
+        if self._chunk:
             self.close_chunk()
         self._drop_provisional_end()
         self._write_provisional_end()
         if sync:
-            os.fsync(self.bio.fileno())
+            os.fsync(self.file.fileno())
         end = self._provisional_end_at
         publish(self.path)
         self._published_end_at = end
+
+    def close(self, serialized_metadata):
+        """Write the pending chunk, the 'rosbag2' metadata, the summary and the footer."""
+        self._drop_provisional_end()
+        if self._chunk:
+            self.close_chunk()
+        file = self.file
+        metadata_start = file.tell()
+        file.write(_record_bytes(Metadata(
+            name='rosbag2', metadata={'serialized_metadata': serialized_metadata})))
+        metadata_index = MetadataIndex(offset=metadata_start,
+                                       length=file.tell() - metadata_start, name='rosbag2')
+        file.write(_record_bytes(DataEnd(data_section_crc=0)))
+        count = sum(self._counts.values())
+        statistics = Statistics(
+            message_count=count, schema_count=len(self._schemas),
+            channel_count=len(self._channels), attachment_count=0, metadata_count=1,
+            chunk_count=len(self._chunk_indexes),
+            message_start_time=self._message_start_time if count else 0,
+            message_end_time=self._message_end_time if count else 0,
+            channel_message_counts=dict(sorted(self._counts.items())))
+        summary_start = file.tell()
+        builder = RecordBuilder()
+        offsets = []
+        for opcode, records in ((Opcode.SCHEMA, list(self._schemas.values())),
+                                (Opcode.CHANNEL, self._channels),
+                                (Opcode.STATISTICS, [statistics]),
+                                (Opcode.CHUNK_INDEX, self._chunk_indexes),
+                                (Opcode.METADATA_INDEX, [metadata_index])):
+            if not records:
+                continue
+            group_start = builder.count
+            for record in records:
+                record.write(builder)
+            offsets.append(SummaryOffset(group_opcode=opcode,
+                                         group_start=summary_start + group_start,
+                                         group_length=builder.count - group_start))
+        summary_offset_start = summary_start + builder.count
+        for offset in offsets:
+            offset.write(builder)
+        summary = builder.end()
+        # The summary CRC covers the summary section and the footer up to the CRC itself.
+        footer = _record_bytes(Footer(summary_start=summary_start,
+                                      summary_offset_start=summary_offset_start, summary_crc=0))
+        crc = zlib.crc32(footer[:-4], zlib.crc32(summary))
+        file.write(summary)
+        file.write(_record_bytes(Footer(summary_start=summary_start,
+                                        summary_offset_start=summary_offset_start,
+                                        summary_crc=crc)))
+        file.write(_MAGIC)
+        file.close()
+        self.closed = True
 
     def abort(self):
         """
@@ -314,7 +494,7 @@ class _McapStorage(McapWriter):
         frees the space the end needs).
         """
         try:
-            self.bio.close()  # a buffer that cannot be written is dropped
+            self.file.close()  # a buffer that cannot be written is dropped
         except OSError:
             pass
         if self._published_end_at is not None:
@@ -326,22 +506,64 @@ class _McapStorage(McapWriter):
     def finish(self, publish):
         """After close: nothing to do, the bag's one file is named in metadata.yaml."""
 
-    def close(self, version, metadata):
-        self._drop_provisional_end()
-        super().close(version, _as_jazzy(metadata))
-        self.closed = True
-
-    def _drop_provisional_end(self):
-        # Whatever comes next (a chunk, the summary) is longer than the provisional end
-        # and overwrites it completely.
-        if self._provisional_end_at is not None:
-            self.bio.seek(self._provisional_end_at)
-            self._provisional_end_at = None
+    def sync(self):
+        """Fsync the file (what was flushed to the OS survives a power loss)."""
+        try:
+            descriptor = self.file.fileno()
+        except ValueError:
+            return  # closed meanwhile by the writing thread (abort after a failed write)
+        os.fsync(descriptor)
 
 
-class _Sqlite3Storage(Sqlite3Writer):
+# rosbag2 Jazzy's sqlite3 schema (schema_version 4, rosbag2_storage_sqlite3), with the
+# distribution in its schema table as rosbag2 writes it.
+_SQLITE3_SCHEMA = f"""
+CREATE TABLE schema(
+  schema_version INTEGER PRIMARY KEY,
+  ros_distro TEXT NOT NULL
+);
+CREATE TABLE metadata(
+  id INTEGER PRIMARY KEY,
+  metadata_version INTEGER NOT NULL,
+  metadata TEXT NOT NULL
+);
+CREATE TABLE topics(
+  id INTEGER PRIMARY KEY,
+  name TEXT NOT NULL,
+  type TEXT NOT NULL,
+  serialization_format TEXT NOT NULL,
+  offered_qos_profiles TEXT NOT NULL,
+  type_description_hash TEXT NOT NULL
+);
+CREATE TABLE message_definitions(
+  id INTEGER PRIMARY KEY,
+  topic_type TEXT NOT NULL,
+  encoding TEXT NOT NULL,
+  encoded_message_definition TEXT NOT NULL,
+  type_description_hash TEXT NOT NULL
+);
+CREATE TABLE messages(
+  id INTEGER PRIMARY KEY,
+  topic_id INTEGER NOT NULL,
+  timestamp INTEGER NOT NULL,
+  data BLOB NOT NULL
+);
+CREATE INDEX timestamp_idx ON messages (timestamp ASC);
+INSERT INTO schema(schema_version, ros_distro) VALUES (4, '{ROS_DISTRO}');
+"""
+
+_INSERT_MESSAGE = 'INSERT INTO messages (topic_id, timestamp, data) VALUES(?, ?, ?)'
+
+
+def _sqlite3_uri(path, mode=None):
+    """Return the SQLite URI of a file (any characters in its path), opened in `mode`."""
+    uri = Path(path).absolute().as_uri()
+    return uri if mode is None else f'{uri}?mode={mode}'
+
+
+class _Sqlite3Storage:
     """
-    rosbags' sqlite3 writer, durable: two database files written in turn.
+    A sqlite3 bag, durable: two database files written in turn.
 
     rosbags reads a database with ``immutable=1``, ignoring any journal: a database that
     SQLite was writing when the process died reads as it is on disk, with the pages of the
@@ -353,30 +575,48 @@ class _Sqlite3Storage(Sqlite3Writer):
     with the same ids after each flush.  Closing leaves one file, ``<bag>.db3``.
     """
 
-    def __init__(self, path, compression):
-        super().__init__(path, compression)
-        canonical = self.path
-        self.files = (canonical, canonical.with_name(f'{canonical.stem}_alternate.db3'))
-        other = sqlite3.connect(f'file:{self.files[1]}', uri=True)
-        other.executescript(self.SQLITE_SCHEMA)
-        self._connections = (self.conn, other)
+    def __init__(self, path):
+        self.files = (path, path.with_name(f'{path.stem}_alternate.db3'))
+        self._connections = []
+        for file in self.files:
+            connection = sqlite3.connect(_sqlite3_uri(file), uri=True)
+            self._connections.append(connection)
+            connection.executescript(_SQLITE3_SCHEMA)
         for connection, partner in zip(self._connections, reversed(self.files)):
-            connection.execute('ATTACH DATABASE ? AS partner', (f'file:{partner}?mode=ro',))
+            connection.execute('ATTACH DATABASE ? AS partner', (_sqlite3_uri(partner, 'ro'),))
             # No fsync at each commit: the file a SIGKILL could leave half-written is never
             # the one metadata.yaml names, and flush(sync=True) fsyncs the one it publishes.
             connection.execute('PRAGMA synchronous = OFF')
         self._live = 0
+        self.conn = self._connections[0]
+        self.cursor = self.conn.cursor()
+        self.path = path
         self.published = None
         self.closed = False
+        self._types = set()
+
+    def add_connection(self, connection, offered_qos_profiles):
+        """Insert the connection's topic, and its type's definition (the first of its type)."""
+        if connection.msgtype not in self._types:
+            self.cursor.execute(
+                'INSERT INTO message_definitions (topic_type, encoding, '
+                'encoded_message_definition, type_description_hash) VALUES(?, ?, ?, ?)',
+                (connection.msgtype, connection.encoding, connection.definition,
+                 connection.digest))
+            self._types.add(connection.msgtype)
+        self.cursor.execute('INSERT INTO topics VALUES(?, ?, ?, ?, ?, ?)',
+                            (connection.id, connection.topic, connection.msgtype,
+                             connection.serialization_format, offered_qos_profiles,
+                             connection.digest))
 
     def write(self, connection, timestamp, data, publish_time=None, sequence=0):
-        self.cursor.execute('INSERT INTO messages (topic_id, timestamp, data) VALUES(?, ?, ?)',
-                            (connection.id, timestamp, data))
+        """Insert one message (publish time and sequence have no column in rosbag2's schema)."""
+        self.cursor.execute(_INSERT_MESSAGE, (connection.id, timestamp, data))
 
     def write_rows(self, connections, datas, log_times):
         """Write, for each i, the message datas[j][i] of every connection j at log_times[i]."""
         self.cursor.executemany(
-            'INSERT INTO messages (topic_id, timestamp, data) VALUES(?, ?, ?)',
+            _INSERT_MESSAGE,
             ((connection.id, int(log_time), data[i].tobytes())
              for i, log_time in enumerate(log_times)
              for connection, data in zip(connections, datas)))
@@ -399,12 +639,16 @@ class _Sqlite3Storage(Sqlite3Writer):
                               f'WHERE id > (SELECT coalesce(max(id), 0) FROM main.{table})')
         self.conn.commit()
 
-    def close(self, version, metadata):
+    def close(self, serialized_metadata):
         """Finish the live file (its metadata table) and close both files."""
         self.conn.commit()
-        # PRAGMA optimize (in rosbags' close) would analyse the read-only partner too.
+        # Before PRAGMA optimize, which would analyse the read-only partner too.
         self.conn.execute('DETACH DATABASE partner')
-        super().close(version, _as_jazzy(metadata))
+        self.conn.execute('INSERT INTO metadata(metadata_version, metadata) VALUES(?, ?)',
+                          (BAG_VERSION, serialized_metadata))
+        self.conn.commit()
+        self.conn.execute('PRAGMA optimize')
+        self.conn.close()
         self._connections[1 - self._live].close()
         self.published = self.files[self._live]
         self.closed = True
@@ -434,6 +678,9 @@ class _Sqlite3Storage(Sqlite3Writer):
             self.published = canonical
         alternate.unlink()
 
+    def sync(self):
+        """Nothing to do: flush(sync=True) fsyncs the file it publishes."""
+
 
 def _fsync(path):
     descriptor = os.open(path, os.O_RDONLY)
@@ -443,46 +690,7 @@ def _fsync(path):
         os.close(descriptor)
 
 
-def _as_jazzy(metadata):
-    """
-    Return rosbags' serialised bag metadata (YAML) with ``ros_distro: jazzy``.
-
-    rosbags' Writer.close writes ``ros_distro: rosbags`` into the metadata it hands the
-    storage (the MCAP 'rosbag2' metadata record, the sqlite3 metadata table) and has no
-    option for it; rosbag2 Jazzy writes its distribution, which the bags here are for.
-    """
-    document = YAML(typ='safe').load(metadata)
-    document['ros_distro'] = ROS_DISTRO
-    stream = StringIO()
-    yaml = YAML(typ='safe')
-    yaml.default_flow_style = False
-    yaml.dump(document, stream)
-    return stream.getvalue().strip()
-
-
-class _Writer(Writer):
-    """rosbags' Writer with the storages above and a write that skips re-validation."""
-
-    STORAGE_PLUGINS = {StoragePlugin.MCAP: _McapStorage, StoragePlugin.SQLITE3: _Sqlite3Storage}
-
-    def write(self, connection, timestamp, data, publish_time=None, sequence=0):
-        # The connection came from add_connection of this writer (BagWriter ensures it).
-        self.storage.write(connection, timestamp, data, publish_time, sequence)
-        self.counts[connection.id] += 1
-        if timestamp < self.min_timestamp:
-            self.min_timestamp = timestamp
-        if timestamp > self.max_timestamp:
-            self.max_timestamp = timestamp
-
-    def write_rows(self, connections, datas, log_times):
-        """Write one message per connection per log time (see BagWriter.write_rows)."""
-        if len(log_times) == 0:
-            return
-        self.storage.write_rows(connections, datas, log_times)
-        for connection in connections:
-            self.counts[connection.id] += len(log_times)
-        self.min_timestamp = min(self.min_timestamp, int(log_times[0]))
-        self.max_timestamp = max(self.max_timestamp, int(log_times[-1]))
+_STORAGES = {'mcap': _McapStorage, 'sqlite3': _Sqlite3Storage}
 
 
 def _message_records(connections, datas, log_times):
@@ -497,7 +705,7 @@ def _message_records(connections, datas, log_times):
     prefixes = []
     for j, (connection, data) in enumerate(zip(connections, datas)):
         size = data.shape[1]
-        prefixes.append(struct.pack('<BQHI', 0x05, _MESSAGE_FIELDS_SIZE + size,
+        prefixes.append(struct.pack('<BQHI', _MESSAGE, _MESSAGE_FIELDS_SIZE + size,
                                     connection.id, 0))
         fields += [(f'prefix{j}', 'V15'), (f'log{j}', '<u8'), (f'publish{j}', '<u8'),
                    (f'data{j}', 'u1', (size,))]
@@ -563,8 +771,12 @@ class BagWriter:
         if self.path.exists():
             raise ValueError(f'{self.path} exists already; a bag is written to a new directory')
         self.storage = storage
-        self._writer = _Writer(self.path, version=BAG_VERSION, storage_plugin=_PLUGINS[storage])
-        self._connections = {}
+        self._storage = None
+        self._connections = {}  # topic -> connection, in the order added (ids 1, 2, ...)
+        self._counts = {}  # connection id -> messages written
+        self._custom_data = {}
+        self._min_timestamp = _NO_TIME
+        self._max_timestamp = 0
         self._closed = False
         # The messages metadata.yaml counts (None: there is no metadata.yaml yet).
         self._published_count = None
@@ -585,7 +797,8 @@ class BagWriter:
         disk full before the first flush of the run still leaves a bag that tells the truth.
         """
         try:
-            self._writer.open()
+            self.path.mkdir(mode=0o755, parents=True)
+            self._storage = _STORAGES[self.storage](self.storage_file)
         except (OSError, sqlite3.Error) as error:
             raise self._failure(error) from None
         self.flush(sync=False)
@@ -615,6 +828,8 @@ class BagWriter:
         """
         if topic in self._connections:
             raise ValueError(f'topic {topic} added twice')
+        if self._storage is None:
+            raise ValueError(f'{self.path}: the bag is not open for writing')
         if message_definition is None or type_hash is None:
             store = typestore()
             if message_type not in store.fielddefs:
@@ -622,13 +837,21 @@ class BagWriter:
                                  'definition and hash')
             message_definition, _ = store.generate_msgdef(message_type, ros_version=2)
             type_hash = store.hash_rihs01(message_type)
+        # An IDL definition starts as rosbag2 and rosbags write one, else it is ros2msg.
+        encoding = 'ros2idl' if message_definition.startswith('=' * 80 + '\nIDL: ') \
+            else 'ros2msg'
+        connection = _Connection(
+            id=len(self._connections) + 1, topic=topic, msgtype=message_type,
+            definition=message_definition, encoding=encoding, digest=type_hash,
+            serialization_format='cdr', offered_qos_profiles=tuple(offered_qos_profiles))
         try:
-            connection = self._writer.add_connection(
-                topic, message_type, msgdef=message_definition, rihs01=type_hash,
-                offered_qos_profiles=list(offered_qos_profiles))
+            # In the MCAP channel and the sqlite3 topics table: the list as YAML text.
+            self._storage.add_connection(
+                connection, _safe_yaml(_qos_dicts(connection.offered_qos_profiles)))
         except (OSError, sqlite3.Error) as error:
             raise self._failure(error) from None
         self._connections[topic] = connection
+        self._counts[connection.id] = 0
         return connection
 
     def connection(self, topic):
@@ -637,7 +860,7 @@ class BagWriter:
 
     def set_custom_data(self, key, value):
         """Store a string in ``custom_data`` of ``metadata.yaml`` (rosbag2 Jazzy keeps it)."""
-        self._writer.set_custom_data(key, str(value))
+        self._custom_data[str(key)] = str(value)
 
     def write(self, connection, log_time, data, publish_time=None, sequence=0):
         """
@@ -658,9 +881,14 @@ class BagWriter:
 
         """
         try:
-            self._writer.write(connection, log_time, data, publish_time, sequence)
+            self._storage.write(connection, log_time, data, publish_time, sequence)
         except (OSError, sqlite3.Error) as error:
             raise self._failure(error) from None
+        self._counts[connection.id] += 1
+        if log_time < self._min_timestamp:
+            self._min_timestamp = log_time
+        if log_time > self._max_timestamp:
+            self._max_timestamp = log_time
 
     def write_rows(self, connections, datas, log_times):
         """
@@ -677,15 +905,22 @@ class BagWriter:
             in the order of `connections`.
 
         """
+        log_times = np.asarray(log_times, dtype=np.int64)
+        if len(log_times) == 0:
+            return
         try:
-            self._writer.write_rows(connections, datas, np.asarray(log_times, dtype=np.int64))
+            self._storage.write_rows(connections, datas, log_times)
         except (OSError, sqlite3.Error) as error:
             raise self._failure(error) from None
+        for connection in connections:
+            self._counts[connection.id] += len(log_times)
+        self._min_timestamp = min(self._min_timestamp, int(log_times[0]))
+        self._max_timestamp = max(self._max_timestamp, int(log_times[-1]))
 
     @property
     def message_counts(self):
         """Topic -> number of messages written."""
-        counts = self._writer.counts
+        counts = self._counts
         return {topic: counts[connection.id] for topic, connection in self._connections.items()}
 
     def flush(self, sync=True):
@@ -698,7 +933,7 @@ class BagWriter:
         loss (a killed process loses nothing the kernel has).
         """
         try:
-            self._writer.storage.flush(sync, self._write_metadata)
+            self._storage.flush(sync, self._write_metadata)
         except (OSError, sqlite3.Error) as error:
             raise self._failure(error) from None
 
@@ -707,21 +942,23 @@ class BagWriter:
         Fsync the storage file: what the last :meth:`flush` wrote survives a power loss.
 
         May run in another thread while this one writes on (the recorder does, so that a
-        slow disk never stalls its takes); not after :meth:`close`.
+        slow disk never stalls its takes); not after :meth:`close`.  After a failed write
+        (the writer closed, the storage given up) there is nothing to sync.
         """
-        storage = self._writer.storage
-        if isinstance(storage, _McapStorage):
-            os.fsync(storage.bio.fileno())
+        storage = self._storage
+        if storage is not None and not storage.closed:
+            storage.sync()
 
     def close(self):
         """Finish the bag: summary and index, final ``metadata.yaml``.  Idempotent."""
-        storage = self._writer.storage
+        storage = self._storage
         if self._closed or storage is None:
             return
         self._closed = True
         try:
-            self._writer.close()
-            # Rewritten in rosbag2's key order, without rosbags' line folding.
+            # The metadata rosbag2 keeps in the storage too (the MCAP 'rosbag2' metadata
+            # record, the sqlite3 metadata table): the final metadata.yaml's information.
+            storage.close(_safe_yaml(self._information(self.storage_file.name)))
             self._write_metadata(storage.published, final=True)
             storage.finish(lambda file: self._write_metadata(file, final=True))
         except (OSError, sqlite3.Error) as error:
@@ -734,9 +971,9 @@ class BagWriter:
         The OSError names the file (an OSError of a buffered write or SQLite's 'database or
         disk is full' name none): ENOSPC for a full disk, EIO for another SQLite error.
         """
-        storage = storage or self._writer.storage
+        storage = storage or self._storage
         self._closed = True
-        self._writer.storage = None
+        self._storage = None
         if storage is not None and not storage.closed:
             try:
                 storage.abort()
@@ -755,17 +992,14 @@ class BagWriter:
                        'flush, as its metadata.yaml says')
         return OSError(number, reason, file)
 
-    def _write_metadata(self, file, final=False):
-        # The metadata.yaml of rosbags' Writer.close(), with the counts so far, its keys in
-        # the order rosbag2 writes them.  The final one is block-style YAML without folded
-        # lines; at a flush, JSON (which is YAML too): ruamel's pure-Python emitter would
-        # cost a fifth of a core at four flushes a second.
-        writer = self._writer
-        count = sum(writer.counts.values())
-        start = writer.min_timestamp if count else 0
-        duration = writer.max_timestamp - start if count else 0
-        name = Path(file).name
-        information = {
+    def _information(self, name):
+        """Return the bag's metadata (rosbag2_bagfile_information) with the counts so far."""
+        counts = self._counts
+        count = sum(counts.values())
+        start = self._min_timestamp if count else 0
+        duration = self._max_timestamp - start if count else 0
+        # The keys in the order rosbag2 writes them.
+        return {
             'version': BAG_VERSION,
             'storage_identifier': self.storage,
             'duration': {'nanoseconds': duration},
@@ -775,19 +1009,26 @@ class BagWriter:
                 {'topic_metadata': {
                     'name': connection.topic,
                     'type': connection.msgtype,
-                    'serialization_format': connection.ext.serialization_format,
-                    'offered_qos_profiles': dump_qos_v9(connection.ext.offered_qos_profiles),
+                    'serialization_format': connection.serialization_format,
+                    'offered_qos_profiles': _qos_dicts(connection.offered_qos_profiles),
                     'type_description_hash': connection.digest},
-                 'message_count': writer.counts[connection.id]}
-                for connection in writer.connections],
+                 'message_count': counts[connection.id]}
+                for connection in self._connections.values()],
             'compression_format': '',
             'compression_mode': '',
             'relative_file_paths': [name],
             'files': [{'path': name, 'starting_time': {'nanoseconds_since_epoch': start},
                        'duration': {'nanoseconds': duration}, 'message_count': count}],
-            'custom_data': dict(writer.custom_data) or None,
+            'custom_data': dict(self._custom_data) or None,
             'ros_distro': ROS_DISTRO,
         }
+
+    def _write_metadata(self, file, final=False):
+        # metadata.yaml with the counts so far, naming the storage file `file`.  The final
+        # one is block-style YAML without folded lines; at a flush, JSON (which is YAML
+        # too): ruamel's pure-Python emitter would cost a fifth of a core at four flushes a
+        # second.
+        information = self._information(Path(file).name)
         document = {'rosbag2_bagfile_information': information}
         temporary = self.path / 'metadata.yaml.tmp'
         try:
@@ -806,4 +1047,4 @@ class BagWriter:
             raise OSError(error.errno, error.strerror, str(self.path / 'metadata.yaml')) \
                 from None
         os.replace(temporary, self.path / 'metadata.yaml')
-        self._published_count = count
+        self._published_count = information['message_count']

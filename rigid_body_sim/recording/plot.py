@@ -552,16 +552,11 @@ def _draw_series(axes, time, values, color, label, linestyle='-'):
     # The envelope: the running minimum and maximum over three mean periods, so every
     # window holds whole cycles' extremes (and a beat of two frequencies does not make the
     # edges flicker); then one point per pixel column.
-    from scipy.ndimage import maximum_filter1d
-    from scipy.ndimage import minimum_filter1d
-
-    from scipy.ndimage import uniform_filter1d
-
     window = int(np.ceil(3.0 * len(values) / cycles))
     # Reflected at the ends: a series starting at an extreme keeps its mean honest there.
-    upper = maximum_filter1d(values, window, mode='reflect')
-    lower = minimum_filter1d(values, window, mode='reflect')
-    mean = uniform_filter1d(values, window, mode='reflect')
+    upper = _running_extreme(values, window, np.maximum)
+    lower = _running_extreme(values, window, np.minimum)
+    mean = _running_mean(values, window)
     stride = max(1, len(values) // _ENVELOPE_BINS)
     picked = np.r_[np.arange(0, len(values), stride), len(values) - 1]
     period = (time[-1] - time[0]) / cycles
@@ -577,6 +572,52 @@ def _draw_series(axes, time, values, color, label, linestyle='-'):
                      linestyle=linestyle,
                      label=f'{label}\n({cycles:.0f} cycles of {period:.2g} s: mean; '
                            'envelope shaded)')[0]
+
+
+def _reflected(values, window):
+    """
+    Return `values` extended by window - 1 samples for a centred running window.
+
+    window // 2 before and the rest after, mirrored about the ends (d c b a | a b c d |
+    d c b a, repeated for a window longer than the series): scipy.ndimage's 'reflect'.
+    """
+    before = window // 2
+    return np.pad(np.asarray(values, dtype=float), (before, window - 1 - before),
+                  mode='symmetric')
+
+
+def _running_extreme(values, window, ufunc):
+    """
+    Return the running maximum (`ufunc` np.maximum) or minimum (np.minimum) over `window`.
+
+    Centred as scipy.ndimage's maximum_filter1d and minimum_filter1d with mode='reflect'
+    (equal to them: test/test_plot_filters.py), in O(n) whatever the window (van Herk,
+    Gil and Werman): the extended series cut into blocks of `window`, each window is the
+    end of one block (its running extreme from the right) and the start of the next (from
+    the left).
+    """
+    count = len(values)
+    padded = _reflected(values, window)
+    blocks = -(-len(padded) // window)
+    grid = np.full(blocks * window, -np.inf if ufunc is np.maximum else np.inf)
+    grid[:len(padded)] = padded
+    grid = grid.reshape(blocks, window)
+    from_left = ufunc.accumulate(grid, axis=1).ravel()
+    from_right = ufunc.accumulate(grid[:, ::-1], axis=1)[:, ::-1].ravel()
+    return ufunc(from_right[:count], from_left[window - 1:window - 1 + count])
+
+
+def _running_mean(values, window):
+    """
+    Return the running mean over `window`, centred and reflected at the ends.
+
+    scipy.ndimage's uniform_filter1d with mode='reflect', and its arithmetic (the first
+    window's sum, then each next sum by adding the sample that enters and subtracting the
+    one that leaves, divided by the window): the same doubles, in O(n).
+    """
+    padded = _reflected(values, window)
+    first = np.cumsum(padded[:window])[-1]
+    return np.cumsum(np.r_[first, padded[window:] - padded[:-window]]) / window
 
 
 def _detrended(time, values):

@@ -35,7 +35,14 @@ from mcap.records import Channel
 from mcap.records import Message
 from mcap.records import Schema
 from mcap.stream_reader import StreamReader
-from rosbags.rosbag2.metadata import parse_qos
+from rosbags.interfaces import Qos
+from rosbags.interfaces import QosDurability
+from rosbags.interfaces import QosHistory
+from rosbags.interfaces import QosLiveliness
+from rosbags.interfaces import QosReliability
+from rosbags.interfaces import QosTime
+from ruamel.yaml import YAML
+from ruamel.yaml import YAMLError
 
 from .bag_writer import BagWriter
 from .bag_writer import typestore
@@ -59,6 +66,36 @@ class RecoverySummary:
                  f'{len(self.counts)} topics ({end}); the original is {self.original}']
         lines += [f'  {topic}: {count}' for topic, count in self.counts.items()]
         return '\n'.join(lines)
+
+
+def _parse_qos(text):
+    """
+    Return the rosbags Qos profiles of an ``offered_qos_profiles`` text (a YAML list).
+
+    Policies by name, as rosbag2 Jazzy writes them (metadata version 9, what
+    :mod:`.bag_writer` writes), or by number (version 8 and older); an unknown policy is
+    UNKNOWN, and text that is no such list gives no profiles: recovery keeps the messages.
+    """
+    def policy(kind, value):
+        try:
+            return kind(value) if isinstance(value, int) else kind[str(value).upper()]
+        except (KeyError, ValueError):
+            return kind.UNKNOWN
+
+    def duration(value):
+        return QosTime(int(value['sec']), int(value['nsec']))
+
+    try:
+        items = YAML(typ='safe').load(text) if text else None
+        return [Qos(policy(QosHistory, item['history']), int(item['depth']),
+                    policy(QosReliability, item['reliability']),
+                    policy(QosDurability, item['durability']), duration(item['deadline']),
+                    duration(item['lifespan']), policy(QosLiveliness, item['liveliness']),
+                    duration(item['liveliness_lease_duration']),
+                    bool(item['avoid_ros_namespace_conventions']))
+                for item in items or ()]
+    except (YAMLError, KeyError, TypeError, ValueError):
+        return []
 
 
 def _storage_files(path):
@@ -154,7 +191,7 @@ def _recover_mcap(storage, writer):
             type_hash = record.metadata.get('topic_type_hash', '')
             if not type_hash:
                 type_hash = typestore().hash_rihs01(schema.name)
-            offers = parse_qos(record.metadata.get('offered_qos_profiles', ''))
+            offers = _parse_qos(record.metadata.get('offered_qos_profiles', ''))
             connections[record.id] = writer.add_topic(
                 record.topic, schema.name, offers, message_definition=definition,
                 type_hash=type_hash)
@@ -213,7 +250,7 @@ def _copy_sqlite3(storage, writer):
         connections = {}
         for topic_id, name, type_name, offers, type_hash in topics:
             connections[topic_id] = writer.add_topic(
-                name, type_name, parse_qos(offers), message_definition=definitions.get(
+                name, type_name, _parse_qos(offers), message_definition=definitions.get(
                     type_name), type_hash=type_hash or None)
         for topic_id, timestamp, data in connection.execute(
                 'SELECT topic_id, timestamp, data FROM messages ORDER BY id'):
@@ -269,8 +306,6 @@ def recover_bag(path, force=False):
 
 def _custom_data(path):
     """Return the custom data of the bag's metadata.yaml, if it has a readable one."""
-    from ruamel.yaml import YAML
-
     try:
         document = YAML(typ='safe').load((path / 'metadata.yaml').read_text())
         return dict(document['rosbag2_bagfile_information'].get('custom_data') or {})
