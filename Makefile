@@ -25,8 +25,6 @@ $(STAMP): requirements.txt setup.py setup.cfg package.xml
 	$(BIN)/python -m pip install --upgrade pip
 	$(BIN)/python -m pip install -r requirements.txt
 	$(BIN)/python -m pip install --no-deps -e .
-	@echo 'Compiling the numba kernels once, so that no run waits for them (about 4 min on 2 cores, once):'
-	$(BIN)/rigid-body-sim compile
 	touch $@
 
 $(TF2_STAMP): $(STAMP) requirements-tf2.txt interfaces/build_tf2_msgs.sh \
@@ -52,13 +50,16 @@ run: $(STAMP) $(TF2_STAMP)
 	@echo '  rviz2 -f world                                      add a Marker display on /marker'
 	@echo 'Other scenes: .venv/bin/rigid-body-sim scenes, then make run NODE_ARGS="--ros-args -p scene:=heavy_top"'
 	@echo 'Ctrl-C stops it. The offline summary without DDS: .venv/bin/rigid-body-sim run'
+	@echo 'On a machine that never compiled its numba kernels, the node starts with their source'
+	@echo 'interpreted (the same steps, slower) and switches to them once a compile beside it'
+	@echo 'is done (about a minute on 2 cores, once per machine: .venv/bin/rigid-body-sim compile).'
 	$(BIN)/rigid_body_node $(NODE_ARGS)
 
 test: export ROS_AUTOMATIC_DISCOVERY_RANGE = LOCALHOST
 test: $(STAMP) $(TF2_STAMP) $(TEST_STAMP)
-	@# The numba kernels (compiled by the set-up; a changed source is compiled again here),
-	@# so that no test's node spends its start-up compiling them.
-	$(BIN)/rigid-body-sim compile --quiet
+	@# Every numba kernel, compiled once per machine and per version of the sources (about a
+	@# minute on 2 cores; nothing when they are), so that no test waits for one.
+	$(BIN)/rigid-body-sim compile
 	$(BIN)/python -m pytest test -q -n 2 --dist loadgroup $(PYTEST_ARGS)
 
 clean:

@@ -17,7 +17,8 @@ ROOT = Path(__file__).resolve().parent.parent
 # Top-level import -> its key in package.xml: rosdep keys where they exist, pip keys
 # (python3-<name>-pip) otherwise; ROS packages are their own keys.
 KEYS = {
-    'numpy': 'python3-numpy', 'scipy': 'python3-scipy', 'yaml': 'python3-yaml',
+    'numpy': 'python3-numpy', 'llvmlite': 'python3-llvmlite',
+    'scipy': 'python3-scipy', 'yaml': 'python3-yaml',
     'numba': 'python3-numba', 'matplotlib': 'python3-matplotlib',
     'mpl_toolkits': 'python3-matplotlib', 'tqdm': 'python3-tqdm',
     'rosbags': 'python3-rosbags-pip', 'mcap': 'python3-mcap-pip',
@@ -31,7 +32,8 @@ TEST_TOOLS = {'python3-colcon-common-extensions', 'python3-pytest-xdist'}
 # package.xml key -> the distribution pinned in the requirements files (a ROS package
 # <name> comes as the wheel ros-<name>).
 DISTRIBUTIONS = {
-    'python3-numpy': 'numpy', 'python3-scipy': 'scipy', 'python3-yaml': 'pyyaml',
+    'python3-numpy': 'numpy', 'python3-llvmlite': 'llvmlite',
+    'python3-scipy': 'scipy', 'python3-yaml': 'pyyaml',
     'python3-numba': 'numba', 'python3-matplotlib': 'matplotlib', 'python3-tqdm': 'tqdm',
     'python3-rosbags-pip': 'rosbags', 'python3-mcap-pip': 'mcap',
     'python3-ruamel.yaml': 'ruamel-yaml', 'python3-pil': 'pillow',
@@ -46,15 +48,31 @@ BUILT = {'tf2_msgs'}
 PULLED_AT_RUN_TIME = {'std_msgs'}
 
 
-def _imports(paths):
+# Imported inside functions that only the tests call, when they are called: not run-time
+# dependencies (the file and the module).  physics/elliptic.py's readable functions are the
+# scipy definitions its compiled ones are tested against.
+TEST_ONLY_LAZY_IMPORTS = {('physics/elliptic.py', 'scipy')}
+
+
+def _imports(paths, lazy_test_only=()):
     """Return the top-level modules the files import (absolute imports, not the stdlib)."""
     modules = set()
     for path in paths:
-        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        tree = ast.parse(path.read_text(), str(path))
+        local = set()
+        for function in ast.walk(tree):
+            if isinstance(function, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                local.update(id(node) for node in ast.walk(function))
+        relative = path.relative_to(ROOT).as_posix().removeprefix('rigid_body_sim/')
+        for node in ast.walk(tree):
             if isinstance(node, ast.Import):
-                modules.update(alias.name.split('.')[0] for alias in node.names)
+                names = [alias.name.split('.')[0] for alias in node.names]
             elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-                modules.add(node.module.split('.')[0])
+                names = [node.module.split('.')[0]]
+            else:
+                continue
+            modules.update(name for name in names
+                           if not (id(node) in local and (relative, name) in lazy_test_only))
     return modules - set(sys.stdlib_module_names) - {'rigid_body_sim'}
 
 
@@ -65,8 +83,8 @@ def _is_bench(path):
 
 def run_time_modules():
     """Return the top-level modules the installed package imports, the benchmark aside."""
-    return _imports(path for path in (ROOT / 'rigid_body_sim').rglob('*.py')
-                    if not _is_bench(path))
+    return _imports((path for path in (ROOT / 'rigid_body_sim').rglob('*.py')
+                     if not _is_bench(path)), TEST_ONLY_LAZY_IMPORTS)
 
 
 def bench_and_test_modules():

@@ -13,6 +13,8 @@ import numpy as np
 from . import error_control
 from .effects.registry import Effect
 from .integrators import get_integrator
+from .kernels import interpreting
+from .kernels.interpreted import ARITHMETIC_ERRORS
 from .kernels.layout import body_values
 from .kernels.layout import STATE_SIZE
 from .kernels.model import applied_wrench_of
@@ -20,8 +22,6 @@ from .kernels.model import HELD_FORCE_BODY
 from .kernels.model import HELD_FORCE_WORLD
 from .kernels.model import HELD_TORQUE_BODY
 from .kernels.model import HELD_TORQUE_WORLD
-from .kernels import interpreting
-from .kernels.interpreted import ARITHMETIC_ERRORS
 from .kernels.model import new_model
 from .stability import stiffness_problem
 from .state import State
@@ -177,16 +177,17 @@ class Simulator:
                                  else self._constraint.body)
         body = self._integrated_body
         constraint = self._constraint
-        self._model_arguments = dict(
-            body=body_values(body.inertia, body.inertia_inverse, body.mass), held=self._held,
-            terms=[(effect.compiled_wrench, effect.wrench_parameters(self._body))
-                   for effect in wrenches],
-            flows=[(effect.compiled_flow, effect.flow_parameters(body)) for effect in flows],
-            constraint=None if constraint is None else (
+        self._model_arguments = {
+            'body': body_values(body.inertia, body.inertia_inverse, body.mass),
+            'held': self._held,
+            'terms': [(effect.compiled_wrench, effect.wrench_parameters(self._body))
+                      for effect in wrenches],
+            'flows': [(effect.compiled_flow, effect.flow_parameters(body)) for effect in flows],
+            'constraint': None if constraint is None else (
                 constraint.expand_function, constraint.transmit_function,
                 constraint.parameters),
-            momentum_dependent=any(effect.momentum_dependent for effect in wrenches),
-            reads_state=any(effect.reads_state for effect in wrenches))
+            'momentum_dependent': any(effect.momentum_dependent for effect in wrenches),
+            'reads_state': any(effect.reads_state for effect in wrenches)}
         self._model = new_model(**self._model_arguments, interpreted=self._interpreted)
 
     # -- configuration

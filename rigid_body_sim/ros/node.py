@@ -106,9 +106,9 @@ from .tf import transform_message_class
 from .tf import TransformSerializer
 from ..physics import unresolved_rotation
 from ..physics.error_control import MAX_SUBSTEPS
+from ..physics.kernels import set_interpreted
 from ..physics.simulator import DivergedError
 from ..physics.stability import step_problem
-from ..physics.kernels import set_interpreted
 from ..physics.warm_up import load_kernels
 from ..scenes import load_scene
 

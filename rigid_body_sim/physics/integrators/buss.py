@@ -109,7 +109,6 @@ def run(state, model, method, dt, steps, time):
     return run_steps(step, state, model, method, dt, steps, time)
 
 
-
 @register_integrator('buss', order=2, run=run, method=(1.0,))
 def buss(body, state, time, dt, wrench):
     """

@@ -556,7 +556,6 @@ def run(state, model, method, dt, steps, time):
     return run_steps(step, state, model, method, dt, steps, time)
 
 
-
 # -- readable form
 
 

@@ -59,7 +59,6 @@ def run(state, model, method, dt, steps, time):
     return run_steps_specialised(step, state, model, method, dt, steps, time)
 
 
-
 @register_integrator('first_order', order=1, run=run)
 def first_order(body, state, time, dt, wrench):
     """Seed's simple first-order method (see the module docstring)."""

@@ -219,5 +219,4 @@ def run(state, model, method, dt, steps, time):
     return run_steps_specialised(step, state, model, method, dt, steps, time)
 
 
-
 register_integrator('rk4', order=4, run=run)(rk4)

@@ -230,7 +230,6 @@ def run(state, model, method, dt, steps, time):
     return run_steps_specialised(step, state, model, method, dt, steps, time)
 
 
-
 def _method(axes, coefficients):
     """Return the method constants of a composition of Strang steps (see :func:`step`)."""
     constants = tuple(axes) + (len(coefficients),) + tuple(coefficients)

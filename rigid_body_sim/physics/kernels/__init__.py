@@ -14,9 +14,9 @@ Compiled functions are cached by what they are compiled from, once per machine, 
 package sits (:mod:`.cache`); the decorators here tell numba so.
 """
 
-from . import cache
-
 import numba
+
+from . import cache
 
 __all__ = ['kernel', 'helper', 'outlined', 'inline', 'LazyKernel', 'cache', 'interpreting',
            'set_interpreted']

@@ -58,7 +58,8 @@ import numba
 from numba.core import caching
 
 __all__ = ['KernelCacheLocator', 'PHYSICS_ROOT', 'SOURCES', 'CACHE_DIR_VARIABLE', 'PROBLEM',
-           'cache_root', 'kernel_dir', 'install_locator', 'source_key', 'cpu_key', 'caching_enabled',
+           'cache_root', 'kernel_dir', 'install_locator', 'source_key', 'cpu_key',
+           'caching_enabled',
            'compile_lock', 'seal', 'verify', 'marker', 'is_marked', 'mark', 'unmark_all',
            'drop', 'drop_unsealed', 'prune', 'clear', 'claim_file', 'measured_seconds',
            'touch_used', 'KEEP_DAYS']
@@ -97,7 +98,7 @@ def source_key(root=PHYSICS_ROOT):
 
 
 def cpu_key():
-    """Return a short hash of the CPU numba compiles for (name and features, as numba takes them)."""
+    """Return a short hash of the CPU numba compiles for (its name and features)."""
     config = numba.config
     name = config.CPU_NAME or llvmlite.binding.get_host_cpu_name()
     features = (config.CPU_FEATURES if config.CPU_FEATURES is not None

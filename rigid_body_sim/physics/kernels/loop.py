@@ -36,8 +36,8 @@ from .model import apply_flows
 from .model import MODEL_TYPE
 from .model import unpacked
 
-__all__ = ['run_steps', 'run_steps_specialised', 'run_kernel', 'method_constants', 'METHOD_SIZE', 'METHOD_TYPE',
-           'RUN_SIGNATURE']
+__all__ = ['run_steps', 'run_steps_specialised', 'run_kernel', 'method_constants',
+           'METHOD_SIZE', 'METHOD_TYPE', 'RUN_SIGNATURE']
 
 METHOD_SIZE = 10
 """Constants of a method a run kernel takes (zeros past the method's own): the largest is

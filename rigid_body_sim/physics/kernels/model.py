@@ -31,19 +31,18 @@ import collections
 import os
 import warnings
 
-import numba
 from numba import types
 from numba.core.errors import NumbaExperimentalFeatureWarning
 from numba.experimental import structref
 import numpy as np
 
-from . import inline
 from . import cache as kernel_cache
+from . import inline
 from . import kernel
 from . import LazyKernel
-from .interpreted import stand_in
 from .algebra import rotate
 from .borrow import borrowed
+from .interpreted import stand_in
 from .layout import STATE_SIZE
 
 __all__ = ['Model', 'Forcing', 'MODEL_TYPE', 'new_model', 'unpacked', 'applied_wrench_of',
