@@ -1,6 +1,9 @@
 """
 Kernels not compiled yet: compiled beside the node, never blocking its services or ticks.
 
+Until they are, the node integrates with the kernels' source interpreted (the same steps):
+its first state comes at once, whatever the compile takes.
+
 The set-up compiled every integrator, so these nodes run with the test hook
 ``RIGID_BODY_SIM_ASSUME_UNCOMPILED`` (:mod:`rigid_body_sim.ros.kernels`) naming the
 integrators they must take for not compiled.  The compilation is the real command
@@ -97,14 +100,16 @@ def integrator_parameter(client):
     return response.values[0].string_value
 
 
-def test_the_node_serves_while_its_kernels_compile_and_switches_when_they_are(tmp_path):
+def test_the_node_integrates_interpreted_while_its_kernels_compile_and_switches_when_ready(
+        tmp_path):
     """
-    At start-up and at a switch: services answer and the old integrator runs meanwhile.
+    At start-up and at a switch: services answer and the simulation runs meanwhile.
 
-    Start-up with the scene's integrator (buss) not compiled: the services and /diagnostics
-    come first ('waiting: compiling ...'), no state before the kernels; then a switch to rk4,
-    not compiled: accepted at once, buss goes on ticking (its name in /diagnostics) while rk4
-    compiles, then rk4 runs.
+    Start-up with the scene's integrator (buss) not compiled: the state comes from the first
+    ticks, the kernels' source interpreted ('kernels: interpreted' in /diagnostics, which says
+    the compile runs), then the compiled kernels once the compile is done; then a switch to
+    rk4, not compiled: accepted at once, buss goes on ticking compiled (its name in
+    /diagnostics) while rk4 compiles, then rk4 runs.
     """
     node, client, gates = start(tmp_path, ['buss', 'rk4'])
     try:
@@ -112,16 +117,24 @@ def test_the_node_serves_while_its_kernels_compile_and_switches_when_they_are(tm
         client.wait_for(lambda: client.reset_client.service_is_ready()
                         and client.get_parameters.service_is_ready(),
                         DISCOVERY_TIMEOUT, 'the services while buss compiles')
+        client.wait_for(lambda: client.received('pose'), DISCOVERY_TIMEOUT,
+                        'the first state while buss compiles')
         assert client.reset().success
         assert integrator_parameter(client) == 'buss'
-        message, _ = latest_status(client, since=0.0)
-        assert message.startswith('waiting: compiling the kernels of buss'), message
-        assert not client.received('pose')
+        since = client.received('pose')[-1][0]
+        client.wait_for_messages('pose', 10, since=since)
+        message, values = latest_status(client, since=0.0)
+        assert values['kernels'] == 'interpreted', values
+        assert 'compiling the kernels of buss in the background' in message, message
+        assert 'buss interpreted until then' in message, message
         assert node.output().count('compiling them in the background') == 1, node.output()
         open_gate(gates / 'buss', 'ok')
-        client.wait_for(lambda: client.received('pose'), DISCOVERY_TIMEOUT,
-                        'the first state once buss compiled')
-        assert 'integrator is now buss (its kernels compiled in' in node.output()
+        client.wait_for(lambda: 'integrator is now buss (its kernels compiled in' in
+                        node.output(), DISCOVERY_TIMEOUT, 'the switch to the compiled kernels')
+        since = client.received('pose')[-1][0]
+        client.wait_for_messages('pose', 5, since=since)
+        _, values = latest_status(client, since)
+        assert values['kernels'] == 'compiled', values
 
         result = client.set_parameter('integrator', 'rk4')
         assert result.successful, result.reason
