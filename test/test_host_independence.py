@@ -5,9 +5,8 @@ numba compiles each kernel for the CPU it runs on, and the numpy side of the pac
 on BLAS and libm code chosen per CPU at run time (OpenBLAS's kernel, glibc's FMA variants),
 so a test that holds on one machine because two computations happen to round alike may
 fail on another.  Here a child process compiles the Buss kernels afresh for a generic x86-64
-CPU (NUMBA_CPU_NAME=generic) into a numba cache of its own (NUMBA_CACHE_DIR in tmp_path:
-numba neither reads nor writes the package's cache beside its sources; the package's
-import-time fingerprint check of that cache runs as in any process), and runs what no CPU
+CPU (NUMBA_CPU_NAME=generic) into a kernel cache of its own (RIGID_BODY_SIM_CACHE_DIR in
+tmp_path: the machine's cache is neither read nor written), and runs what no CPU
 may change:
 
 - torque-free, world L and p are never written: bit-identical after the run (and under
@@ -58,7 +57,8 @@ def hexed(array):
     return [float(value).hex() for value in np.asarray(array, dtype=float).reshape(-1)]
 
 
-report = {{'cpu': numba.config.CPU_NAME, 'cache': numba.config.CACHE_DIR}}
+from rigid_body_sim.physics.kernels import cache
+report = {{'cpu': numba.config.CPU_NAME, 'cache': str(cache.cache_root())}}
 body = RigidBody(1.0, {moments!r})
 start = State.from_velocity(body, angular_velocity_body={spin!r})
 final = Simulator(body, start, integrator='buss').run({steps} * {dt!r}, {dt!r})
@@ -81,7 +81,7 @@ report['free_fall'] = {{
     'scale': hexed(np.abs(scene.body.inertia_inverse).sum(axis=1)
                    * np.abs(state.angular_momentum).sum())}}
 # The run kernel's machine code: a generic x86-64 has no AVX registers.
-asm = '\\n'.join(buss.run.inspect_asm().values())
+asm = '\\n'.join(buss.run.dispatcher.inspect_asm().values())
 report['wide_registers'] = sorted({{register for register in ('ymm', 'zmm') if register in asm}})
 print(json.dumps(report))
 """
@@ -93,9 +93,10 @@ def _unhexed(values):
 
 def _generic_cpu_report(tmp_path):
     """Run _CHILD with kernels compiled for a generic CPU in a fresh cache; its report."""
-    cache = tmp_path / 'numba_cache'
+    cache = tmp_path / 'kernel_cache'
     code = _CHILD.format(moments=MOMENTS, spin=SPIN, steps=STEPS, dt=DT)
-    environment = {**os.environ, 'NUMBA_CPU_NAME': 'generic', 'NUMBA_CACHE_DIR': str(cache)}
+    environment = {**os.environ, 'NUMBA_CPU_NAME': 'generic',
+                   'RIGID_BODY_SIM_CACHE_DIR': str(cache)}
     result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                             env=environment, cwd=tmp_path, timeout=600, check=False)
     assert result.returncode == 0, result.stderr

@@ -382,16 +382,16 @@ def test_a_context_shut_down_before_the_executor_is_built_leaves_no_message():
 
 def test_a_signal_while_numba_compiles_stops_the_node_within_seconds(tmp_path, monkeypatch):
     """
-    SIGINT as the node's construction begins, with numba's cache empty: out in seconds.
+    SIGINT as the node's construction begins, with the kernel cache empty: out in seconds.
 
-    The construction compiles the integrator's kernels (tens of seconds on a cold cache).
-    A KeyboardInterrupt raised in numba's compiler was once swallowed in a ctypes callback
-    ("Exception ignored ...") and the node went on compiling for 35 s; now the signal is
-    noted, and the watchdog ends the process when the main thread cannot stop in order
-    within rigid_body_sim.ros.process.STOP_GRACE.  The bound below is a failure detector:
-    a cold compilation alone takes longer.
+    The node then integrates interpreted while a compile runs beside it (tens of seconds on
+    a cold cache).  A KeyboardInterrupt raised in numba's compiler was once swallowed in a
+    ctypes callback ("Exception ignored ...") and the node went on compiling for 35 s; now
+    the signal is noted, the compile beside it ended, and the watchdog ends the process
+    when the main thread cannot stop in order within rigid_body_sim.ros.process.STOP_GRACE.
+    The bound below is a failure detector: a cold compilation alone takes longer.
     """
-    monkeypatch.setenv('NUMBA_CACHE_DIR', str(tmp_path / 'numba_cache'))
+    monkeypatch.setenv('RIGID_BODY_SIM_CACHE_DIR', str(tmp_path / 'kernel_cache'))
     node = _installed_node(tmp_path, monkeypatch)
     try:
         _wait_for_phase(node, 'node')

@@ -106,12 +106,12 @@ def test_a_fresh_process_gives_the_same_trajectories(tmp_path):
 
 @pytest.mark.slow
 def test_kernels_compiled_afresh_for_a_generic_cpu_give_the_same_trajectories(tmp_path):
-    # An empty numba cache makes the child compile every kernel, for a baseline x86-64
+    # An empty kernel cache makes the child compile every kernel, for a baseline x86-64
     # instead of this CPU: the same bits show that the kernels' machine code does not depend
     # on the host's instruction set (no fused multiply-add or reassociation by the compiler).
     hashes = _hashes_in_a_child(tmp_path, PYTHONHASHSEED='7', NUMBA_CPU_NAME='generic',
-                                NUMBA_CACHE_DIR=str(tmp_path / 'numba_cache'))
-    assert list((tmp_path / 'numba_cache').rglob('*.nbi')), 'the child used no fresh cache'
+                                RIGID_BODY_SIM_CACHE_DIR=str(tmp_path / 'kernel_cache'))
+    assert list((tmp_path / 'kernel_cache').rglob('*.nbi')), 'the child used no fresh cache'
     assert hashes == trajectory_hashes()
 
 

@@ -69,7 +69,8 @@ TYPE_NAMES = {'/pose': 'geometry_msgs/msg/PoseStamped', '/twist': 'geometry_msgs
               '/clock': 'rosgraph_msgs/msg/Clock', '/imu': 'sensor_msgs/msg/Imu',
               '/tf': 'tf2_msgs/msg/TFMessage', '/tf_static': 'tf2_msgs/msg/TFMessage'}
 STAMPED = ('/pose', '/angular_momentum', '/odom', '/marker')
-SHARE = Path(__file__).resolve().parent.parent / '.venv' / 'share'
+# The installed interfaces' share folder: the venv's (the wheels install there).
+SHARE = Path(sys.prefix) / 'share'
 
 
 def stamp_of(message):
