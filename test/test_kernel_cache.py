@@ -201,8 +201,8 @@ def test_no_writable_cache_is_one_line_saying_what_to_set(tmp_path):
 @pytest.mark.slow
 @pytest.mark.parametrize('variable', ['RIGID_BODY_SIM_CACHE_DIR', 'NUMBA_CACHE_DIR',
                                       'XDG_CACHE_HOME'])
-def test_a_second_copy_compiles_nothing_and_an_edited_helper_never_runs_stale(tmp_path,
-                                                                             variable):
+def test_a_second_copy_compiles_nothing_and_an_edited_helper_never_runs_stale(
+        tmp_path, variable):
     """
     Two copies of the package (a second clone, a colcon install), one cache root.
 
@@ -316,8 +316,8 @@ print('stepped')
 @pytest.mark.slow
 @pytest.mark.parametrize('damage', [_damage_object_file, _truncate],
                          ids=['object-file-bytes', 'truncated-index'])
-def test_a_damaged_cache_file_is_said_in_one_line_dropped_and_compiled_again(compiled_cache,
-                                                                            damage):
+def test_a_damaged_cache_file_is_said_in_one_line_dropped_and_compiled_again(
+        compiled_cache, damage):
     environment, folder = compiled_cache
     suffix = '.nbc' if damage is _damage_object_file else '.nbi'
     target = next(folder.glob(f'integrators/first_order.run-*{suffix}'))
