@@ -1,111 +1,113 @@
 #!/usr/bin/env python3
 """
-Measure what a user waits for on first use: the node's start, each integrator switch, simulate.
+Measure what a user waits for on first use: the node's first pose, simulate, a colcon build.
 
-Run it right after the set-up (``make venv``, which compiles the kernels) on a fresh clone:
+Every figure is a wall-clock time of this run (printed with the load average), measured from
+the moment the command is started; the node runs in a ROS domain of its own on the loopback.
 
-- ``simulate``: the wall time and the CPU time (user + system, of the child process) of two
-  identical runs in a row (``--scene default --duration 5``); the first must cost no more
-  than the second (nothing is left to compile).  A first run's wall time can exceed its CPU
-  time by what the OS reads from disk that the second finds in its page cache (the
-  libraries, ~1 s after ``echo 3 > /proc/sys/vm/drop_caches``): the CPU times tell the two
-  apart;
-- the node: the wall time from its start to its parameter services answering, and for each
-  integrator the time from a ``set_parameters`` request to its reply, and to the first
-  /diagnostics report that names the new integrator (the switch has then happened).
+- the node (``rigid_body_node``, default scene, 100 Hz): its start to its parameter
+  services answering, to its first /pose, and to the first /diagnostics report that says
+  its kernels are compiled (``kernels: compiled``: before that it integrates with the
+  kernels' source interpreted while a compile runs beside it);
+- ``simulate --scene default --duration 5``, twice: the first includes compiling what it
+  needs when the machine never did (in a process of its own, in parallel), the second not;
+- ``--colcon``: a colcon build of the checkout into a temporary workspace (the ROS user's
+  way), then the node of that install, started as ``ros2 run`` starts it.
 
-Every figure is a wall-clock time of this run, printed with the load average; the node runs
-in a ROS domain of its own on the loopback.  ``--cold`` empties the compiled-kernel markers
-first: the node and simulate then say what they compile (the first-use announcements), and
-the switches show how a node without compiled kernels keeps answering.
+``--cold`` gives every step a kernel cache that is empty (a temporary
+RIGID_BODY_SIM_CACHE_DIR): a machine that never compiled them.  Without it, the machine's
+cache (``rigid-body-sim compile --where``).
 
-Usage: .venv/bin/python benchmarks/first_use.py [--cold] [--rate HZ]
+Usage: .venv/bin/python benchmarks/first_use.py [--cold] [--colcon] [--rate HZ]
 """
 
 import argparse
 import os
 from pathlib import Path
-import resource
+import shutil
 import subprocess
 import sys
 import tempfile
 import time
 
 ROOT = Path(__file__).resolve().parent.parent
+TIMEOUT = 600.0
 
 
 def _simulate_twice(environment):
-    times = []
     with tempfile.TemporaryDirectory() as directory:
-        for run in range(2):
-            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        for run in ('first', 'second'):
             started = time.monotonic()
             result = subprocess.run(
                 [sys.executable, '-m', 'rigid_body_sim.cli', 'simulate', '--scene', 'default',
-                 '--duration', '5', '--quiet', '--bag', str(Path(directory) / f'bag{run}')],
-                capture_output=True, text=True, env=environment, check=False, timeout=900)
-            wall = time.monotonic() - started
-            after = resource.getrusage(resource.RUSAGE_CHILDREN)
-            cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-            times.append((wall, cpu))
+                 '--duration', '5', '--quiet', '--bag', str(Path(directory) / run)],
+                capture_output=True, text=True, env=environment, check=False, cwd=ROOT,
+                timeout=TIMEOUT)
             if result.returncode != 0:
                 raise SystemExit(f'simulate failed: {result.stderr.strip()}')
-            if result.stderr.strip():
-                print(f'  simulate said: {result.stderr.strip()}')
-    return times
+            said = result.stderr.strip().splitlines()
+            print(f'simulate --duration 5, {run} run: {time.monotonic() - started:.2f} s'
+                  + (f' (it said: {said[0]})' if said else ''))
 
 
-def _node_switches(environment, rate):
+def _node_timeline(command, environment, label):
+    """Start the node with `command`; print when it answers, publishes, runs compiled."""
     import rclpy
     from diagnostic_msgs.msg import DiagnosticArray
-    from rcl_interfaces.msg import Parameter
-    from rcl_interfaces.msg import ParameterType
-    from rcl_interfaces.msg import ParameterValue
-    from rcl_interfaces.srv import SetParameters
-    from rigid_body_sim.physics import INTEGRATORS
+    from geometry_msgs.msg import PoseStamped
+    from rcl_interfaces.srv import GetParameters
 
-    started = time.monotonic()
-    node_process = subprocess.Popen(
-        [sys.executable, '-m', 'rigid_body_sim.ros.entry_point', '--ros-args', '-p',
-         f'rate:={rate}'], env=environment, stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL)
     rclpy.init()
-    client_node = rclpy.create_node('first_use_benchmark')
-    reports = []
-    client_node.create_subscription(
-        DiagnosticArray, '/diagnostics',
-        lambda message: reports.append((time.monotonic(), message)), 10)
-    client = client_node.create_client(SetParameters, '/rigid_body_sim/set_parameters')
+    probe = rclpy.create_node('first_use_benchmark')
+    events = {}
+    started = time.monotonic()
+
+    def note(event):
+        events.setdefault(event, time.monotonic() - started)
+
+    def diagnostics(message):
+        for status in message.status:
+            values = {item.key: item.value for item in status.values}
+            if values.get('kernels'):
+                note(f'kernels: {values["kernels"]}')
+
+    probe.create_subscription(PoseStamped, '/pose', lambda message: note('first /pose'), 10)
+    probe.create_subscription(DiagnosticArray, '/diagnostics', diagnostics, 10)
+    client = probe.create_client(GetParameters, '/rigid_body_sim/get_parameters')
+    node = subprocess.Popen(command, env=environment, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, cwd=tempfile.gettempdir())
     try:
-        while not client.wait_for_service(timeout_sec=0.05):
-            if time.monotonic() - started > 300:
-                raise SystemExit('the node offered no parameter service within 300 s')
-        print(f'node: parameter services answer {time.monotonic() - started:.2f} s after '
-              'its start')
-        for name in sorted(INTEGRATORS, key=lambda n: n != 'rk4'):
-            request = SetParameters.Request()
-            request.parameters = [Parameter(name='integrator', value=ParameterValue(
-                type=ParameterType.PARAMETER_STRING, string_value=name))]
-            asked = time.monotonic()
-            future = client.call_async(request)
-            rclpy.spin_until_future_complete(client_node, future, timeout_sec=300)
-            replied = time.monotonic() - asked
-            del reports[:]
-            switched = None
-            while time.monotonic() - asked < 300 and switched is None:
-                rclpy.spin_once(client_node, timeout_sec=0.05)
-                for when, message in reports:
-                    for status in message.status:
-                        values = {item.key: item.value for item in status.values}
-                        if values.get('integrator') == name:
-                            switched = when - asked
-            shown = f'{switched:.3f} s' if switched is not None else 'not within 300 s'
-            print(f'  switch to {name:12s} reply {replied:.3f} s, in /diagnostics {shown}')
+        while time.monotonic() - started < TIMEOUT and 'kernels: compiled' not in events:
+            if client.service_is_ready():
+                note('parameter services')
+            rclpy.spin_once(probe, timeout_sec=0.02)
+            if node.poll() is not None:
+                raise SystemExit(f'the node ended (exit {node.returncode})')
     finally:
-        client_node.destroy_node()
+        node.terminate()
+        node.wait(timeout=60)
+        probe.destroy_node()
         rclpy.try_shutdown()
-        node_process.terminate()
-        node_process.wait(timeout=60)
+    print(f'{label}:')
+    for event, seconds in sorted(events.items(), key=lambda item: item[1]):
+        print(f'  {event:22s} {seconds:7.2f} s after its start')
+
+
+def _colcon_build(workspace, environment):
+    source = workspace / 'src' / 'rigid_body_sim'
+    files = subprocess.run(['git', 'ls-files', '-z'], cwd=ROOT, check=True,
+                           capture_output=True).stdout.decode().split('\0')
+    for name in filter(None, files):
+        target = source / name
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(ROOT / name, target)
+    colcon = Path(sys.executable).parent / 'colcon'
+    started = time.monotonic()
+    subprocess.run([str(colcon), 'build', '--base-paths', 'src'], cwd=workspace,
+                   env={**environment, 'COLCON_HOME': str(workspace / 'colcon_home')},
+                   check=True, capture_output=True, timeout=TIMEOUT)
+    print(f'colcon build: {time.monotonic() - started:.2f} s')
+    return workspace / 'install'
 
 
 def main():
@@ -113,23 +115,34 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--cold', action='store_true',
-                        help='forget which kernels are compiled first (they compile again)')
+                        help='an empty kernel cache (a machine that never compiled them)')
+    parser.add_argument('--colcon', action='store_true',
+                        help='build a colcon workspace and time its node too')
     parser.add_argument('--rate', type=float, default=100.0, help='the node rate, Hz')
     args = parser.parse_args()
-    # The node and this process's client in a domain of their own, on the loopback.
     os.environ.update(ROS_DOMAIN_ID=str(150 + os.getpid() % 80),
                       ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
-    environment = dict(os.environ)
-    if args.cold:
-        from rigid_body_sim.physics import kernels
-        for path in kernels.cached_kernel_files():
-            path.unlink()
-    print(f'load average {os.getloadavg()[0]:.1f}')
-    (first, first_cpu), (second, second_cpu) = _simulate_twice(environment)
-    print(f'simulate --duration 5: first run {first:.2f} s ({first_cpu:.2f} s CPU), second '
-          f'{second:.2f} s ({second_cpu:.2f} s CPU): {first / second:.2f}x wall, '
-          f'{first_cpu / second_cpu:.2f}x CPU')
-    _node_switches(environment, args.rate)
+    print(f'load average {os.getloadavg()[0]:.1f}, {os.cpu_count()} cores')
+    with tempfile.TemporaryDirectory() as scratch:
+        scratch = Path(scratch)
+
+        def environment():
+            # Each step of a cold run on a machine that never compiled: a new empty cache.
+            if not args.cold:
+                return dict(os.environ)
+            cache = Path(tempfile.mkdtemp(dir=scratch, prefix='cache-'))
+            return {**os.environ, 'RIGID_BODY_SIM_CACHE_DIR': str(cache)}
+
+        node = [sys.executable, '-m', 'rigid_body_sim.ros.entry_point', '--ros-args', '-p',
+                f'rate:={args.rate}']
+        _node_timeline(node, environment(), 'node (this checkout)')
+        _simulate_twice(environment())
+        if args.colcon:
+            install = _colcon_build(scratch / 'workspace', environment())
+            executable = install / 'rigid_body_sim' / 'lib' / 'rigid_body_sim' / 'rigid_body_node'
+            command = ['bash', '-c', f'source "{install}/setup.bash" && exec "{executable}" '
+                       f'--ros-args -p rate:={args.rate}']
+            _node_timeline(command, environment(), 'node (colcon install, as ros2 run)')
     return 0
 
 

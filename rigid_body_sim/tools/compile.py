@@ -55,13 +55,14 @@ def announce_compile(command, integrators, stream=None):
               '`rigid-body-sim compile` does them all)', file=stream or sys.stderr, flush=True)
 
 
-def ensure_compiled(command, integrators):
+def ensure_compiled(command, integrators, quiet=False):
     """
     Compile what `integrators` need, if anything, in a process of its own; return its code.
 
-    Compiling in another process keeps a damaged cache file from taking this one down
-    (LLVM aborts on a corrupt object file): the compile drops it and compiles it again.
-    Its progress goes to stderr.
+    In parallel processes, and in another process than this one: a damaged cache file
+    cannot take this one down (LLVM aborts on a corrupt object file); the compile drops it
+    and compiles it again.  One line says what and how long; the compile's progress follows
+    on stderr unless `quiet`.  If it fails, this process compiles what it runs itself.
     """
     if cache.PROBLEM is not None:
         print(cache.PROBLEM, file=sys.stderr, flush=True)
@@ -70,7 +71,8 @@ def ensure_compiled(command, integrators):
         return 0
     announce_compile(command, integrators)
     result = subprocess.run([sys.executable, '-m', 'rigid_body_sim.cli', 'compile',
-                             *integrators], stdout=sys.stderr, check=False)
+                             *integrators, *(['--quiet'] if quiet else [])],
+                            stdout=sys.stderr, check=False)
     warm_up.forget_verification()
     return result.returncode
 

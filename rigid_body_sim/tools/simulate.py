@@ -22,7 +22,7 @@ from pathlib import Path
 import sys
 import time
 
-from .compile import announce_compile
+from .compile import ensure_compiled
 from .run_limits import check_duration
 from .run_limits import check_rate
 from .run_limits import check_substeps
@@ -155,7 +155,7 @@ def main(args):
     warning = unresolved_rotation(scene.body, scene.state, 1.0 / rate, args.substeps, tolerance)
     if warning is not None:
         print(f'rigid-body-sim simulate: warning: {warning}', file=sys.stderr)
-    announce_compile('simulate', [args.integrator or scene.integrator])
+    ensure_compiled('simulate', [args.integrator or scene.integrator], quiet=args.quiet)
     with StopOnSignals() as signals:
         summary = simulate_to_bag(
             scene, bag, args.duration, rate=args.rate, integrator=args.integrator,

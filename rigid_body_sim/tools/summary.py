@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from .compile import announce_compile
+from .compile import ensure_compiled
 from .run_limits import check_duration
 from .run_limits import check_every
 from .run_limits import check_step
@@ -54,7 +54,7 @@ def main(args):
     dt = check_step(scene.dt if args.dt is None else args.dt)
     every = check_every(args.every, dt)
     tolerance = scene.tolerance if args.tolerance is None else check_tolerance(args.tolerance)
-    announce_compile('run', [args.integrator or scene.integrator])
+    ensure_compiled('run', [args.integrator or scene.integrator])
     # The body and state alone: the scene's only effect, external_wrench, has no input here.
     simulator = Simulator(body, scene.state, integrator=args.integrator or scene.integrator,
                           tolerance=tolerance)
