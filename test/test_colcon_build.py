@@ -226,3 +226,21 @@ def test_colcon_install_ships_the_committed_benchmark_references(colcon_install)
     module, problems = ran.stdout.strip().splitlines()[-2:]
     assert site.resolve() in Path(module).resolve().parents, module
     assert int(problems) > 0
+
+
+def test_colcon_install_finds_the_kernels_the_checkout_compiled(colcon_install):
+    """
+    The install is another copy of the same sources: its kernels are compiled already.
+
+    The kernels are cached by the content of their sources, not by where the package sits
+    (physics/kernels/cache.py): `make test` compiled them for this checkout.
+    """
+    ran = _in_sourced_workspace(
+        colcon_install,
+        '"{0}" -c "from rigid_body_sim.physics import warm_up; print(warm_up.__file__); '
+        'print(warm_up.missing())"'.format(sys.executable))
+
+    assert ran.returncode == 0, ran.stdout + ran.stderr
+    module, missing = ran.stdout.strip().splitlines()[-2:]
+    assert (colcon_install / PACKAGE_NAME).resolve() in Path(module).resolve().parents, module
+    assert missing == '[]', ran.stdout

@@ -198,6 +198,21 @@ def test_no_writable_cache_is_one_line_saying_what_to_set(tmp_path):
 # -- compiled once per machine, never stale (slow: each compiles buss's kernels)
 
 
+def test_a_pip_install_elsewhere_finds_the_kernels_compiled(tmp_path):
+    """`pip install --target` of the same sources (a read-only install): nothing to compile."""
+    target = tmp_path / 'target'
+    installed = subprocess.run(
+        [sys.executable, '-m', 'pip', 'install', '--quiet', '--no-deps', '--target',
+         str(target), str(PACKAGE.parent)], capture_output=True, text=True,
+        timeout=600, check=False)
+    assert installed.returncode == 0, installed.stderr
+    environment = dict(os.environ, PYTHONPATH=str(target))
+    probe = _run(['-c', 'from rigid_body_sim.physics import warm_up; print(warm_up.__file__); '
+                  'print(warm_up.missing())'], environment)
+    module, missing = probe.stdout.strip().splitlines()
+    assert Path(module).is_relative_to(target) and missing == '[]', probe.stdout + probe.stderr
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize('variable', ['RIGID_BODY_SIM_CACHE_DIR', 'NUMBA_CACHE_DIR',
                                       'XDG_CACHE_HOME'])
