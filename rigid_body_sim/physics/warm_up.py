@@ -35,7 +35,7 @@ from .state import State
 
 __all__ = ['SHARED', 'CONTROLLER', 'DEFAULT_SECONDS', 'run_job', 'jobs_of', 'all_jobs',
            'missing_jobs', 'is_compiled', 'missing', 'job_estimate', 'compile_estimate',
-           'compile_job', 'load_kernels', 'damaged_files']
+           'compile_job', 'load_kernels', 'damaged_files', 'WORKER_START']
 
 SHARED = 'shared'
 CONTROLLER = 'controller'
@@ -105,17 +105,21 @@ def job_estimate(job):
     return measured if measured is not None else DEFAULT_SECONDS.get(job, 10.0)
 
 
+WORKER_START = 1.5
+"""Seconds a compile process takes to start and import the package, roughly."""
+
+
 def compile_estimate(names, workers=1):
     """
     Return the seconds compiling the kernels of `names` takes, roughly (0 if compiled).
 
     With `workers` processes, the longest job or the total shared among them, whichever is
-    longer.
+    longer, after the processes started (on an idle machine: a loaded one takes longer).
     """
     seconds = [job_estimate(job) for job in missing_jobs(jobs_of(names))]
     if not seconds:
         return 0.0
-    return max(max(seconds), sum(seconds) / max(1, workers))
+    return WORKER_START + max(max(seconds), sum(seconds) / max(1, workers))
 
 
 def _shared():
