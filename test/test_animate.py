@@ -24,6 +24,7 @@ from rigid_body_sim.scenes import load_scene
 from rosbags.rosbag2 import Reader
 from rosbags.rosbag2 import Writer
 from scipy.spatial.transform import Rotation
+import yaml
 
 DURATION = 2.0
 
@@ -34,6 +35,12 @@ def flip_bag(tmp_path_factory):
     bag = tmp_path_factory.mktemp('animate') / 'flip'
     simulate_to_bag(load_scene('default'), bag, DURATION)
     return bag
+
+
+def _custom_data(bag):
+    """Return the custom_data of a bag's metadata.yaml ({} if none)."""
+    document = yaml.safe_load((Path(bag) / 'metadata.yaml').read_text())
+    return document['rosbag2_bagfile_information'].get('custom_data') or {}
 
 
 def _copy_without_marker(source, target, keep_custom_data=True):
@@ -49,9 +56,9 @@ def _copy_without_marker(source, target, keep_custom_data=True):
                 serialization_format='cdr',
                 offered_qos_profiles=connection.ext.offered_qos_profiles)
         if keep_custom_data:
-            # rosbags has no public accessor for custom_data (as in recording/plot.py).
-            custom = getattr(reader.storage.metadata, 'custom', None) or {}
-            for key, value in custom.items():
+            # rosbags' Reader has no public accessor for custom_data: rosbag2 keeps it in
+            # metadata.yaml.
+            for key, value in _custom_data(source).items():
                 writer.set_custom_data(key, value)
         for connection, stamp, raw in reader.messages():
             if connection.id in connections:

@@ -1,11 +1,13 @@
 """
 Bags are written through the public APIs of rosbags and mcap only, and read back by both.
 
-bag_writer.py and recovery.py may import from rosbags and mcap only names their documented
-modules export (``__all__``, or defined in a module the library documents), never a
-private or unexported module such as ``rosbags.rosbag2.storage_mcap``, and no class of
-theirs subclasses a library class: an upgrade of either library then breaks recording
-only where its documented API changes, and these tests say where.
+Every module of rigid_body_sim/recording/ and rigid_body_sim/tools/ may import from rosbags
+and mcap only names their documented modules export (``__all__``, or defined in a module
+the library documents), never a private or unexported module such as
+``rosbags.rosbag2.storage_mcap`` or ``rosbags.rosbag2.errors``, nor read an attribute of a
+rosbags Reader its class does not define publicly (``reader.storage``); no class of
+bag_writer.py and recovery.py subclasses a library class: an upgrade of either library then
+breaks recording only where its documented API changes, and these tests say where.
 
 The bags read back byte for byte with rosbags' public Reader and with the mcap library's
 readers (independent decoders), closed and as a flush leaves them (what SIGKILL leaves);
@@ -48,7 +50,8 @@ from rosbags.rosbag2 import Reader
 import yaml
 
 PACKAGE = Path(__file__).resolve().parent.parent / 'rigid_body_sim'
-CHECKED_FILES = [PACKAGE / 'recording' / 'bag_writer.py', PACKAGE / 'recording' / 'recovery.py']
+CHECKED_FILES = sorted((PACKAGE / 'recording').glob('*.py')) + sorted(
+    (PACKAGE / 'tools').glob('*.py'))
 LIBRARIES = ('rosbags', 'mcap')
 
 # The modules of rosbags and mcap their documentation presents as API, with the page.
@@ -110,7 +113,18 @@ def _import_problem(module_name, name):
     return None
 
 
-@pytest.mark.parametrize('path', CHECKED_FILES, ids=lambda path: path.name)
+def _file_id(path):
+    return str(path.relative_to(PACKAGE))
+
+
+def test_the_checked_files_are_every_module_of_recording_and_tools():
+    names = {_file_id(path) for path in CHECKED_FILES}
+    assert {'recording/bag_writer.py', 'recording/recovery.py', 'recording/plot.py',
+            'recording/animate.py', 'recording/state_batch.py', 'tools/plot.py'} <= names
+    assert all(name.startswith(('recording/', 'tools/')) for name in names)
+
+
+@pytest.mark.parametrize('path', CHECKED_FILES, ids=_file_id)
 def test_every_rosbags_and_mcap_import_is_a_documented_exported_name(path):
     problems = []
     for line, module, name in _library_imports(path):
@@ -130,8 +144,50 @@ def test_the_import_check_catches_the_imports_bag_writer_used_to_have():
     assert 'private' in _import_problem('mcap._chunk_builder', 'ChunkBuilder')
     assert '__all__' in _import_problem('mcap.writer', 'ChunkBuilder')
     assert 'only imported' in _import_problem('mcap.records', 'RecordBuilder')
+    assert 'document' in _import_problem('rosbags.rosbag2.errors', 'ReaderError')
     assert _import_problem('rosbags.rosbag2', 'Reader') is None
+    assert _import_problem('rosbags.rosbag2', 'ReaderError') is None
     assert _import_problem('mcap.records', 'Chunk') is None
+
+
+def _reader_names(tree):
+    """Return the names bound to a rosbags Reader: ``with Reader(...) as name``, ``name =``."""
+    names = set()
+    for node in ast.walk(tree):
+        pairs = []
+        if isinstance(node, (ast.With, ast.AsyncWith)):
+            pairs = [(item.context_expr, item.optional_vars) for item in node.items]
+        elif isinstance(node, ast.Assign) and len(node.targets) == 1:
+            pairs = [(node.value, node.targets[0])]
+        for value, target in pairs:
+            if isinstance(value, ast.Call) and isinstance(value.func, ast.Name) and \
+                    value.func.id == 'Reader' and isinstance(target, ast.Name):
+                names.add(target.id)
+    return names
+
+
+def _reader_attribute_problems(source):
+    """Return the attributes read of a Reader that its class does not define publicly."""
+    public = {name for name in dir(Reader) if not name.startswith('_')}
+    tree = ast.parse(source)
+    readers = _reader_names(tree)
+    return sorted(f'{node.value.id}.{node.attr}' for node in ast.walk(tree)
+                  if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+                  and node.value.id in readers and node.attr not in public)
+
+
+@pytest.mark.parametrize('path', CHECKED_FILES, ids=_file_id)
+def test_only_public_members_of_a_rosbags_reader_are_read(path):
+    """Its class's properties and methods; not the instance's ``storage`` (a plugin)."""
+    assert not _reader_attribute_problems(path.read_text())
+
+
+def test_the_reader_check_catches_the_custom_data_plot_used_to_read():
+    old = ('with Reader(bag) as reader:\n'
+           '    custom = getattr(reader.storage.metadata, "custom", None)\n')
+    assert _reader_attribute_problems(old) == ['reader.storage']
+    assert not _reader_attribute_problems(
+        'with Reader(bag) as reader:\n    n = reader.message_count, reader.connections\n')
 
 
 @pytest.mark.parametrize('module', [bag_writer, recovery], ids=lambda module: module.__name__)

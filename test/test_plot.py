@@ -8,6 +8,7 @@ u = 2^-53 relative, of positive quantities of one scale.  32 u bounds the sum.
 """
 
 import dataclasses
+import shutil
 
 import matplotlib.image
 import numpy as np
@@ -25,6 +26,7 @@ from rigid_body_sim.recording.plot import read_motion
 from rigid_body_sim.recording.plot import symmetry_axis
 from rigid_body_sim.recording.simulate import simulate_to_bag
 from rigid_body_sim.scenes import load_scene
+import yaml
 
 ROUND_OFF = 32 * 2.0**-53
 
@@ -262,6 +264,23 @@ def test_cli_plots_and_reports_bags_it_cannot_plot(tmp_path, van_zon, capsys):
         'van_zon.mcap', 'cut.mcap'))
     assert cli_main(['plot', str(cut)]) == 2
     assert 'rigid-body-sim record --recover' in capsys.readouterr().err
+
+
+def test_the_custom_data_is_that_of_metadata_yaml_in_either_storage(tmp_path, van_zon):
+    """rosbag2 keeps it in metadata.yaml; a bag without any (a live one) has none."""
+    bag, scene = van_zon
+    simulate_to_bag(scene, tmp_path / 'db', 0.1, rate=100.0, storage='sqlite3')
+    for path in (bag, tmp_path / 'db'):
+        information = yaml.safe_load((path / 'metadata.yaml').read_text())[
+            'rosbag2_bagfile_information']
+        assert read_motion(path).custom_data == information['custom_data']
+        assert information['custom_data']['rigid_body_sim.scene'] == 'van_zon'
+    live = tmp_path / 'live'
+    shutil.copytree(bag, live)
+    document = yaml.safe_load((live / 'metadata.yaml').read_text())
+    document['rosbag2_bagfile_information']['custom_data'] = None
+    (live / 'metadata.yaml').write_text(yaml.safe_dump(document))
+    assert read_motion(live).custom_data == {}
 
 
 def test_a_live_bag_is_timed_by_the_nodes_reports_not_by_its_arrival_stamps():

@@ -60,6 +60,8 @@ from pathlib import Path
 
 import numpy as np
 from rosbags.rosbag2 import Reader
+from rosbags.rosbag2 import ReaderError
+from ruamel.yaml import YAML
 
 from .bag_writer import typestore
 from ..physics.effects import EFFECTS
@@ -454,8 +456,6 @@ def read_motion(bag, namespace=''):
         If the bag cannot be read or lacks the topics, or no stamp is in both.
 
     """
-    from rosbags.rosbag2.errors import ReaderError
-
     bag = Path(bag)
     namespace = (namespace or '').rstrip('/')
     store = typestore()
@@ -486,8 +486,7 @@ def read_motion(bag, namespace=''):
                 else:
                     vector = message.vector
                     momentum[stamp] = (vector.x, vector.y, vector.z)
-            # rosbags has no public accessor for custom_data.
-            custom = getattr(reader.storage.metadata, 'custom', None) or {}
+            custom = _custom_data(bag)
     except FileNotFoundError:
         raise ValueError(f'no bag at {bag}') from None
     except ReaderError as error:
@@ -501,6 +500,24 @@ def read_motion(bag, namespace=''):
                      [row[2] for row in rows], [momentum[stamp] for stamp in stamps],
                      custom, bag.name, velocity_body=[row[3] for row in rows],
                      reports=reports)
+
+
+def _custom_data(bag):
+    """
+    Return the custom data of a bag directory's ``metadata.yaml`` ({} if it has none).
+
+    rosbag2 keeps it there (``custom_data``, since metadata version 6), where
+    :meth:`~rigid_body_sim.recording.bag_writer.BagWriter.set_custom_data` puts it; rosbags'
+    Reader has no public accessor for it.  A lone storage file has no metadata.yaml: {}.
+    """
+    metadata = bag / 'metadata.yaml'
+    if not bag.is_dir() or not metadata.is_file():
+        return {}
+    try:
+        document = YAML(typ='safe').load(metadata.read_text(encoding='utf-8'))
+        return dict(document['rosbag2_bagfile_information'].get('custom_data') or {})
+    except Exception as error:  # noqa: B902 (rosbags has just read it: damaged meanwhile)
+        raise ValueError(f'cannot read the custom data of {metadata}: {error}') from None
 
 
 def _report(stamp, message, node):

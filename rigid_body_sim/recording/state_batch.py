@@ -7,17 +7,26 @@ does) costs more than the physics step; here a batch of states becomes, per topi
 (ticks, bytes) array: the message's CDR template from rclpy's serializer repeated, with the
 stamp and the state fields written into it column-wise.
 
-The bytes are those of ``StateSerializer.serialize`` (tested for every topic over random
-states): the fields are the ones :func:`~rigid_body_sim.ros.conversions.state_messages`
-documents, each computed with the same floating-point operations in the same order (numpy's
-element-wise operations round like Python's), so each value is bit for bit the node's.
+The messages are those of ``StateSerializer.serialize`` field for field (tested for every
+topic over random states): the fields are the ones
+:func:`~rigid_body_sim.ros.conversions.state_messages` documents, each computed with the
+same floating-point operations in the same order (numpy's element-wise operations round
+like Python's), so each value is bit for bit the node's.
+
+Padding.  rclpy's serializer skips CDR's alignment padding without writing it, so those
+bytes of its output are whatever its buffer held (they differ from run to run and may be
+leftover memory).  The templates here have them zeroed (:func:`_zero_padding`), so a run
+serialises the same states into the same bytes every time (tested: two identical
+``simulate`` runs write byte-identical messages).
 """
 
 import struct
 
 import numpy as np
+from rclpy.serialization import deserialize_message
 from rclpy.serialization import serialize_message
 
+from .bag_writer import typestore
 from ..physics import State
 from ..ros.conversions import marker_geometry
 from ..ros.conversions import state_field_columns
@@ -137,7 +146,7 @@ class BatchSerializer:
         for topic in self.topics:
             template, stamp_offset, offsets = self._layouts[topic]
             data = np.empty((len(rows), template.size), dtype=np.uint8)
-            data[:] = template
+            data[:] = template  # every byte, padding (zero) included
             if stamp_offset is not None:
                 _column(data, stamp_offset, '<i4')[:] = seconds
                 _column(data, stamp_offset + 4, '<u4')[:] = nanoseconds
@@ -193,7 +202,7 @@ def _layout(messages, topic):
     stamp_offset = None
     if header is not None:
         stamp_offset = offset_of(struct.pack('<iI', *_STAMP_SENTINEL), 'the stamp')
-    buffer = bytearray(template)
+    buffer = _zero_padding(message, template)
     # The template's own values do not matter (every state field and the stamp are
     # overwritten), but zeros keep a mistake visible.
     for offset in offsets:
@@ -201,3 +210,24 @@ def _layout(messages, topic):
     if stamp_offset is not None:
         buffer[stamp_offset:stamp_offset + 8] = bytes(8)
     return np.frombuffer(bytes(buffer), dtype=np.uint8), stamp_offset, offsets
+
+
+def _zero_padding(message, serialized):
+    """
+    Return `serialized` (rclpy's CDR bytes of `message`) with its padding bytes zeroed.
+
+    rosbags' serializer (its public typestore API) writes every field where rclpy's does and
+    zeros in between; the message goes through it once (deserialised from rclpy's bytes,
+    serialised again).  Checked: the two differ only where rosbags wrote a zero, and rclpy
+    reads the result back as `message`, so only padding changes.
+    """
+    cls = type(message)
+    typename = f"{cls.__module__.split('.')[0]}/msg/{cls.__name__}"
+    store = typestore()
+    zeroed = bytes(store.serialize_cdr(store.deserialize_cdr(bytes(serialized), typename),
+                                       typename))
+    if len(zeroed) != len(serialized) or any(
+            new != old and new != 0 for new, old in zip(zeroed, serialized)) or \
+            deserialize_message(zeroed, cls) != message:
+        raise RuntimeError(f'rosbags serialises {typename} differently from rclpy')
+    return bytearray(zeroed)
