@@ -34,7 +34,6 @@ import sys
 import numpy as np
 import yaml
 
-from .messages import one_line_errors
 from .paths import scenes_dir
 from .physics import INTEGRATORS
 from .physics import RigidBody
@@ -49,6 +48,7 @@ from .physics.effects.registry import describe_value
 from .physics.imu import Imu
 from .physics.imu import ImuModel
 from .physics.rotations import quaternion_from_matrix
+from .text import one_line_errors
 
 __all__ = [
     'DEFAULT_SCENE',

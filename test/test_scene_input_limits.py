@@ -9,13 +9,13 @@ never a control character reaching the terminal.
 
 import pytest
 from rigid_body_sim import cli
-from rigid_body_sim.messages import MESSAGE_LIMIT
 from rigid_body_sim.ros.parameters import scene_from_parameters
 from rigid_body_sim.scenes import load_scene
 from rigid_body_sim.scenes import MAX_SCENE_DEPTH
 from rigid_body_sim.scenes import MAX_SCENE_SIZE
 from rigid_body_sim.scenes import MAX_SCENE_VALUES
 from rigid_body_sim.scenes import read_scene_yaml
+from rigid_body_sim.text import MESSAGE_LIMIT
 
 MINE = ('name: mine\n'
         'description: a box\n'

@@ -27,9 +27,9 @@ from rclpy.serialization import serialize_message
 from sensor_msgs.msg import Imu
 from visualization_msgs.msg import Marker
 
-from .text import shortened
 from ..physics.kernels.derived import derived_quantities
 from ..physics.rotations import quaternion_from_matrix
+from ..text import shortened
 
 __all__ = [
     'STATE_TOPICS',

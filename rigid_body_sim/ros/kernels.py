@@ -22,11 +22,11 @@ import sys
 import tempfile
 import time
 
-from .text import shortened
 from ..physics.warm_up import compile_estimate
 from ..physics.warm_up import is_compiled
 from ..physics.warm_up import job_estimate
 from ..physics.warm_up import jobs_of
+from ..text import shortened
 
 __all__ = ['ASSUME_UNCOMPILED', 'BackgroundCompilation', 'kernels_compiled', 'NICENESS']
 

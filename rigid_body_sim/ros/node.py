@@ -98,7 +98,6 @@ from .qos import SERVICE_QOS
 from .qos import STATE_QOS
 from .qos import TF_QOS
 from .qos import TF_STATIC_QOS
-from .text import shortened
 from .tf import static_transforms
 from .tf import TF_STATIC_TOPIC
 from .tf import TF_TOPIC
@@ -111,6 +110,7 @@ from ..physics.simulator import DivergedError
 from ..physics.stability import step_problem
 from ..physics.warm_up import load_kernels
 from ..scenes import load_scene
+from ..text import shortened
 
 __all__ = ['RigidBodyNode', 'ConfigurationError', 'NODE_NAME', 'MAX_LAG',
            'WORK_PER_CALLBACK']

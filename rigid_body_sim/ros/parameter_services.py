@@ -33,7 +33,7 @@ from rclpy.exceptions import ParameterUninitializedException
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_parameters
 
-from .text import shortened
+from ..text import shortened
 
 __all__ = ['ParameterServices', 'parameter_from_message']
 

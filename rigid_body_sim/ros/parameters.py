@@ -44,7 +44,6 @@ from rclpy.exceptions import InvalidParameterValueException
 from rclpy.exceptions import ParameterUninitializedException
 from rclpy.parameter import Parameter
 
-from ..messages import one_line_errors
 from ..physics import get_integrator
 from ..physics import INTEGRATORS
 from ..physics.imu import ImuModel
@@ -53,6 +52,7 @@ from ..scenes import RATE_RANGE
 from ..scenes import SHAPES
 from ..scenes import SUBSTEPS_RANGE
 from ..scenes import TOLERANCE_RANGE
+from ..text import one_line_errors
 
 __all__ = [
     'PARAMETERS',

@@ -1,23 +1,30 @@
 """
-Messages that echo outside input: one line of printable text of bounded length.
+Outside text made fit to echo: one line of printable text of bounded length.
 
-A scene file, a path on the command line or a parameter value can hold a megabyte string or
-terminal control sequences; a message that quotes it must neither flood the terminal or the
-log nor let an escape sequence through.  :func:`one_line` escapes what is not printable
-(as Python's repr does: a newline becomes backslash n, ESC backslash x1b) and cuts a long
-text in its middle, keeping the beginning (the file and the key) and the end (what to do).
+A scene file, a path on the command line, a parameter value or a string a DDS peer sends
+(a frame id, a parameter name) can be megabytes long or hold terminal control sequences; a
+message, log line or service reply that quotes it must neither flood the terminal or the
+log nor let an escape sequence through.
 
-:func:`one_line_errors` does it for every ValueError of a function: a public function that
-reads outside input wears it once, and every message it raises is then such a line.
+- :func:`one_line` escapes what is not printable (as Python's repr does: a newline becomes
+  backslash n, ESC backslash x1b) and cuts a long text in its middle, keeping the beginning
+  (the file and the key) and the end (what to do): for error messages the package writes.
+- :func:`one_line_errors` does it for every ValueError of a function: a public function
+  that reads outside input wears it once, and every message it raises is then such a line.
+- :func:`shortened` cuts a peer's string at its end, saying how many characters were left
+  out, and escapes it: for the node's warnings and replies that quote what a peer sent.
 """
 
 import functools
 
-__all__ = ['MESSAGE_LIMIT', 'one_line', 'one_line_errors']
+__all__ = ['MAX_ECHOED', 'MESSAGE_LIMIT', 'one_line', 'one_line_errors', 'shortened']
 
 MESSAGE_LIMIT = 500
 """The most characters :func:`one_line` returns: room for every message the project writes
 itself (the longest are ~300), not for a value quoted whole."""
+
+MAX_ECHOED = 200
+"""Most characters of a peer's string that :func:`shortened` quotes (the rest is counted)."""
 
 _TAIL = 120
 
@@ -67,3 +74,19 @@ def one_line_errors(function):
                 raise
             raise ValueError(shown) from None
     return checked
+
+
+def shortened(text, limit=MAX_ECHOED):
+    """
+    Return `text` cut to `limit` characters, saying how many were left out, and escaped.
+
+    Control characters (and other non-printable ones) come out as Python escapes, so one
+    log line stays one line and the terminal shows what came.
+    """
+    text = str(text)
+    cut = len(text) - limit
+    if cut > 0:
+        text = text[:limit]
+    if not text.isprintable():
+        text = text.encode('unicode_escape').decode('ascii')
+    return text + (f'... ({cut} more characters)' if cut > 0 else '')
