@@ -30,7 +30,7 @@ from rclpy.serialization import serialize_message
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), '..'))
 
-from rigid_body_sim.ros.qos import STATE_QOS  # noqa: E402  (after the path set-up)
+from rigid_body_sim.messages.qos import STATE_QOS  # noqa: E402  (after the path set-up)
 
 TOPIC = 'publish_cost'
 

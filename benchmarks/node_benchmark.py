@@ -43,7 +43,7 @@ from rclpy.executors import SingleThreadedExecutor
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from rigid_body_sim.ros.qos import STATE_QOS  # noqa: E402  (after the path set-up)
+from rigid_body_sim.messages.qos import STATE_QOS  # noqa: E402  (after the path set-up)
 
 NODE_NAME = 'rigid_body_sim'
 

@@ -47,7 +47,7 @@ def bare_loop():
     from rclpy.experimental import EventsExecutor
 
     sys.path.insert(0, str(ROOT))
-    from rigid_body_sim.ros.qos import STATE_QOS
+    from rigid_body_sim.messages.qos import STATE_QOS
 
     rclpy.init()
     node = rclpy.create_node('bare_loop')
@@ -77,7 +77,7 @@ def subscriber(namespace):
     from rclpy.experimental import EventsExecutor
 
     sys.path.insert(0, str(ROOT))
-    from rigid_body_sim.ros.qos import STATE_QOS
+    from rigid_body_sim.messages.qos import STATE_QOS
 
     rclpy.init()
     node = rclpy.create_node('bare_loop_subscriber')

@@ -25,7 +25,7 @@ Usage: .venv/bin/python benchmarks/recording_benchmark.py [--seconds S] [--repea
    gap starts (ms after the stop).  Variants: Fast DDS shared memory with an 8 MiB segment
    (default 512 KiB) with and without a deeper port queue (8192 descriptors; default 512),
    given by an XML profile (FASTRTPS_DEFAULT_PROFILES_FILE); and the node's state
-   publishers at keep-last 10, their depth before it became 1000 (rigid_body_sim.ros.qos
+   publishers at keep-last 10, their depth before it became 1000 (rigid_body_sim.messages.qos
    .STATE_QOS patched before the node is imported, in the node's process only).
 """
 
@@ -206,7 +206,7 @@ def _stall_run(directory, name, stopped, stall, extra_environment, depth, record
     else:
         # The node's state QoS at another depth, in this node process only.
         command = [sys.executable, '-c',
-                   'import sys; import rigid_body_sim.ros.qos as qos; '
+                   'import sys; import rigid_body_sim.messages.qos as qos; '
                    f'qos.STATE_QOS.depth = {depth}; '
                    'from rigid_body_sim.ros.process import main; sys.exit(main(sys.argv))']
     node = subprocess.Popen(

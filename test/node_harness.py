@@ -27,7 +27,7 @@ from rcl_interfaces.srv import SetParameters
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
-from rigid_body_sim.ros.qos import STATE_QOS
+from rigid_body_sim.messages.qos import STATE_QOS
 from std_srvs.srv import SetBool
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker

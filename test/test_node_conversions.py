@@ -12,17 +12,17 @@ import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message
 from rclpy.serialization import serialize_message
+from rigid_body_sim.messages.marker import inertia_equivalent_box
+from rigid_body_sim.messages.marker import marker_geometry
+from rigid_body_sim.messages.marker import marker_geometry_from_drawing
+from rigid_body_sim.messages.state import state_messages
+from rigid_body_sim.messages.state import STATE_TOPICS
+from rigid_body_sim.messages.state import StateSerializer
+from rigid_body_sim.messages.wrench import RejectedInput
+from rigid_body_sim.messages.wrench import wrench_input_from_message
 from rigid_body_sim.physics import matrix_from_quaternion
 from rigid_body_sim.physics import RigidBody
 from rigid_body_sim.physics import State
-from rigid_body_sim.ros.conversions import inertia_equivalent_box
-from rigid_body_sim.ros.conversions import marker_geometry
-from rigid_body_sim.ros.conversions import marker_geometry_from_drawing
-from rigid_body_sim.ros.conversions import RejectedInput
-from rigid_body_sim.ros.conversions import state_messages
-from rigid_body_sim.ros.conversions import STATE_TOPICS
-from rigid_body_sim.ros.conversions import StateSerializer
-from rigid_body_sim.ros.conversions import wrench_input_from_message
 from rigid_body_sim.scenes import Drawing
 from rigid_body_sim.scenes import load_scene
 from visualization_msgs.msg import Marker

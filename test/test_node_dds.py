@@ -645,8 +645,8 @@ def test_tf_carries_the_pose_bit_for_bit_at_the_same_stamp_and_the_imu_mount_is_
     A node of its own with a body frame no other test node uses (/tf is a global topic);
     /tf_static (transient local) reaches a subscriber that comes after it was published.
     """
-    from rigid_body_sim.ros.qos import TF_QOS
-    from rigid_body_sim.ros.qos import TF_STATIC_QOS
+    from rigid_body_sim.messages.qos import TF_QOS
+    from rigid_body_sim.messages.qos import TF_STATIC_QOS
     from tf2_msgs.msg import TFMessage
     namespace = unique_namespace()
     body_frame = f'body_{namespace.strip("/")}'

@@ -16,7 +16,7 @@ from node_harness import NodeProcess
 from node_harness import unique_namespace
 import numpy as np
 import pytest
-from rigid_body_sim.ros.qos import STATE_QOS
+from rigid_body_sim.messages.qos import STATE_QOS
 from rigid_body_sim.scenes import load_scene
 from sensor_msgs.msg import Imu
 

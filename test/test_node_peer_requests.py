@@ -23,8 +23,8 @@ from rcl_interfaces.srv import SetParametersAtomically
 from rclpy.qos import DurabilityPolicy
 from rclpy.qos import QoSProfile
 from rclpy.qos import ReliabilityPolicy
+from rigid_body_sim.messages.qos import SERVICE_QOS
 from rigid_body_sim.ros.parameters import PARAMETERS
-from rigid_body_sim.ros.qos import SERVICE_QOS
 from std_srvs.srv import SetBool
 from std_srvs.srv import Trigger
 

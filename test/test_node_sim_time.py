@@ -15,7 +15,7 @@ from node_harness import NodeProcess
 from node_harness import STATE_TYPES
 from node_harness import unique_namespace
 import pytest
-from rigid_body_sim.ros.qos import CLOCK_QOS
+from rigid_body_sim.messages.qos import CLOCK_QOS
 from rosgraph_msgs.msg import Clock
 
 pytestmark = pytest.mark.xdist_group('node')

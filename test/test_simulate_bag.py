@@ -33,6 +33,11 @@ import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message
 from rigid_body_sim.cli import main as cli_main
+from rigid_body_sim.messages import qos
+from rigid_body_sim.messages.marker import marker_geometry
+from rigid_body_sim.messages.marker import marker_geometry_from_drawing
+from rigid_body_sim.messages.state import STATE_TOPICS
+from rigid_body_sim.messages.state import StateSerializer
 from rigid_body_sim.physics import RigidBody
 from rigid_body_sim.physics import State
 from rigid_body_sim.physics.effects import EFFECTS
@@ -45,11 +50,6 @@ from rigid_body_sim.recording.simulate import simulate_to_bag
 from rigid_body_sim.recording.simulate import stamp_nanoseconds
 from rigid_body_sim.recording.state_batch import BatchSerializer
 from rigid_body_sim.recording.state_batch import StateBatch
-from rigid_body_sim.ros import qos
-from rigid_body_sim.ros.conversions import marker_geometry
-from rigid_body_sim.ros.conversions import marker_geometry_from_drawing
-from rigid_body_sim.ros.conversions import STATE_TOPICS
-from rigid_body_sim.ros.conversions import StateSerializer
 from rigid_body_sim.ros.node import NODE_NAME
 from rigid_body_sim.scenes import load_scene
 from rosbags.interfaces import QosDurability
@@ -350,7 +350,7 @@ WALL_CLOCK_KEYS = {'achieved rate [Hz]', 'achieved real-time factor',
 # Bytes serialised by rclpy outside state_batch.py, whose CDR padding is what rclpy's
 # buffer held: equal in two runs only when the leftover memory happens to be.
 PADDING_NOT_ZEROED = {
-    '/tf': "rigid_body_sim/ros/tf.py: TransformSerializer's template",
+    '/tf': "rigid_body_sim/messages/tf.py: TransformSerializer's template",
     '/tf_static': 'rigid_body_sim/recording/simulate.py: serialize_message of the transforms',
     '/imu': "rigid_body_sim/recording/simulate.py: _ImuRows' template",
 }

@@ -205,8 +205,8 @@ def _is_equivalent_box(shape, mass, inertia):
     """Return True if a box marker has the edges of the body's inertia-equivalent box."""
     if shape.kind != 'box' or mass is None or inertia is None:
         return False
+    from ..messages.marker import inertia_equivalent_box
     from ..physics import RigidBody
-    from ..ros.conversions import inertia_equivalent_box
     edges, _ = inertia_equivalent_box(RigidBody(mass, inertia))
     # The two longest edges decide: a lamina's zero edge is drawn as a thin slab.
     drawn = np.sort(shape.scale)[1:]
@@ -244,8 +244,8 @@ def read_shape(bag, motion, namespace=''):
         raise ValueError(f'{bag}: no marker topic, and the bag does not name the mass and '
                          'inertia of the body (a live recording): record the marker topic '
                          'of the node too, or use a bag of rigid-body-sim simulate')
+    from ..messages.marker import inertia_equivalent_box
     from ..physics import RigidBody
-    from ..ros.conversions import inertia_equivalent_box
     edges, axes = inertia_equivalent_box(RigidBody(mass, inertia))
     # A lamina's zero edge would not show: keep it a thin slab, as the node's marker does.
     edges = np.maximum(edges, 0.02 * edges.max())

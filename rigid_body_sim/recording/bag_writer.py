@@ -5,7 +5,7 @@ A bag is a directory with one storage file and ``metadata.yaml``, in rosbag2's f
 version 9 (ROS 2 Jazzy), so ``ros2 bag info/play``, rosbags and the ``mcap`` tools read it.
 
 Serialisation.  The messages arrive already serialised (CDR bytes): the offline simulation
-writes the bytes of :class:`rigid_body_sim.ros.conversions.StateSerializer` and of rclpy's C
+writes the bytes of :class:`rigid_body_sim.messages.state.StateSerializer` and of rclpy's C
 serializer (``rclpy.serialization.serialize_message``), the recorder the bytes it takes
 from DDS.  Either way the bag holds byte for byte what the node puts on the wire; rosbags'
 own pure-Python serializer would be a second CDR implementation to keep in step with the

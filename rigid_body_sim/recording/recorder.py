@@ -8,7 +8,7 @@ writes every message as it was received, and on SIGINT (Ctrl-C) or SIGTERM finis
 Matching QoS.  A subscription must be compatible with the publisher and keep up with it.
 Reliability and durability follow the publishers, as ``ros2 bag record`` adapts them:
 the node's topics are subscribed at once with the policies of
-:mod:`rigid_body_sim.ros.qos` (best effort for /clock, whose publishers are best effort),
+:mod:`rigid_body_sim.messages.qos` (best effort for /clock, whose publishers are best effort),
 other topics when discovery shows their type and offers (reliable if every publisher is,
 transient local if every publisher is).  History is keep-last with a deep queue (`depth`,
 default 30,000: thirty seconds at 1 kHz; Fast DDS allocates a sample only when it is
@@ -20,7 +20,7 @@ overflowed the former 5000 by 60 messages a topic.  A stall of the whole
 process, DDS threads included, is another matter: Fast DDS's shared-memory port queue holds
 512 samples (85 ms of the node's six topics at 1 kHz), and a reliable publisher resends
 only what its history still holds: the node's state publishers their last 1000 samples
-(1 s at 1 kHz, :mod:`rigid_body_sim.ros.qos`), /diagnostics and other publishers often 10,
+(1 s at 1 kHz, :mod:`rigid_body_sim.messages.qos`), /diagnostics and other publishers often 10,
 best-effort /clock nothing.  A longer stall loses the rest (measured in
 ``benchmarks/recording_benchmark.py --stalls``; the summary says so when it happens).
 
@@ -78,8 +78,8 @@ from .simulate import CUSTOM_DATA_PREFIX
 from .simulate import DIAGNOSTICS_TOPIC
 from .simulate import message_type_name
 from .simulate import topic_names
-from ..ros import qos
-from ..ros.conversions import STATE_TYPES
+from ..messages import qos
+from ..messages.state import STATE_TYPES
 
 __all__ = ['NODE_NAME', 'RecordingSummary', 'default_topics', 'record']
 

@@ -4,9 +4,9 @@ Simulate a scene faster than real time, straight into a rosbag2 bag, without DDS
 The bag holds what the node (:mod:`rigid_body_sim.ros.node`) publishes while it simulates
 the same body at the same rate: the topics ``pose``, ``twist``, ``angular_momentum``,
 ``odom``, ``marker`` (relative names, under ``namespace``), with their types, frame ids and
-QoS, serialised by the node's own :class:`~rigid_body_sim.ros.conversions.StateSerializer`;
+QoS, serialised by the node's own :class:`~rigid_body_sim.messages.state.StateSerializer`;
 ``/diagnostics`` once per simulated second with the node's status keys; ``/tf`` at every
-tick and ``/tf_static`` once, as the node publishes them (:mod:`rigid_body_sim.ros.tf`;
+tick and ``/tf_static`` once, as the node publishes them (:mod:`rigid_body_sim.messages.tf`;
 left out, with a note on stderr, where tf2_msgs is not installed); and, on request,
 ``/clock`` (rosgraph_msgs/Clock) at every tick, for ``ros2 bag play --clock``-free sim-time
 playback.
@@ -39,22 +39,22 @@ from .bag_writer import offered_qos
 from .state_batch import _column
 from .state_batch import BatchSerializer
 from .state_batch import StateBatch
-from ..ros import qos
-from ..ros.conversions import fill_imu_message
-from ..ros.conversions import imu_message
-from ..ros.conversions import marker_geometry_from_drawing
-from ..ros.conversions import STATE_TOPICS
-from ..ros.conversions import STATE_TYPES
-from ..ros.diagnostics import diagnostic_array
-from ..ros.diagnostics import NODE_NAME
-from ..ros.diagnostics import status_name
-from ..ros.diagnostics import status_values
-from ..ros.diagnostics import TickFigures
-from ..ros.tf import static_transforms
-from ..ros.tf import TF_STATIC_TOPIC
-from ..ros.tf import TF_TOPIC
-from ..ros.tf import transform_message_class
-from ..ros.tf import TransformSerializer
+from ..messages import qos
+from ..messages.diagnostics import diagnostic_array
+from ..messages.diagnostics import NODE_NAME
+from ..messages.diagnostics import status_name
+from ..messages.diagnostics import status_values
+from ..messages.diagnostics import TickFigures
+from ..messages.imu import fill_imu_message
+from ..messages.imu import imu_message
+from ..messages.marker import marker_geometry_from_drawing
+from ..messages.state import STATE_TOPICS
+from ..messages.state import STATE_TYPES
+from ..messages.tf import static_transforms
+from ..messages.tf import TF_STATIC_TOPIC
+from ..messages.tf import TF_TOPIC
+from ..messages.tf import transform_message_class
+from ..messages.tf import TransformSerializer
 
 __all__ = [
     'CLOCK_TOPIC',
@@ -351,7 +351,7 @@ class _ImuRows:
         self._period = period
         self._values = []
         self._stamps = []
-        # The message's byte layout, found as conversions._layout does: sentinel values
+        # The message's byte layout, found as messages/state.py does: sentinel values
         # serialised once, then located (each a unique 8-byte pattern).
         message = imu_message(frame_id, imu, period)
         sentinels = [-8.765432109876e17 - 1.0e6 * k for k in range(10)]

@@ -2,14 +2,14 @@
 The node's state messages for many ticks at once, serialised with numpy.
 
 An offline run writes the same five state messages every tick.  Serialising them one
-state at a time (:class:`rigid_body_sim.ros.conversions.StateSerializer`, what the node
+state at a time (:class:`rigid_body_sim.messages.state.StateSerializer`, what the node
 does) costs more than the physics step; here a batch of states becomes, per topic, a
 (ticks, bytes) array: the message's CDR template from rclpy's serializer repeated, with the
 stamp and the state fields written into it column-wise.
 
 The messages are those of ``StateSerializer.serialize`` field for field (tested for every
 topic over random states): the fields are the ones
-:func:`~rigid_body_sim.ros.conversions.state_messages` documents, each computed with the
+:func:`~rigid_body_sim.messages.state.state_messages` documents, each computed with the
 same floating-point operations in the same order (numpy's element-wise operations round
 like Python's), so each value is bit for bit the node's.
 
@@ -27,11 +27,11 @@ from rclpy.serialization import deserialize_message
 from rclpy.serialization import serialize_message
 
 from .bag_writer import typestore
+from ..messages.marker import marker_geometry
+from ..messages.state import state_field_columns
+from ..messages.state import state_messages
+from ..messages.state import STATE_TOPICS
 from ..physics import State
-from ..ros.conversions import marker_geometry
-from ..ros.conversions import state_field_columns
-from ..ros.conversions import state_messages
-from ..ros.conversions import STATE_TOPICS
 
 __all__ = ['StateBatch', 'BatchSerializer', 'STATE_COLUMNS']
 
@@ -98,9 +98,9 @@ class BatchSerializer:
     body : RigidBody
     world_frame, body_frame : str
     geometry : MarkerGeometry, optional
-        As for :func:`~rigid_body_sim.ros.conversions.state_messages`.
+        As for :func:`~rigid_body_sim.messages.state.state_messages`.
     topics : sequence of str
-        Which of :data:`~rigid_body_sim.ros.conversions.STATE_TOPICS` to serialise.
+        Which of :data:`~rigid_body_sim.messages.state.STATE_TOPICS` to serialise.
 
     Raises
     ------

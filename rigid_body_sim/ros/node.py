@@ -33,9 +33,9 @@ old integrator stays, and so does the parameter.  At start-up, the services, par
 Topics (relative names, so ``--ros-args -r __ns:=/sat1`` namespaces them):
 
 - published: ``pose``, ``twist``, ``angular_momentum``, ``odom``, ``marker`` (see
-  :func:`rigid_body_sim.ros.conversions.state_messages`; the marker is the scene's
-  drawing), ``imu``, ``/tf`` and ``/tf_static`` (:mod:`rigid_body_sim.ros.tf`),
-  ``/diagnostics`` at 1 Hz (:mod:`rigid_body_sim.ros.diagnostics`), and with
+  :func:`rigid_body_sim.messages.state.state_messages`; the marker is the scene's
+  drawing), ``imu``, ``/tf`` and ``/tf_static`` (:mod:`rigid_body_sim.messages.tf`),
+  ``/diagnostics`` at 1 Hz (:mod:`rigid_body_sim.messages.diagnostics`), and with
   ``publish_clock`` ``/clock`` at every tick;
 - subscribed, only if the scene has the effect ``external_wrench``: ``torque``
   (Vector3Stamped) and ``wrench`` (WrenchStamped).  The header's frame_id chooses
@@ -65,21 +65,6 @@ from sensor_msgs.msg import Imu as ImuMessage
 from std_srvs.srv import SetBool
 from std_srvs.srv import Trigger
 
-from .conversions import fill_imu_message
-from .conversions import imu_message
-from .conversions import marker_geometry_from_drawing
-from .conversions import RejectedInput
-from .conversions import STATE_TOPICS
-from .conversions import STATE_TYPES
-from .conversions import StateSerializer
-from .conversions import wrench_input_from_message
-from .conversions import WrenchInput
-from .diagnostics import diagnostic_array
-from .diagnostics import NODE_NAME
-from .diagnostics import status_name
-from .diagnostics import status_values
-from .diagnostics import substep_cap_reached
-from .diagnostics import TickFigures
 from .kernels import BackgroundCompilation
 from .kernels import kernels_compiled
 from .parameter_services import ParameterServices
@@ -91,18 +76,33 @@ from .parameters import imu_model_from_parameters
 from .parameters import PARAMETERS
 from .parameters import scene_from_parameters
 from .parameters import show_effective_values
-from .qos import CLOCK_QOS
-from .qos import DIAGNOSTICS_QOS
-from .qos import INPUT_QOS
-from .qos import SERVICE_QOS
-from .qos import STATE_QOS
-from .qos import TF_QOS
-from .qos import TF_STATIC_QOS
-from .tf import static_transforms
-from .tf import TF_STATIC_TOPIC
-from .tf import TF_TOPIC
-from .tf import transform_message_class
-from .tf import TransformSerializer
+from ..messages.diagnostics import diagnostic_array
+from ..messages.diagnostics import NODE_NAME
+from ..messages.diagnostics import status_name
+from ..messages.diagnostics import status_values
+from ..messages.diagnostics import substep_cap_reached
+from ..messages.diagnostics import TickFigures
+from ..messages.imu import fill_imu_message
+from ..messages.imu import imu_message
+from ..messages.marker import marker_geometry_from_drawing
+from ..messages.qos import CLOCK_QOS
+from ..messages.qos import DIAGNOSTICS_QOS
+from ..messages.qos import INPUT_QOS
+from ..messages.qos import SERVICE_QOS
+from ..messages.qos import STATE_QOS
+from ..messages.qos import TF_QOS
+from ..messages.qos import TF_STATIC_QOS
+from ..messages.state import STATE_TOPICS
+from ..messages.state import STATE_TYPES
+from ..messages.state import StateSerializer
+from ..messages.tf import static_transforms
+from ..messages.tf import TF_STATIC_TOPIC
+from ..messages.tf import TF_TOPIC
+from ..messages.tf import transform_message_class
+from ..messages.tf import TransformSerializer
+from ..messages.wrench import RejectedInput
+from ..messages.wrench import wrench_input_from_message
+from ..messages.wrench import WrenchInput
 from ..physics import unresolved_rotation
 from ..physics.error_control import MAX_SUBSTEPS
 from ..physics.kernels import set_interpreted

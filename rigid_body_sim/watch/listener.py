@@ -182,8 +182,8 @@ class Listener:
         from rcl_interfaces.msg import ParameterEvent
         from rclpy.qos import qos_profile_parameter_events
 
-        from ..ros.qos import DIAGNOSTICS_QOS
-        from ..ros.qos import STATE_QOS
+        from ..messages.qos import DIAGNOSTICS_QOS
+        from ..messages.qos import STATE_QOS
 
         self.watched = candidate
         self._last_seen = time.monotonic()

@@ -71,7 +71,7 @@ class TransformSerializer:
     ``serialize(stamp, pose)`` (one tick, the node) and ``serialize_rows(stamps, columns)``
     (many ticks, ``simulate``) write the stamp and the 7 doubles of the pose (position x,
     y, z, quaternion x, y, z, w) into a template serialised once by rclpy, as
-    :class:`~rigid_body_sim.ros.conversions.StateSerializer` does for the state topics.
+    :class:`~rigid_body_sim.messages.state.StateSerializer` does for the state topics.
     """
 
     def __init__(self, message_class, parent_frame, child_frame):

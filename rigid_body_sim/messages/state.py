@@ -1,20 +1,16 @@
 """
-Pure conversions between ROS messages and the physics core's objects.
+The node's state messages: a State of a RigidBody as every message it publishes.
 
-Outgoing: :func:`state_messages` turns a State of a RigidBody into every message the node
-publishes, keyed by topic name.  The node and any offline writer (a bag of a simulated run)
-call the same function, so a bag written offline holds exactly what the node publishes.
-
-Incoming: :func:`wrench_input_from_message` turns a ``torque`` (Vector3Stamped) or
-``wrench`` (WrenchStamped) message into a validated :class:`WrenchInput`, or raises
-:class:`RejectedInput` saying why.
+:func:`state_messages` turns a State into the messages of :data:`STATE_TOPICS`, keyed by
+topic name, and :class:`StateSerializer` into their serialised (CDR) bytes for the node's
+ticks.  The node and any offline writer (a bag of a simulated run,
+:mod:`rigid_body_sim.recording.state_batch`) call the same code, so a bag written offline
+holds exactly what the node publishes.
 
 Frames (REP 103/105): ``world_frame`` is the inertial frame; ``body_frame`` is attached to
 the body with its origin at the centre of mass (COM).  Units: SI.
 """
 
-import collections
-import math
 import struct
 
 from builtin_interfaces.msg import Time
@@ -24,29 +20,19 @@ from geometry_msgs.msg import Vector3Stamped
 from nav_msgs.msg import Odometry
 import numpy as np
 from rclpy.serialization import serialize_message
-from sensor_msgs.msg import Imu
 from visualization_msgs.msg import Marker
 
+from .marker import MARKER_COLOR
+from .marker import marker_geometry
+from .marker import MARKER_NAMESPACE
 from ..physics.kernels.derived import derived_quantities
-from ..physics.rotations import quaternion_from_matrix
-from ..text import shortened
 
 __all__ = [
     'STATE_TOPICS',
     'STATE_TYPES',
-    'SHAPES',
-    'MarkerGeometry',
-    'WrenchInput',
-    'RejectedInput',
-    'frame_from_frame_id',
-    'imu_message',
-    'fill_imu_message',
-    'inertia_equivalent_box',
-    'marker_geometry',
-    'marker_geometry_from_drawing',
+    'state_field_columns',
     'state_messages',
     'StateSerializer',
-    'wrench_input_from_message',
 ]
 
 STATE_TOPICS = ('pose', 'twist', 'angular_momentum', 'odom', 'marker')
@@ -55,141 +41,6 @@ STATE_TOPICS = ('pose', 'twist', 'angular_momentum', 'odom', 'marker')
 STATE_TYPES = {'pose': PoseStamped, 'twist': Twist, 'angular_momentum': Vector3Stamped,
                'odom': Odometry, 'marker': Marker}
 """Topic name (relative) -> message class of :func:`state_messages`, known without a scene."""
-
-SHAPES = ('box', 'cylinder', 'sphere', 'ellipsoid')
-"""Body shapes with a closed-form inertia and a matching RViz marker."""
-
-_SIZE_COUNTS = {'box': 3, 'cylinder': 2, 'sphere': 1, 'ellipsoid': 3}
-# An inertia-equivalent box thinner than this fraction of its longest edge is drawn this
-# thick: a lamina (I1 + I2 = I3, such as the default T-handle I = (1, 2, 3)) has a zero edge,
-# which RViz would not draw at all.
-_MIN_EDGE_FRACTION = 0.02
-# RGBA of the marker: an orange, visible on RViz's grey grid, nearly opaque.  The values are
-# exact in float32 (ColorRGBA's type), so a message survives serialisation unchanged.
-_MARKER_COLOR = (0.875, 0.4375, 0.125, 0.875)
-_MARKER_NAMESPACE = 'rigid_body'
-
-MarkerGeometry = collections.namedtuple('MarkerGeometry', 'marker_type scale axes color',
-                                        defaults=(None,))
-MarkerGeometry.__doc__ = """How the body is drawn: an RViz marker type, its extent and colour.
-
-marker_type : int, a visualization_msgs/Marker type (CUBE, CYLINDER or SPHERE).
-scale : tuple of 3 floats, the marker's full extent along its own x, y, z (m).
-axes : quaternion (x, y, z, w) of the marker's axes in the body frame, or None when they
-    are the body axes.
-color : (r, g, b, a), each 0..1, or None (default) for the package's orange.
-"""
-
-WrenchInput = collections.namedtuple('WrenchInput', 'force torque frame')
-WrenchInput.__doc__ = """A validated external wrench from a message.
-
-force : ndarray (3,), through the COM, N.  torque : ndarray (3,), about the COM, N m.
-frame : 'world' (fixed in the world frame) or 'body' (fixed in the body, turning with it),
-    in the terms of :meth:`rigid_body_sim.physics.Simulator.set_wrench`.
-"""
-
-
-class RejectedInput(ValueError):
-    """
-    An input message the node refuses; the message says why.
-
-    ``kind`` names the rule it broke: 'non-finite', 'magnitude' or 'frame'.
-    """
-
-    def __init__(self, message, kind):
-        super().__init__(message)
-        self.kind = kind
-
-
-# -- outgoing: state -> messages
-
-
-def inertia_equivalent_box(body):
-    """
-    Return the solid box with the body's mass and principal moments.
-
-    For principal moments I1, I2, I3 and mass m, the box with edges
-    a_i = sqrt(6 (I_j + I_k - I_i) / m) along principal axis i has the same moments, since a
-    box's moment about axis i is m (a_j^2 + a_k^2) / 12.  The triangle inequality of real
-    bodies makes every radicand >= 0.
-
-    Returns
-    -------
-    edges : ndarray (3,)
-        Edge lengths in m along the principal axes, in the order of
-        ``body.principal_moments`` (ascending moments, so descending edges).
-    axes : ndarray (3, 3)
-        The principal axes in the body frame as columns (right-handed).
-
-    """
-    moments = body.principal_moments
-    total = moments.sum()
-    # I_j + I_k - I_i = total - 2 I_i; clipped at 0 against round-off for a lamina.
-    radicands = np.clip(6.0 * (total - 2.0 * moments) / body.mass, 0.0, None)
-    return np.sqrt(radicands), body.principal_axes
-
-
-def marker_geometry(body, shape='', size=()):
-    """
-    Return the :class:`MarkerGeometry` that draws `body`.
-
-    Parameters
-    ----------
-    body : RigidBody
-        The body; its principal moments and axes size the inertia-equivalent box.
-    shape : str
-        One of :data:`SHAPES`, or '' for the inertia-equivalent box
-        (:func:`inertia_equivalent_box`), which is what RViz shows for a body given by its
-        inertia alone.
-    size : sequence of float
-        The shape's dimensions in m: box (a, b, c) edges; cylinder (radius, height) along
-        body z; sphere (radius,); ellipsoid (a, b, c) semi-axes.
-
-    """
-    if shape == '':
-        edges, axes = inertia_equivalent_box(body)
-        edges = np.maximum(edges, _MIN_EDGE_FRACTION * edges.max())
-        is_identity = np.allclose(axes, np.eye(3), rtol=0.0, atol=1e-12)
-        axes = None if is_identity else tuple(quaternion_from_matrix(axes).tolist())
-        return MarkerGeometry(Marker.CUBE, tuple(float(e) for e in edges), axes)
-    if shape not in _SIZE_COUNTS:
-        raise ValueError(f'shape must be one of {", ".join(SHAPES)} or empty; got {shape!r}')
-    size = tuple(float(s) for s in size)
-    if len(size) != _SIZE_COUNTS[shape]:
-        raise ValueError(f'a {shape} needs {_SIZE_COUNTS[shape]} size value(s) in m; got '
-                         f'{len(size)}')
-    if shape == 'box':
-        scale = size
-        marker_type = Marker.CUBE
-    elif shape == 'cylinder':
-        radius, height = size
-        scale = (2.0 * radius, 2.0 * radius, height)
-        marker_type = Marker.CYLINDER
-    elif shape == 'sphere':
-        scale = (2.0 * size[0],) * 3
-        marker_type = Marker.SPHERE
-    else:
-        scale = tuple(2.0 * s for s in size)
-        marker_type = Marker.SPHERE
-    return MarkerGeometry(marker_type, scale, None)
-
-
-_DRAWING_MARKER_TYPES = {'box': Marker.CUBE, 'cylinder': Marker.CYLINDER,
-                         'sphere': Marker.SPHERE, 'ellipsoid': Marker.SPHERE}
-
-
-def marker_geometry_from_drawing(drawing):
-    """
-    Return the :class:`MarkerGeometry` of a scene's :class:`~rigid_body_sim.scenes.Drawing`.
-
-    The drawing's size is already a Marker scale (m).  The colour is rounded to float32,
-    ColorRGBA's type, so that a message survives serialisation unchanged.
-    """
-    identity = tuple(float(q) for q in drawing.orientation) == (0.0, 0.0, 0.0, 1.0)
-    axes = None if identity else tuple(float(q) for q in drawing.orientation)
-    color = tuple(float(np.float32(c)) for c in drawing.color)
-    return MarkerGeometry(_DRAWING_MARKER_TYPES[drawing.shape],
-                          tuple(float(s) for s in drawing.size), axes, color)
 
 
 _POSE_FIELDS = ('position.x', 'position.y', 'position.z',
@@ -265,13 +116,13 @@ def _new_state_messages(world_frame, body_frame, geometry):
     odom = Odometry()
     odom.child_frame_id = body_frame
     marker = Marker()
-    marker.ns = _MARKER_NAMESPACE
+    marker.ns = MARKER_NAMESPACE
     marker.id = 0
     marker.type = geometry.marker_type
     marker.action = Marker.ADD
     marker.scale.x, marker.scale.y, marker.scale.z = (float(s) for s in geometry.scale)
     marker.color.r, marker.color.g, marker.color.b, marker.color.a = (
-        _MARKER_COLOR if geometry.color is None else geometry.color)
+        MARKER_COLOR if geometry.color is None else geometry.color)
     messages = _StateMessages(pose=pose, twist=Twist(), angular_momentum=angular_momentum,
                               odom=odom, marker=marker)
     # One Time object is shared by every header: stamping it once stamps all the messages.
@@ -433,105 +284,3 @@ def _layout(messages, topic):
         stamp_packer = struct.Struct(order + 'iI')
         stamp_offset = offset_of(stamp_packer.pack(*stamp_sentinel), 'the stamp')
     return template, stamp_packer, stamp_offset, runs
-
-
-# -- incoming: messages -> validated wrench
-
-
-def _vector_from_message(vector_message):
-    return np.array((vector_message.x, vector_message.y, vector_message.z))
-
-
-def frame_from_frame_id(frame_id, world_frame, body_frame):
-    """
-    Return 'world' or 'body' for a header frame id; RejectedInput for any other id.
-
-    An empty frame id means the world frame (what ``ros2 topic pub`` sends by default).
-    """
-    if frame_id in ('', world_frame):
-        return 'world'
-    if frame_id == body_frame:
-        return 'body'
-    # A peer's frame id can be megabytes long or hold control characters: quoted cut and
-    # escaped, so the warning (and /rosout) stays one short line.
-    raise RejectedInput(
-        f"unknown frame_id '{shortened(frame_id)}'; accepted frame ids: {world_frame!r} or "
-        f'empty (world-fixed), {body_frame!r} (body-fixed)', 'frame')
-
-
-def wrench_input_from_message(message, world_frame, body_frame, max_wrench):
-    """
-    Return the :class:`WrenchInput` of a torque or wrench message, validated.
-
-    Parameters
-    ----------
-    message : geometry_msgs/Vector3Stamped (a torque, N m) or geometry_msgs/WrenchStamped
-        (a force through the COM, N, and a torque about it, N m).  header.frame_id selects
-        the frame the vectors are given and held in (see :func:`frame_from_frame_id`).
-    world_frame : str
-        Frame id of the world frame: vectors fixed in the world.
-    body_frame : str
-        Frame id of the body frame: vectors fixed in the body, turning with it.
-    max_wrench : float
-        Largest accepted magnitude of the force (N) and of the torque (N m).
-
-    Raises
-    ------
-    RejectedInput
-        For a non-finite component, a magnitude above max_wrench, or an unknown frame id;
-        the message says which and why.
-
-    """
-    if hasattr(message, 'wrench'):
-        force = _vector_from_message(message.wrench.force)
-        torque = _vector_from_message(message.wrench.torque)
-    else:
-        force = np.zeros(3)
-        torque = _vector_from_message(message.vector)
-    for name, vector, unit in (('force', force, 'N'), ('torque', torque, 'N m')):
-        if not np.all(np.isfinite(vector)):
-            raise RejectedInput(f'non-finite {name} {vector.tolist()}: every component must '
-                                'be a finite number', 'non-finite')
-        magnitude = math.hypot(*vector)  # no overflow for components near 1e154
-        if magnitude > max_wrench:
-            raise RejectedInput(f'{name} magnitude {magnitude:.6g} {unit} is above '
-                                f'max_wrench = {max_wrench:g}', 'magnitude')
-    frame = frame_from_frame_id(message.header.frame_id, world_frame, body_frame)
-    return WrenchInput(force, torque, frame)
-
-
-def imu_message(frame_id, imu, dt):
-    """
-    Return a sensor_msgs/Imu to fill each tick: frame id and covariances set.
-
-    The covariances follow the IMU's noise for samples dt s apart: the diagonal of the
-    angular velocity and linear acceleration holds the white noise's variance per sample,
-    (density / sqrt(dt))^2, plus the turn-on bias's sigma^2 (the bias walk's growth over
-    the run is left out).  Without noise they stay zeros, which sensor_msgs reads as
-    "unknown"; so does the orientation's, which is the simulation's truth.
-    """
-    message = Imu()
-    message.header.frame_id = frame_id
-    if imu.model.noisy:
-        model = imu.model
-        for field, noise, bias_sigma in (
-                ('angular_velocity_covariance', imu.gyro_noise, model.gyro_bias_sigma),
-                ('linear_acceleration_covariance', imu.accel_noise, model.accel_bias_sigma)):
-            variance = noise.white_variance(dt) + bias_sigma ** 2
-            setattr(message, field, [variance, 0.0, 0.0, 0.0, variance, 0.0, 0.0, 0.0,
-                                     variance])
-    return message
-
-
-def fill_imu_message(message, stamp_nanoseconds, orientation, angular_velocity,
-                     linear_acceleration):
-    """Set a sensor_msgs/Imu's stamp (ns) and reading (IMU frame; SI); return it."""
-    message.header.stamp.sec, message.header.stamp.nanosec = divmod(
-        int(stamp_nanoseconds), 1_000_000_000)
-    quaternion = message.orientation
-    quaternion.x, quaternion.y, quaternion.z, quaternion.w = (float(v) for v in orientation)
-    vector = message.angular_velocity
-    vector.x, vector.y, vector.z = (float(v) for v in angular_velocity)
-    vector = message.linear_acceleration
-    vector.x, vector.y, vector.z = (float(v) for v in linear_acceleration)
-    return message
