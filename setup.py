@@ -48,9 +48,9 @@ setup(
     entry_points={
         'console_scripts': [
             'rigid-body-sim = rigid_body_sim.cli:main',
-            # The ROS 2 node (rigid_body_sim/ros/node.py), through a light entry point that
-            # keeps signals during the slow imports quiet.
-            'rigid_body_node = rigid_body_sim.ros.entry_point:main',
+            # The ROS 2 node (rigid_body_sim/node/rigid_body_node.py), through a light entry
+            # point that keeps signals during the slow imports quiet.
+            'rigid_body_node = rigid_body_sim.node.entry_point:main',
         ],
     },
 )

@@ -133,7 +133,7 @@ def main():
             cache = Path(tempfile.mkdtemp(dir=scratch, prefix='cache-'))
             return {**os.environ, 'RIGID_BODY_SIM_CACHE_DIR': str(cache)}
 
-        node = [sys.executable, '-m', 'rigid_body_sim.ros.entry_point', '--ros-args', '-p',
+        node = [sys.executable, '-m', 'rigid_body_sim.node.entry_point', '--ros-args', '-p',
                 f'rate:={args.rate}']
         _node_timeline(node, environment(), 'node (this checkout)')
         _simulate_twice(environment())

@@ -174,7 +174,7 @@ def run_rate(rate, duration, warmup, trials, log_dir):
     log_path = log_dir / f'node_{int(rate)}hz.log'
     with open(log_path, 'w') as log:
         node = subprocess.Popen(
-            [sys.executable, '-m', 'rigid_body_sim.ros.entry_point', '--ros-args',
+            [sys.executable, '-m', 'rigid_body_sim.node.entry_point', '--ros-args',
              '-r', f'__ns:={namespace}', '-p', f'rate:={float(rate)}',
              '-p', 'input_timeout:=0.0', '-p', 'integrator:=buss'],
             stdout=log, stderr=subprocess.STDOUT, cwd=ROOT)
@@ -218,7 +218,7 @@ def unsubscribed_cpu(rate, duration, warmup, log_dir):
     log_path = log_dir / f'node_{int(rate)}hz_unsubscribed.log'
     with open(log_path, 'w') as log:
         node = subprocess.Popen(
-            [sys.executable, '-m', 'rigid_body_sim.ros.entry_point', '--ros-args',
+            [sys.executable, '-m', 'rigid_body_sim.node.entry_point', '--ros-args',
              '-r', f'__ns:=/bench_{os.getpid()}_alone', '-p', f'rate:={float(rate)}',
              '-p', 'integrator:=buss'], stdout=log, stderr=subprocess.STDOUT, cwd=ROOT)
     try:

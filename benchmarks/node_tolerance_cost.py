@@ -45,7 +45,7 @@ GOAL = 1.3
 
 def start_node(namespace, scene, rate, tolerance, log_path):
     """Start a node process; return it (stdout and stderr into log_path)."""
-    arguments = [sys.executable, '-m', 'rigid_body_sim.ros.entry_point', '--ros-args',
+    arguments = [sys.executable, '-m', 'rigid_body_sim.node.entry_point', '--ros-args',
                  '-r', f'__ns:={namespace}', '-p', f'scene:={scene}', '-p', f'rate:={rate}']
     if tolerance is not None:
         arguments += ['-p', f'tolerance:={tolerance}']

@@ -117,7 +117,7 @@ def main(argv=None):
     logs.mkdir(parents=True, exist_ok=True)
     processes = {
         'node': subprocess.Popen(
-            [sys.executable, '-m', 'rigid_body_sim.ros.entry_point', '--ros-args',
+            [sys.executable, '-m', 'rigid_body_sim.node.entry_point', '--ros-args',
              '-r', f'__ns:={namespace}', '-p', f'rate:={RATE}'],
             env=node_environment, cwd=arguments.source,
             stdout=open(logs / 'node.log', 'w'), stderr=subprocess.STDOUT),

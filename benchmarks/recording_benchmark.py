@@ -11,7 +11,7 @@ Usage: .venv/bin/python benchmarks/recording_benchmark.py [--seconds S] [--repea
    kernels loaded): the median over K runs of simulated s per wall-clock s.  Then the
    same for the default scene through the command line (``rigid-body-sim simulate``, a new
    process: imports, kernel loading and all), timed from outside.
-2. Live: the node at 1 kHz with publish_clock (``python -m rigid_body_sim.ros.entry_point``)
+2. Live: the node at 1 kHz with publish_clock (``python -m rigid_body_sim.node.entry_point``)
    and ``rigid-body-sim record`` of its topics for R s, both subprocesses in a ROS domain of
    their own on the loopback: messages per topic, messages lost (gaps in the publishers'
    sequence numbers and in the node's simulated-time stamps, read back from the bag), the
@@ -104,7 +104,7 @@ def live(record_seconds, directory):
     environment = _ros_environment()
     namespace = '/bench'
     node = subprocess.Popen(
-        [sys.executable, '-m', 'rigid_body_sim.ros.entry_point', '--ros-args', '-r',
+        [sys.executable, '-m', 'rigid_body_sim.node.entry_point', '--ros-args', '-r',
          f'__ns:={namespace}', '-p', f'rate:={RATE}', '-p', 'publish_clock:=true'],
         env=environment, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
     bag = directory / 'live'
@@ -202,13 +202,13 @@ def _stall_run(directory, name, stopped, stall, extra_environment, depth, record
     environment = _ros_environment(extra_environment)
     namespace = f'/stall_{os.getpid()}_{name}'
     if depth is None:
-        command = [sys.executable, '-m', 'rigid_body_sim.ros.entry_point']
+        command = [sys.executable, '-m', 'rigid_body_sim.node.entry_point']
     else:
         # The node's state QoS at another depth, in this node process only.
         command = [sys.executable, '-c',
                    'import sys; import rigid_body_sim.messages.qos as qos; '
                    f'qos.STATE_QOS.depth = {depth}; '
-                   'from rigid_body_sim.ros.process import main; sys.exit(main(sys.argv))']
+                   'from rigid_body_sim.node.process import main; sys.exit(main(sys.argv))']
     node = subprocess.Popen(
         command + ['--ros-args', '-r', f'__ns:={namespace}', '-p', f'rate:={RATE}', '-p',
                    'publish_clock:=true'],

@@ -667,7 +667,7 @@ class _SceneReader:
             valid = ', '.join(sorted(INTEGRATORS))
             raise self.error('integrator', f'unknown integrator {integrator!r}; valid: {valid}')
         rate = self.number(mapping.get('rate', DEFAULT_RATE), 'rate', 'Hz', positive=True)
-        # The node's range for its rate parameter (ros/parameters.py): beyond it a tick is
+        # The node's range for its rate parameter (node/parameters.py): beyond it a tick is
         # too short for the clock (and 1 / rate underflows long before 1e308 Hz).
         if not RATE_RANGE[0] <= rate <= RATE_RANGE[1]:
             raise self.error('rate', f'must be {RATE_RANGE[0]:g} to {RATE_RANGE[1]:g} Hz, got '

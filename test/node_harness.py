@@ -74,7 +74,7 @@ class NodeProcess:
         writes them: ``'100.0'``, ``'[1.0, 2.0, 3.0]'``).
     :param extra_arguments: more ``--ros-args`` arguments (``--params-file``, ...).
     :param command: the command that starts the node, default
-        ``python -m rigid_body_sim.ros.entry_point`` (what ``rigid_body_node`` runs).
+        ``python -m rigid_body_sim.node.entry_point`` (what ``rigid_body_node`` runs).
     :param log_path: the file for its stdout and stderr.
     :param cwd: its working directory (default: the package root).
     :param environment: variables to set in its environment, beside this process's.
@@ -88,7 +88,7 @@ class NodeProcess:
         for name, value in (parameters or {}).items():
             arguments += ['-p', f'{name}:={value}']
         arguments += list(extra_arguments)
-        command = command or [sys.executable, '-m', 'rigid_body_sim.ros.entry_point']
+        command = command or [sys.executable, '-m', 'rigid_body_sim.node.entry_point']
         self.log_path = Path(log_path)
         self.namespace = namespace
         self._log = open(self.log_path, 'w')

@@ -147,7 +147,7 @@ def test_physics_api_names_every_integrator():
 
 
 def test_the_node_help_lists_every_published_topic():
-    from rigid_body_sim.ros.node_help import help_text
+    from rigid_body_sim.node.help_text import help_text
     text = help_text()
     for topic in ('pose', 'twist', 'angular_momentum', 'odom', 'marker', 'imu',
                   '/diagnostics', '/clock'):

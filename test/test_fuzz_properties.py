@@ -36,10 +36,10 @@ from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.exceptions import ParameterNotDeclaredException
 from rclpy.parameter import Parameter
+from rigid_body_sim.node.parameters import PARAMETERS
+from rigid_body_sim.node.rigid_body_node import RigidBodyNode
 from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import unresolved_rotation
-from rigid_body_sim.ros.node import RigidBodyNode
-from rigid_body_sim.ros.parameters import PARAMETERS
 from rigid_body_sim.scenes import find_scene
 from rigid_body_sim.scenes import parse_scene
 from rigid_body_sim.scenes import read_scene_yaml

@@ -5,7 +5,7 @@ Until they are, the node integrates with the kernels' source interpreted (the sa
 its first state comes at once, whatever the compile takes.
 
 The set-up compiled every integrator, so these nodes run with the test hook
-``RIGID_BODY_SIM_ASSUME_UNCOMPILED`` (:mod:`rigid_body_sim.ros.kernels`) naming the
+``RIGID_BODY_SIM_ASSUME_UNCOMPILED`` (:mod:`rigid_body_sim.node.background_compile`) naming the
 integrators they must take for not compiled.  The compilation is the real command
 (``python -m rigid_body_sim.cli compile NAME --quiet``) behind a gate: a
 ``sitecustomize`` module on its PYTHONPATH holds it at start until the test writes the gate
@@ -25,7 +25,7 @@ from node_harness import NodeProcess
 from node_harness import unique_namespace
 import pytest
 from rcl_interfaces.srv import GetParameters
-from rigid_body_sim.ros.kernels import ASSUME_UNCOMPILED
+from rigid_body_sim.node.background_compile import ASSUME_UNCOMPILED
 
 pytestmark = pytest.mark.xdist_group('node')
 

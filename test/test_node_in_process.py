@@ -15,8 +15,8 @@ import pytest
 from rcl_interfaces.srv import DescribeParameters
 import rclpy
 from rclpy.parameter import Parameter
-from rigid_body_sim.ros.node import RigidBodyNode
-from rigid_body_sim.ros.parameter_services import ParameterServices
+from rigid_body_sim.node.parameter_services import ParameterServices
+from rigid_body_sim.node.rigid_body_node import RigidBodyNode
 from std_srvs.srv import Trigger
 
 

@@ -18,7 +18,7 @@ from node_harness import PACKAGE_ROOT
 from node_harness import unique_namespace
 import numpy as np
 import pytest
-from rigid_body_sim.ros.parameters import PARAMETERS
+from rigid_body_sim.node.parameters import PARAMETERS
 from test_colcon_build import colcon_install  # noqa: F401  (the fixture: one colcon build)
 from visualization_msgs.msg import Marker
 
@@ -80,7 +80,7 @@ def test_a_signal_ends_the_node_cleanly_with_exit_code_0(tmp_path, signal_number
 
 
 # The phases of the start-up, in order, as RIGID_BODY_SIM_TRACE_START_UP=1 prints them
-# (rigid_body_sim/ros/start_up.py): handlers set, imports, rclpy.init, the node's
+# (rigid_body_sim/node/process.py): handlers set, imports, rclpy.init, the node's
 # construction, spinning (the first tick comes within it).
 START_UP_PHASES = ('handlers', 'imports', 'rclpy.init', 'node', 'spin')
 
@@ -137,7 +137,7 @@ def test_a_signal_at_any_delay_through_the_start_up_ends_the_node_quietly_with_e
     this machine, then the signal is sent 0, T/6, 2T/6, ... 8T/6 after the handlers' line,
     SIGINT and SIGTERM in turn: the middles of the phases, which the test above hits at
     their starts.  What comes before the handlers (the interpreter's own start, ~50 ms) is
-    outside any Python program's reach: see rigid_body_sim/ros/entry_point.py.
+    outside any Python program's reach: see rigid_body_sim/node/entry_point.py.
     """
     (tmp_path / 'first').mkdir()
     node = _installed_node(tmp_path / 'first', monkeypatch)
@@ -164,7 +164,7 @@ def test_a_signal_at_any_delay_through_the_start_up_ends_the_node_quietly_with_e
 
 def test_help_lists_the_interface_and_every_parameter_and_exits_0():
     """rigid_body_node --help teaches: topics, services, each parameter; nothing starts."""
-    result = subprocess.run([sys.executable, '-m', 'rigid_body_sim.ros.entry_point', '--help'],
+    result = subprocess.run([sys.executable, '-m', 'rigid_body_sim.node.entry_point', '--help'],
                             capture_output=True, text=True, timeout=60, cwd=PACKAGE_ROOT)
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith('usage: rigid_body_node')
@@ -305,7 +305,7 @@ def test_a_signal_whose_keyboard_interrupt_was_lost_still_ends_the_spin():
     import threading
 
     import rclpy
-    from rigid_body_sim.ros import process
+    from rigid_body_sim.node import process
 
     context_was_ok = rclpy.ok()
     if not context_was_ok:
@@ -346,7 +346,7 @@ def test_a_teardown_that_hangs_holding_the_gil_still_ends_the_process_with_exit_
     """
     result = _run_python(
         'import re, sys\n'
-        'from rigid_body_sim.ros import process\n'
+        'from rigid_body_sim.node import process\n'
         'process.EXIT_GRACE = 0.5\n'
         'process.bound_the_shutdown()\n'
         "re.match(r'(a+)+$', 'a' * 64 + 'b')\n"
@@ -367,7 +367,7 @@ def test_a_context_shut_down_before_the_executor_is_built_leaves_no_message():
     script = (
         'import gc\n'
         'import rclpy\n'
-        'from rigid_body_sim.ros import process\n'
+        'from rigid_body_sim.node import process\n'
         'rclpy.init()\n'
         'plain = rclpy.create_node("half_built")\n'
         'rclpy.get_default_context().shutdown()\n'
@@ -388,7 +388,7 @@ def test_a_signal_while_numba_compiles_stops_the_node_within_seconds(tmp_path, m
     a cold cache).  A KeyboardInterrupt raised in numba's compiler was once swallowed in a
     ctypes callback ("Exception ignored ...") and the node went on compiling for 35 s; now
     the signal is noted, the compile beside it ended, and the watchdog ends the process
-    when the main thread cannot stop in order within rigid_body_sim.ros.process.STOP_GRACE.
+    when the main thread cannot stop in order within rigid_body_sim.node.process.STOP_GRACE.
     The bound below is a failure detector: a cold compilation alone takes longer.
     """
     monkeypatch.setenv('RIGID_BODY_SIM_CACHE_DIR', str(tmp_path / 'kernel_cache'))

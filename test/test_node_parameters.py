@@ -15,20 +15,20 @@ import pytest
 from rcl_interfaces.msg import ParameterType
 import rclpy
 from rclpy.parameter import Parameter
+from rigid_body_sim.node.parameters import check_integrator
+from rigid_body_sim.node.parameters import declare_parameters
+from rigid_body_sim.node.parameters import declare_scene_parameter
+from rigid_body_sim.node.parameters import DEFAULTS
+from rigid_body_sim.node.parameters import effective_values
+from rigid_body_sim.node.parameters import given_overrides
+from rigid_body_sim.node.parameters import imu_model_from_parameters
+from rigid_body_sim.node.parameters import NOT_SET
+from rigid_body_sim.node.parameters import parameter_descriptor
+from rigid_body_sim.node.parameters import PARAMETERS
+from rigid_body_sim.node.parameters import scene_from_parameters
+from rigid_body_sim.node.parameters import SCENE_VALUE
+from rigid_body_sim.node.rigid_body_node import RigidBodyNode
 from rigid_body_sim.physics import RigidBody
-from rigid_body_sim.ros.node import RigidBodyNode
-from rigid_body_sim.ros.parameters import check_integrator
-from rigid_body_sim.ros.parameters import declare_parameters
-from rigid_body_sim.ros.parameters import declare_scene_parameter
-from rigid_body_sim.ros.parameters import DEFAULTS
-from rigid_body_sim.ros.parameters import effective_values
-from rigid_body_sim.ros.parameters import given_overrides
-from rigid_body_sim.ros.parameters import imu_model_from_parameters
-from rigid_body_sim.ros.parameters import NOT_SET
-from rigid_body_sim.ros.parameters import parameter_descriptor
-from rigid_body_sim.ros.parameters import PARAMETERS
-from rigid_body_sim.ros.parameters import scene_from_parameters
-from rigid_body_sim.ros.parameters import SCENE_VALUE
 from rigid_body_sim.scenes import load_scene
 from rigid_body_sim.scenes import scene_names
 import yaml

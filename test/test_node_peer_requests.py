@@ -24,7 +24,7 @@ from rclpy.qos import DurabilityPolicy
 from rclpy.qos import QoSProfile
 from rclpy.qos import ReliabilityPolicy
 from rigid_body_sim.messages.qos import SERVICE_QOS
-from rigid_body_sim.ros.parameters import PARAMETERS
+from rigid_body_sim.node.parameters import PARAMETERS
 from std_srvs.srv import SetBool
 from std_srvs.srv import Trigger
 

@@ -41,7 +41,7 @@ from rcl_interfaces.srv import ListParameters
 from rcl_interfaces.srv import SetParameters
 from rcl_interfaces.srv import SetParametersAtomically
 from rigid_body_sim.messages.qos import SERVICE_QOS
-from rigid_body_sim.ros.parameters import PARAMETERS
+from rigid_body_sim.node.parameters import PARAMETERS
 from std_srvs.srv import SetBool
 from std_srvs.srv import Trigger
 

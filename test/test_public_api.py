@@ -18,7 +18,7 @@ PRIVATE = re.compile(r'_rclpy\b|take_message|unraisablehook|rclpy\.impl|_paramet
 
 
 # (file, line): the documented exception above.
-ALLOWED = {('rigid_body_sim/ros/parameters.py',
+ALLOWED = {('rigid_body_sim/node/parameters.py',
             "overrides = getattr(node, '_parameter_overrides', {})")}
 
 
@@ -48,4 +48,4 @@ def test_recording_never_imports_the_node():
     loaded = json.loads(result.stdout.strip().splitlines()[-1])
     assert any(name.startswith('rigid_body_sim.messages.') for name in loaded), \
         'the recording modules load no message module at all: the check checks nothing'
-    assert not [name for name in loaded if name.startswith('rigid_body_sim.ros')]
+    assert not [name for name in loaded if name.startswith('rigid_body_sim.node')]

@@ -1,7 +1,7 @@
 """
 The live recorder against the running node: nothing lost, clean finish, survives SIGKILL.
 
-The node and the recorder run as subprocesses (``python -m rigid_body_sim.ros.entry_point``
+The node and the recorder run as subprocesses (``python -m rigid_body_sim.node.entry_point``
 and ``python -m rigid_body_sim.cli record``) in a ROS domain of this test process's own, on the
 loopback.  What the node published is known from the messages themselves: its publisher
 numbers every message (the publication sequence number the recorder stores in each MCAP

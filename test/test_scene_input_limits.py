@@ -9,7 +9,7 @@ never a control character reaching the terminal.
 
 import pytest
 from rigid_body_sim import cli
-from rigid_body_sim.ros.parameters import scene_from_parameters
+from rigid_body_sim.node.parameters import scene_from_parameters
 from rigid_body_sim.scenes import load_scene
 from rigid_body_sim.scenes import MAX_SCENE_DEPTH
 from rigid_body_sim.scenes import MAX_SCENE_SIZE

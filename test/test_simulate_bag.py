@@ -34,6 +34,7 @@ import pytest
 from rclpy.serialization import deserialize_message
 from rigid_body_sim.cli import main as cli_main
 from rigid_body_sim.messages import qos
+from rigid_body_sim.messages.diagnostics import NODE_NAME
 from rigid_body_sim.messages.marker import marker_geometry
 from rigid_body_sim.messages.marker import marker_geometry_from_drawing
 from rigid_body_sim.messages.state import STATE_TOPICS
@@ -50,7 +51,6 @@ from rigid_body_sim.recording.simulate import simulate_to_bag
 from rigid_body_sim.recording.simulate import stamp_nanoseconds
 from rigid_body_sim.recording.state_batch import BatchSerializer
 from rigid_body_sim.recording.state_batch import StateBatch
-from rigid_body_sim.ros.node import NODE_NAME
 from rigid_body_sim.scenes import load_scene
 from rosbags.interfaces import QosDurability
 from rosbags.interfaces import QosHistory

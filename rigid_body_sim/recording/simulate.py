@@ -1,8 +1,8 @@
 """
 Simulate a scene faster than real time, straight into a rosbag2 bag, without DDS.
 
-The bag holds what the node (:mod:`rigid_body_sim.ros.node`) publishes while it simulates
-the same body at the same rate: the topics ``pose``, ``twist``, ``angular_momentum``,
+The bag holds what the node (:mod:`rigid_body_sim.node.rigid_body_node`) publishes while it
+simulates the same body at the same rate: the topics ``pose``, ``twist``, ``angular_momentum``,
 ``odom``, ``marker`` (relative names, under ``namespace``), with their types, frame ids and
 QoS, serialised by the node's own :class:`~rigid_body_sim.messages.state.StateSerializer`;
 ``/diagnostics`` once per simulated second with the node's status keys; ``/tf`` at every

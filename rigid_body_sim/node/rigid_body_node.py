@@ -4,7 +4,7 @@ The rigid_body_sim ROS 2 node: a timer-driven simulation of one rigid body in a 
 The parameter ``scene`` (:mod:`rigid_body_sim.scenes`) gives the body, its initial state,
 the effects on it (gravity, a pivot, drag, ...), how to draw it, and the default integrator
 and rate; the body and initial-state parameters that are set override it (see
-:mod:`rigid_body_sim.ros.parameters`).
+:mod:`rigid_body_sim.node.parameters`).
 
 The tick runs on a ``create_timer`` of the node, on the steady clock (so ``use_sim_time``
 never stops it, even when only its own ticks publish /clock), every (1/rate) /
@@ -18,17 +18,18 @@ works at most :data:`WORK_PER_CALLBACK` s before it lets the executor serve serv
 inputs and signals, and catches up in the next.  Stamps: the node's clock, or with
 ``publish_clock`` the simulated time, which is then also published on ``/clock``.
 
-Everything runs in the executor's one thread (:func:`rigid_body_sim.ros.process.spin`):
+Everything runs in the executor's one thread (:func:`rigid_body_sim.node.process.spin`):
 inputs, service requests and parameter changes are applied as they come, between two
 ticks, in the order they came; none waits for a deadline.  ``reset`` and ``pause`` reply
 once applied, saying from which stamp on the published messages show the new state.
 
-Integrator kernels that are not compiled (:mod:`rigid_body_sim.ros.kernels`) are compiled
-in a process of their own, never in the node's: a switch to such an integrator is accepted
-at once, the simulation goes on with the old one until they are compiled (a log line, and
-/diagnostics, say so), then switches; if the compilation fails, one error line says so, the
-old integrator stays, and so does the parameter.  At start-up, the services, parameters and
-/diagnostics come first and the ticks start once the scene's integrator is compiled.
+Integrator kernels that are not compiled are compiled in a process of their own
+(:mod:`rigid_body_sim.node.background_compile`), never in the node's: a switch to such an
+integrator is accepted at once, the simulation goes on with the old one until they are
+compiled (a log line, and /diagnostics, say so), then switches; if the compilation fails,
+one error line says so, the old integrator stays, and so does the parameter.  At start-up,
+the services, parameters and /diagnostics come first and the ticks start once the scene's
+integrator is compiled.
 
 Topics (relative names, so ``--ros-args -r __ns:=/sat1`` namespaces them):
 
@@ -43,7 +44,7 @@ Topics (relative names, so ``--ros-args -r __ns:=/sat1`` namespaces them):
   its latest input until replaced or timed out; the two topics' inputs add up.
 
 Services: ``reset`` (std_srvs/Trigger), ``pause`` (std_srvs/SetBool) and the parameter
-services (:mod:`rigid_body_sim.ros.parameter_services`).  The model is the scene's
+services (:mod:`rigid_body_sim.node.parameter_services`).  The model is the scene's
 :class:`rigid_body_sim.physics.Simulator`; this module only converts between it and ROS.
 """
 
@@ -65,8 +66,8 @@ from sensor_msgs.msg import Imu as ImuMessage
 from std_srvs.srv import SetBool
 from std_srvs.srv import Trigger
 
-from .kernels import BackgroundCompilation
-from .kernels import kernels_compiled
+from .background_compile import BackgroundCompilation
+from .background_compile import kernels_compiled
 from .parameter_services import ParameterServices
 from .parameters import check_integrator
 from .parameters import declare_parameters
@@ -152,7 +153,7 @@ class RigidBodyNode(Node):
     """
     Simulate one rigid body and publish its state; see the module docstring.
 
-    The timers start with the node; :func:`rigid_body_sim.ros.process.spin` runs them.
+    The timers start with the node; :func:`rigid_body_sim.node.process.spin` runs them.
 
     Raises
     ------

@@ -22,7 +22,7 @@ signal then takes its default action.
 
 This module imports nothing heavy at its top (the node and rclpy are imported by
 :func:`run_node`), and it holds the signal state however the node is started
-(``rigid_body_node``, or ``python -m rigid_body_sim.ros.entry_point``, where the entry point
+(``rigid_body_node``, or ``python -m rigid_body_sim.node.entry_point``, where the entry point
 runs as ``__main__``).
 
 The node is spun by rclpy's EventsExecutor (``rclpy.experimental``): timers, subscriptions
@@ -139,7 +139,7 @@ def main(args=None):
         if signalled():
             return 0
         if _asks_for_help(sys.argv if args is None else args):
-            from .node_help import help_text
+            from .help_text import help_text
             print(help_text())
             return 0
         start_up_phase('imports')
@@ -197,8 +197,8 @@ def run_node(args=None):
     from rclpy.executors import ExternalShutdownException
     from rclpy.signals import SignalHandlerOptions
 
-    from .node import ConfigurationError
-    from .node import RigidBodyNode
+    from .rigid_body_node import ConfigurationError
+    from .rigid_body_node import RigidBodyNode
 
     if signalled():
         return 0

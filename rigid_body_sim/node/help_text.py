@@ -1,7 +1,7 @@
 """
 The ``rigid_body_node --help`` text: what the node does, its interface and its parameters.
 
-Built from the parameter specifications (:data:`rigid_body_sim.ros.parameters.PARAMETERS`)
+Built from the parameter specifications (:data:`rigid_body_sim.node.parameters.PARAMETERS`)
 and the built-in scenes, so it cannot fall out of step with what the node declares.
 """
 
