@@ -1,8 +1,8 @@
 """``rigid-body-sim run``: the default scene's body offline, flipping when theory says."""
 
 from rigid_body_sim import cli
-from rigid_body_sim.defaults import default_body
-from rigid_body_sim.defaults import default_state
+from rigid_body_sim.scenes import default_body
+from rigid_body_sim.scenes import default_state
 from rigid_body_sim.scenes import load_scene
 
 
@@ -30,7 +30,7 @@ def test_run_simulates_the_default_scene_and_shows_the_first_flip(capsys):
 
 
 def test_defaults_are_the_default_scenes_body_and_state():
-    """rigid_body_sim.defaults reads the scene file: one source of truth."""
+    """default_body and default_state read the scene file: one source of truth."""
     scene = load_scene('default')
     body = default_body()
     assert body.mass == scene.body.mass and (body.inertia == scene.body.inertia).all()

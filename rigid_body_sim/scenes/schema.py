@@ -1,104 +1,54 @@
 """
-Scenes: a body, its initial state, the effects on it, how to run it and how to draw it.
+What a scene is: its values and the validation of its mapping.
 
-A scene is a YAML file (schema: the comment block of ``config/scenes/default.yaml`` and the
-README's "Scenes" section; units SI).  :func:`load_scene` reads a built-in scene by name
-(``config/scenes/<name>.yaml``, found with :func:`rigid_body_sim.paths.scenes_dir`) or any
-file by path, validates it strictly and returns a :class:`Scene` value: unknown keys, wrong
-types, missing values and non-physical bodies are ValueErrors whose message names the file,
-the key path and what is wrong, e.g.
-``scenes/heavy_top.yaml: effects[0].pivot.point: expected 3 numbers, got 2``.
-
-The YAML is read more strictly than ``yaml.safe_load`` (:func:`read_scene_yaml`): a key given
-twice in one mapping is an error (``body.size: duplicate key (lines 5 and 9)``), and numbers
-are YAML 1.2's, so ``damping: 1e-3`` is a float.  A section key with nothing after it
-(``initial:``, ``draw:``, ``body:``, ``effects:``, an effect's ``- pivot:``) is an error, as its
-lines were likely lost: leave a section out for its defaults, ``effects: []`` means none.
-
-For the node: ``scene = load_scene(name_or_path)``, then
-``scene = scene.with_overrides(...)`` with the body and initial-state parameters the user
-set (they win over the scene's values, and are validated the same way), then
-``simulator = scene.simulator()``.  Subscribe to the torque and wrench topics only if
-``scene.accepts_external_wrench``, and pass the input through
-``scene.external_wrench.limit(force, torque)`` before ``simulator.set_wrench``.
+:func:`parse_scene` validates a scene's mapping (as YAML gives it) into a :class:`Scene`,
+which holds a :class:`Drawing`.  The schema is the comment block of
+``config/scenes/default.yaml`` and docs/scenes.md (units SI).  Unknown keys, wrong types,
+missing values and non-physical bodies are ValueErrors whose message names the source, the
+key path and what is wrong, e.g.
+``scenes/heavy_top.yaml: effects[0].pivot.point: expected 3 numbers, got 2``.  A section key
+with nothing after it (``initial:``, ``draw:``, ``body:``, ``effects:``, an effect's
+``- pivot:``) is an error, as its lines were likely lost: leave a section out for its
+defaults, ``effects: []`` means none.
 """
 
 import copy
 from dataclasses import dataclass
 from dataclasses import field
-import io
-from pathlib import Path
-import re
-import sys
 
 import numpy as np
-import yaml
 
-from .paths import scenes_dir
-from .physics import INTEGRATORS
-from .physics import RigidBody
-from .physics import Simulator
-from .physics import State
-from .physics.effects import create_effect
-from .physics.effects import EFFECTS
-from .physics.effects import ParameterError
-from .physics.effects.registry import check_number
-from .physics.effects.registry import check_vector
-from .physics.effects.registry import describe_value
-from .physics.imu import Imu
-from .physics.imu import ImuModel
-from .physics.rotations import quaternion_from_matrix
-from .text import one_line_errors
+from .limits import MAX_DESCRIPTION_LENGTH
+from .limits import MAX_NAME_LENGTH
+from .limits import RATE_RANGE
+from .limits import TOLERANCE_RANGE
+from .strict_yaml import is_yaml_number
+from ..physics import INTEGRATORS
+from ..physics import RigidBody
+from ..physics import Simulator
+from ..physics import State
+from ..physics.effects import create_effect
+from ..physics.effects import EFFECTS
+from ..physics.effects import ParameterError
+from ..physics.effects.registry import check_number
+from ..physics.effects.registry import check_vector
+from ..physics.effects.registry import describe_value
+from ..physics.imu import Imu
+from ..physics.imu import ImuModel
+from ..physics.rotations import quaternion_from_matrix
+from ..text import one_line_errors
 
-__all__ = [
-    'DEFAULT_SCENE',
-    'DEFAULT_TOLERANCE',
-    'Drawing',
-    'MAX_SCENE_DEPTH',
-    'MAX_SCENE_SIZE',
-    'MAX_SCENE_VALUES',
-    'RATE_RANGE',
-    'Scene',
-    'SUBSTEPS_RANGE',
-    'TOLERANCE_RANGE',
-    'find_scene',
-    'load_scene',
-    'parse_scene',
-    'read_scene_yaml',
-    'scene_names',
-]
-
-DEFAULT_SCENE = 'default'
-"""The node's default scene: the T-handle with external_wrench, so a newcomer can push it."""
+__all__ = ['DEFAULT_TOLERANCE', 'Drawing', 'SHAPES', 'Scene', 'parse_scene']
 
 DEFAULT_INTEGRATOR = 'buss'
 DEFAULT_RATE = 100.0
-RATE_RANGE = (0.1, 10000.0)
-"""The tick rates (Hz) a scene, the node and the command line take."""
-TOLERANCE_RANGE = (0.0, 1.0)
-"""The error control (rad per simulated s; 0: off) a scene, the node and the command line
-take."""
-SUBSTEPS_RANGE = (1, 100000)
-"""The integrator steps per tick the node and the command line take."""
 DEFAULT_TOLERANCE = 1e-7
 """Error control (rad per simulated s) of a scene file without ``tolerance:``: the largest
 that keeps every built-in scene within 1e-3 rad over 60 s (the T-handle and the tennis racket
 need it); the built-in scenes set their own, the largest each allows (docs/scenes.md)."""
-MAX_SCENE_SIZE = 256 * 1024
-"""The most characters of a scene file.  The built-in scenes have under 5,000; PyYAML reads
-about 0.5 MB/s, so this bounds a load to half a second."""
-MAX_SCENE_DEPTH = 20
-"""The deepest nesting of a scene's YAML (a scene needs 5: effects, an effect, its parameters,
-a vector)."""
-MAX_SCENE_VALUES = 10000
-"""The most values (YAML nodes: mappings, lists, keys and scalars) in a scene; an alias counts
-as the values it repeats.  The built-in scenes have 33 to 53."""
-MAX_NAME_LENGTH = 100
-MAX_DESCRIPTION_LENGTH = 300
-"""The longest name and description (characters): they are shown on one line (the built-in
-scenes' are under 20 and 100), and a name starts the default bag directory's name."""
 DEFAULT_COLOR = (0.8, 0.5, 0.2, 1.0)
 SHAPES = ('box', 'cylinder', 'sphere', 'ellipsoid')
+"""Body shapes with a closed-form inertia (``body.shape``) and the shapes a scene draws."""
 
 # The keys each part of a scene may have; anything else is an error.
 _TOP_KEYS = ('name', 'description', 'body', 'initial', 'effects', 'integrator', 'rate',
@@ -121,15 +71,6 @@ _DRAW_KEYS = ('shape', 'size', 'color')
 _THINNEST_DRAWING = 0.01
 # How far a scene's orientation quaternion may be from unit norm before it is an error.
 _QUATERNION_NORM_TOLERANCE = 1e-6
-
-# Numbers in scene files are read as YAML 1.2 (core schema) reads them, not as PyYAML's
-# YAML 1.1: 1e-3, 1E+3, -.5 are floats (1.1 wants a dot and a signed exponent, so these were
-# strings), 010 is ten (1.1: octal 8) and 1:30 is a string (1.1: sexagesimal 90).
-_INT_TAG = 'tag:yaml.org,2002:int'
-_FLOAT_TAG = 'tag:yaml.org,2002:float'
-_YAML12_INT = re.compile(r'^(?:[-+]?[0-9]+|0o[0-7]+|0x[0-9a-fA-F]+)$')
-_YAML12_FLOAT = re.compile(r'^(?:[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?'
-                           r'|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$')
 
 
 @dataclass(frozen=True)
@@ -336,291 +277,6 @@ class Scene:
             if getattr(effect, 'effect_name', None) == name:
                 return effect
         return None
-
-
-def scene_names():
-    """Return the names of the built-in scenes (``config/scenes/*.yaml``), sorted."""
-    return sorted(path.stem for path in Path(scenes_dir()).glob('*.yaml'))
-
-
-@one_line_errors
-def find_scene(name_or_path):
-    """
-    Return the file of a scene given by built-in name or by path.
-
-    A value with a path separator or a ``.yaml``/``.yml`` ending is a path; anything else
-    is a built-in name.  ValueError if there is no such file (listing the built-ins).
-    """
-    text = str(name_or_path)
-    if not text:
-        raise ValueError(f'scene: empty name; built-in scenes: {", ".join(scene_names())}')
-    given_path = '/' in text or text.endswith(('.yaml', '.yml'))
-    path = Path(text).expanduser() if given_path else Path(scenes_dir()) / f'{text}.yaml'
-    try:
-        is_dir, is_file = path.is_dir(), path.is_file()
-    except (OSError, ValueError) as error:  # a name too long, a null character
-        raise ValueError(f'scene {text!r}: {getattr(error, "strerror", None) or error}') \
-            from None
-    if given_path:
-        if is_dir:
-            raise ValueError(f'scene {text!r} is a directory; give the path of a .yaml file '
-                             'in it')
-        if not is_file:
-            raise ValueError(f'scene file {text!r} does not exist')
-        return path
-    if not is_file:
-        raise ValueError(f'unknown scene {text!r}; built-in scenes: {", ".join(scene_names())}'
-                         ' (or give a path to a .yaml file)')
-    return path
-
-
-@one_line_errors
-def load_scene(name_or_path=DEFAULT_SCENE):
-    """
-    Read, validate and return a scene, by built-in name or by path.
-
-    Raises
-    ------
-    ValueError
-        If the file is missing or is not valid YAML, or for any problem of the scene; the
-        message names the file, the key path and what is wrong.
-
-    """
-    path = find_scene(name_or_path)
-    builtin = path.parent.resolve() == Path(scenes_dir()).resolve()
-    source = f'scenes/{path.name}' if builtin else str(name_or_path)
-    try:
-        with open(path, encoding='utf-8') as stream:
-            data = read_scene_yaml(stream, source)
-    except OSError as error:
-        raise ValueError(f'{source}: cannot read: {error.strerror}') from None
-    except UnicodeDecodeError as error:
-        raise ValueError(f'{source}: not UTF-8 text: byte {error.object[error.start]:#04x} at '
-                         f'offset {error.start}') from None
-    return parse_scene(data, source)
-
-
-@one_line_errors
-def read_scene_yaml(stream, source='<scene>'):
-    """
-    Return the data of a scene file's YAML (a str or a text stream), as the loader reads it.
-
-    Stricter than ``yaml.safe_load``: a key given twice in one mapping is an error (safe_load
-    keeps the last one silently), numbers follow YAML 1.2 (``1e-3`` is a float), and an
-    integer beyond a float's range (+-1.8e308) is an error.
-
-    Its work is bounded: a text of more than MAX_SCENE_SIZE characters, more than
-    MAX_SCENE_DEPTH levels of nesting or more than MAX_SCENE_VALUES values (an alias counted
-    as the values it repeats) is refused as soon as it is seen.
-
-    Raises
-    ------
-    ValueError
-        ``<source>: not valid YAML: ...``, ``<source>: <key path>: duplicate key ...``,
-        ``<source>: <key path>: an integer of 400 digits (base 10) is beyond ...``, or
-        ``<source>: line 3: more than 20 levels of nesting ...``.
-
-    """
-    if isinstance(stream, str):
-        text = stream
-    else:
-        # One character more than the limit tells a file that is too large, however large.
-        text = stream.read(MAX_SCENE_SIZE + 1)
-        # Named as the stream, so that YAML's messages still say 'in "x.yaml", line 3'.
-        name, stream = getattr(stream, 'name', '<file>'), io.StringIO(text)
-        stream.name = name
-    if len(text) > MAX_SCENE_SIZE:
-        raise ValueError(f'{source}: more than {MAX_SCENE_SIZE} characters, the most a scene '
-                         f'file may have ({MAX_SCENE_SIZE // 1024} KiB)')
-    try:
-        # The reader checks the text's characters as it is built (a control character is a
-        # ReaderError here).
-        loader = _SceneYamlLoader(stream)
-        node = loader.get_single_node()
-    except yaml.YAMLError as error:
-        raise ValueError(f'{source}: not valid YAML: {_one_line(error)}') from None
-    except _TooLarge as error:
-        raise ValueError(f'{source}: line {error.mark.line + 1}: {error}') from None
-    try:
-        if node is None:
-            return None
-        _check_nodes(loader, node, source)
-        try:
-            return loader.construct_document(node)
-        except (yaml.YAMLError, ValueError, TypeError, OverflowError) as error:
-            # A bad explicit tag (!!float abc, !!timestamp 2024-13-45) fails in Python's own
-            # conversion, with a ValueError that would not name the file.
-            raise ValueError(f'{source}: not valid YAML: {_one_line(error)}') from None
-    finally:
-        loader.dispose()
-
-
-class _TooLarge(ValueError):
-    """A scene's YAML nested too deep or with too many values; `mark` says where."""
-
-    def __init__(self, problem, mark):
-        super().__init__(problem)
-        self.mark = mark
-
-
-class _SceneYamlLoader(yaml.SafeLoader):
-    """
-    SafeLoader with YAML 1.2 numbers (see _YAML12_INT, _YAML12_FLOAT) and bounded nesting.
-
-    The composer counts the depth and the values as it builds nodes, and stops at
-    MAX_SCENE_DEPTH or MAX_SCENE_VALUES: PyYAML's composer and constructor recurse once per
-    level (3,000 levels were a RecursionError), and each value costs ~30 us and ~1 KB (a
-    list of a million took 35 s and 850 MB: benchmarks/scene_input_cost.py).
-    """
-
-    def __init__(self, stream):
-        super().__init__(stream)
-        self._depth = 0
-        self._values = 0
-        # id(node) -> the values it holds, itself included: what an alias to it repeats.
-        self._sizes = {}
-
-    def compose_node(self, parent, index):
-        """Compose one node, counting it (an alias: the values it repeats) and its depth."""
-        event = self.peek_event()
-        if isinstance(event, yaml.AliasEvent):
-            node = super().compose_node(parent, index)
-            self._count(self._sizes.get(id(node), 1), event.start_mark)
-            return node
-        if self._depth >= MAX_SCENE_DEPTH:
-            raise _TooLarge(f'more than {MAX_SCENE_DEPTH} levels of nesting; a scene needs 5',
-                            event.start_mark)
-        self._depth += 1
-        first = self._values
-        self._count(1, event.start_mark)
-        node = super().compose_node(parent, index)
-        self._depth -= 1
-        self._sizes[id(node)] = self._values - first
-        return node
-
-    def _count(self, values, mark):
-        self._values += values
-        if self._values > MAX_SCENE_VALUES:
-            raise _TooLarge(f'more than {MAX_SCENE_VALUES} values (an alias counts as the '
-                            'values it repeats); a built-in scene has 33 to 53', mark)
-
-    # PyYAML's 1.1 int and float resolvers are dropped (not shadowed): the first that
-    # matches a plain scalar decides its type, and 1.1's would read 010 as 8.
-    yaml_implicit_resolvers = {
-        first: [(tag, regexp) for tag, regexp in resolvers if tag not in (_INT_TAG, _FLOAT_TAG)]
-        for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()}
-
-    def construct_yaml12_int(self, node):
-        """Return a YAML 1.2 integer: decimal (leading zeros too), 0o octal or 0x hex."""
-        text = self.construct_scalar(node)
-        try:
-            sign, base, digits = _integer_parts(text)
-            return sign * int(digits, base)
-        except ValueError:
-            raise yaml.constructor.ConstructorError(
-                None, None, f'{text!r} is not an integer', node.start_mark) from None
-
-    def construct_yaml12_float(self, node):
-        """Return a float; a value that is none (an explicit !!float tag) is a YAML error."""
-        try:
-            return self.construct_yaml_float(node)
-        except (ValueError, IndexError):  # IndexError: an empty one (`rate: !!float`)
-            raise yaml.constructor.ConstructorError(
-                None, None, f'{self.construct_scalar(node)!r} is not a number',
-                node.start_mark) from None
-
-
-# Resolvers are tried in the order added: int first, so that 10 stays an int.
-_SceneYamlLoader.add_implicit_resolver(_INT_TAG, _YAML12_INT, list('-+0123456789'))
-_SceneYamlLoader.add_implicit_resolver(_FLOAT_TAG, _YAML12_FLOAT, list('-+.0123456789'))
-_SceneYamlLoader.add_constructor(_INT_TAG, _SceneYamlLoader.construct_yaml12_int)
-_SceneYamlLoader.add_constructor(_FLOAT_TAG, _SceneYamlLoader.construct_yaml12_float)
-
-
-def _check_nodes(loader, root, source):
-    """
-    Raise ValueError ``<source>: <key path>: ...`` for a key given twice or a huge integer.
-
-    Both are found on the composed nodes, before any value is built: a mapping keeps the
-    last of two equal keys silently, and an integer beyond a float's range (or beyond the
-    4300 digits Python converts) would end as an OverflowError without the key path.
-    """
-    pending, seen = [(root, '')], set()
-    while pending:
-        node, path = pending.pop()
-        if id(node) in seen:  # an alias: already checked where its anchor is
-            continue
-        seen.add(id(node))
-        if isinstance(node, yaml.ScalarNode):
-            _check_integer(node, path, source)
-        elif isinstance(node, yaml.SequenceNode):
-            pending.extend((item, f'{path}[{index}]') for index, item in enumerate(node.value))
-        elif isinstance(node, yaml.MappingNode):
-            marks = {}
-            for key_node, value_node in node.value:
-                if isinstance(key_node, yaml.ScalarNode):
-                    _check_integer(key_node, path, source)
-                key = _mapping_key(loader, key_node)
-                key_path = _join(path, str(key))
-                if key is not None:
-                    if key in marks:
-                        raise ValueError(f'{source}: {key_path}: duplicate key '
-                                         f'({_where_both(marks[key], key_node.start_mark)}); '
-                                         'give each key once')
-                    marks[key] = key_node.start_mark
-                pending.append((value_node, key_path))
-
-
-def _check_integer(node, path, source):
-    """Raise ValueError if `node` is an integer no float holds (beyond +-1.8e308)."""
-    if node.tag != _INT_TAG or not _YAML12_INT.match(node.value):
-        return
-    _, base, digits = _integer_parts(node.value)
-    # More than 309 digits is beyond a float in every base here; a shorter number is
-    # converted exactly to tell.
-    if len(digits) <= 309 and int(digits, base) <= sys.float_info.max:
-        return
-    where = f'{path}: ' if path else ''
-    raise ValueError(f'{source}: {where}an integer of {len(digits)} digits (base {base}) is '
-                     f'beyond the range of a float (+-{sys.float_info.max:.3g})')
-
-
-def _integer_parts(text):
-    """
-    Return (sign, base, digits) of a YAML 1.2 integer's text; ValueError if it has no digits.
-
-    The digits come without leading zeros: Python converts at most 4300 digits, and
-    00...01 is 1 however many zeros it has.
-    """
-    sign, digits = (-1, text[1:]) if text[:1] == '-' else (1, text.lstrip('+'))
-    base = {'0o': 8, '0x': 16}.get(digits[:2], 10)
-    digits = digits[2:] if base != 10 else digits
-    if not digits:
-        raise ValueError(f'{text!r} has no digits')
-    return sign, base, digits.lstrip('0') or '0'
-
-
-def _mapping_key(loader, key_node):
-    """Return a scalar mapping key as it will be constructed (None for other keys)."""
-    if not isinstance(key_node, yaml.ScalarNode):
-        return None  # a list or mapping as a key: construction rejects it as unhashable
-    if key_node.tag == 'tag:yaml.org,2002:merge':
-        return '<<'
-    try:
-        return loader.construct_object(key_node)
-    except (yaml.YAMLError, ValueError, TypeError, OverflowError):
-        return None  # construct_document reports it, as invalid YAML
-
-
-def _where_both(first, second):
-    """Return where two marks are: 'lines 3 and 7', or 'line 3, columns 8 and 23'."""
-    if first.line == second.line:
-        return f'line {first.line + 1}, columns {first.column + 1} and {second.column + 1}'
-    return f'lines {first.line + 1} and {second.line + 1}'
-
-
-def _one_line(error):
-    return ' '.join(str(error).split())
 
 
 @one_line_errors
@@ -1027,7 +683,7 @@ def _quoted_number_hint(value):
     """Return a hint if `value` (or an item of it) is a number in quotes, else ''."""
     items = value if isinstance(value, (list, tuple)) else (value,)
     for item in items:
-        if isinstance(item, str) and (_YAML12_INT.match(item) or _YAML12_FLOAT.match(item)):
+        if isinstance(item, str) and is_yaml_number(item):
             return '; write it without quotes to make it a number'
     return ''
 
