@@ -23,6 +23,7 @@ __all__ = [
     'inertia_equivalent_box',
     'marker_geometry',
     'marker_geometry_from_drawing',
+    'visible_equivalent_box',
 ]
 
 MARKER_COLOR = (0.875, 0.4375, 0.125, 0.875)
@@ -75,6 +76,17 @@ def inertia_equivalent_box(body):
     return np.sqrt(radicands), body.principal_axes
 
 
+def visible_equivalent_box(body):
+    """
+    Return :func:`inertia_equivalent_box` as it is drawn: (edges in m, axes).
+
+    A lamina's zero edge is drawn as a thin slab: no edge is shorter than a fiftieth of the
+    longest.
+    """
+    edges, axes = inertia_equivalent_box(body)
+    return np.maximum(edges, _MIN_EDGE_FRACTION * edges.max()), axes
+
+
 def marker_geometry(body, shape='', size=()):
     """
     Return the :class:`MarkerGeometry` that draws `body`.
@@ -93,8 +105,7 @@ def marker_geometry(body, shape='', size=()):
 
     """
     if shape == '':
-        edges, axes = inertia_equivalent_box(body)
-        edges = np.maximum(edges, _MIN_EDGE_FRACTION * edges.max())
+        edges, axes = visible_equivalent_box(body)
         is_identity = np.allclose(axes, np.eye(3), rtol=0.0, atol=1e-12)
         axes = None if is_identity else tuple(quaternion_from_matrix(axes).tolist())
         return MarkerGeometry(Marker.CUBE, tuple(float(e) for e in edges), axes)

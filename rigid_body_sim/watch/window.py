@@ -2,7 +2,7 @@
 The window of ``rigid-body-sim watch``: the body turning, strip charts, the node's cost.
 
 matplotlib with its TkAgg backend (Tk comes with CPython; see docs/dependencies.md): the
-body as ``rigid-body-sim animate`` draws it (:class:`..recording.animate.BodyView`: its
+body as ``rigid-body-sim animate`` draws it (:class:`rigid_body_sim.drawing.BodyView`: its
 shape, the body axes, the direction of L, a trail), a strip chart of the body angular
 velocity, one of the drift of what the scene conserves, and the node's live cost and state
 from /diagnostics as text.  A timer redraws it a few times a second from a
@@ -15,10 +15,12 @@ import numpy as np
 
 from .live import format_number
 from .terminal import waiting_lines
+from ..drawing import AXIS_COLOURS
+from ..drawing import BodyView
+from ..drawing import shape_from_marker
 
 __all__ = ['display_problem', 'WatchWindow']
 
-_AXIS_COLOURS = ('tab:red', 'tab:green', 'tab:blue')
 # Redraws per second: the 3D body costs tens of ms a frame on a loaded 2-core machine.
 _REDRAW_PERIOD_MS = 200
 # Simulated seconds in the charts before the window counts as showing the node.
@@ -106,7 +108,7 @@ class WatchWindow:
         self.resets_seen = 0
         self.omega_lines = [self.omega_axes.plot([], [], color=colour, linewidth=1.2,
                                                  label=f'$\\Omega_{name}$')[0]
-                            for colour, name in zip(_AXIS_COLOURS, 'xyz')]
+                            for colour, name in zip(AXIS_COLOURS, 'xyz')]
         self.omega_axes.set(title='Body angular velocity', ylabel='$\\Omega$ [rad/s]')
         # Legends in one row in headroom above the data (see _autoscale_y): never on a curve.
         self.omega_axes.legend(loc='upper left', ncols=3, fontsize='small')
@@ -175,9 +177,6 @@ class WatchWindow:
                 self.on_drawn(snapshot)
 
     def _make_body_view(self, snapshot):
-        from ..recording.animate import BodyView
-        from ..recording.animate import shape_from_marker
-
         if snapshot.marker is None or len(snapshot.time) < 2:
             self.body_axes.set_title('the body: waiting for its marker', fontsize=9)
             return
