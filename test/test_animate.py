@@ -18,7 +18,7 @@ from rigid_body_sim.cli import main as cli_main
 from rigid_body_sim.recording.animate import _Scene3D
 from rigid_body_sim.recording.animate import plan_frames
 from rigid_body_sim.recording.animate import read_shape
-from rigid_body_sim.recording.plot import read_motion
+from rigid_body_sim.recording.motion import read_motion
 from rigid_body_sim.recording.simulate import simulate_to_bag
 from rigid_body_sim.scenes import load_scene
 from rosbags.rosbag2 import Reader

@@ -15,15 +15,15 @@ import numpy as np
 import pytest
 from rigid_body_sim.cli import main as cli_main
 from rigid_body_sim.recording.bag_writer import BagWriter
+from rigid_body_sim.recording.motion import BagMotion
+from rigid_body_sim.recording.motion import conserved_quantities
+from rigid_body_sim.recording.motion import read_motion
+from rigid_body_sim.recording.motion import symmetry_axis
 from rigid_body_sim.recording.plot import apex_index
-from rigid_body_sim.recording.plot import BagMotion
 from rigid_body_sim.recording.plot import com_moves
-from rigid_body_sim.recording.plot import conserved_quantities
 from rigid_body_sim.recording.plot import oscillations
 from rigid_body_sim.recording.plot import plane_of_motion
 from rigid_body_sim.recording.plot import plot_bag
-from rigid_body_sim.recording.plot import read_motion
-from rigid_body_sim.recording.plot import symmetry_axis
 from rigid_body_sim.recording.simulate import simulate_to_bag
 from rigid_body_sim.scenes import load_scene
 import yaml
@@ -284,7 +284,7 @@ def test_the_custom_data_is_that_of_metadata_yaml_in_either_storage(tmp_path, va
 
 
 def test_a_live_bag_is_timed_by_the_nodes_reports_not_by_its_arrival_stamps():
-    from rigid_body_sim.recording.plot import simulated_time_from_reports
+    from rigid_body_sim.recording.motion import simulated_time_from_reports
     # Ticks of 10 ms stamped as they were scheduled under load (irregular), a pause of
     # three ticks (no state change), and a reset: reports say the simulated time.
     stamps = 1_700_000_000_000_000_000 + np.cumsum(

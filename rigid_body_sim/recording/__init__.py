@@ -12,7 +12,8 @@ Recording and analysis: rosbag2 bags of the simulation, offline or live, and the
   exactly the topics, types, frame ids and stamps the node publishes.
 - :mod:`.recorder`: a live recorder for machines without rosbag2.
 - :mod:`.recovery`: turn a bag left by a killed recorder into a complete one.
-- :mod:`.plot`: the motion in a bag, plotted from the messages alone.
+- :mod:`.motion`: the motion in a bag, read from the node's messages alone, and what its
+  scene conserves; :mod:`.plot` plots it, :mod:`.animate` turns the body with it.
 
 Importing this package imports none of them; import the module you need (the recorder
 needs rclpy, the plot needs matplotlib).

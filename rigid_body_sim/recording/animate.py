@@ -4,7 +4,7 @@ Animate the body recorded in a bag: its shape turning, its axes, L, and a trail.
 What is drawn comes from the node's topics alone, so any bag of the node works:
 
 - ``odom``: the orientation R (body to world) of each tick; ``angular_momentum``: L about
-  the COM, world frame (read with :func:`.plot.read_motion`, paired by stamp);
+  the COM, world frame (read with :func:`.motion.read_motion`, paired by stamp);
 - ``marker`` (visualization_msgs/Marker, its first message): the shape (CUBE, CYLINDER,
   SPHERE), its ``scale`` (m) and its colour; its orientation relative to the body's at the
   same stamp is the drawing's orientation in the body frame (a box drawn along the
@@ -259,7 +259,7 @@ def prepare_animation(bag, out=None, fps=DEFAULT_FPS, speed=DEFAULT_SPEED, names
         Bad options, an unreadable bag or one without the topics, MP4 without ffmpeg.
 
     """
-    from .plot import read_motion
+    from .motion import read_motion
 
     bag = Path(bag)
     out = Path(out) if out is not None else bag.with_name(bag.name + '.gif')

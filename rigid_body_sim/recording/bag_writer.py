@@ -92,6 +92,7 @@ from ruamel.yaml import YAML
 
 __all__ = [
     'BAG_VERSION',
+    'CUSTOM_DATA_PREFIX',
     'ROS_DISTRO',
     'STORAGES',
     'BagWriter',
@@ -110,6 +111,10 @@ ROS_DISTRO = 'jazzy'
 
 STORAGES = ('mcap', 'sqlite3')
 """Storage formats: MCAP (rosbag2's default since Iron) and sqlite3."""
+
+CUSTOM_DATA_PREFIX = 'rigid_body_sim.'
+"""The start of the package's keys in a bag's ``custom_data`` (the run's scene, integrator,
+body and effects, which the node's messages do not carry; the plot reads them)."""
 
 _SUFFIXES = {'mcap': '.mcap', 'sqlite3': '.db3'}
 
@@ -859,7 +864,11 @@ class BagWriter:
         return self._connections[topic]
 
     def set_custom_data(self, key, value):
-        """Store a string in ``custom_data`` of ``metadata.yaml`` (rosbag2 Jazzy keeps it)."""
+        """
+        Store a string in ``custom_data`` of ``metadata.yaml`` (rosbag2 Jazzy keeps it).
+
+        The package's own keys start with :data:`CUSTOM_DATA_PREFIX`.
+        """
         self._custom_data[str(key)] = str(value)
 
     def write(self, connection, log_time, data, publish_time=None, sequence=0):

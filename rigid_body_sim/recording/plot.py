@@ -1,49 +1,7 @@
 """
 Plot the motion recorded in a bag, and the quantities the physics conserves in it.
 
-The motion comes from two of the node's topics, so any bag of the node works (recorded
-live, by ``ros2 bag record``, or written offline):
-
-- ``odom`` (nav_msgs/Odometry): the orientation q and COM position x in the world frame,
-  and in the body frame the COM velocity and the angular velocity Omega (the node gives
-  odom's twist in the body frame);
-- ``angular_momentum`` (geometry_msgs/Vector3Stamped): L about the COM, world frame.
-
-Messages of the two topics are paired by their header stamp (each tick stamps all alike).
-
-Time.  The time axis is simulated time from the scene's start: an offline bag names the
-stamp of simulated time 0 in its custom data, and the node's stamps with ``publish_clock``
-are simulated time already; so a 5 s run at 100 Hz shows ticks at 0.01 .. 5 s.  A live bag
-stamped with the wall clock has its ticks arrive as the machine schedules them (under load
-0.2-90 ms apart at 100 Hz): when it holds the node's /diagnostics, whose reports say the
-simulated time and rate once a second in the tick of a state, each tick is timed from the
-last report before it plus one period per tick whose state moved (a paused tick adds none;
-a reset restarts at its report's time).  Without reports the wall-clock time from the first
-message is shown, and the panel titles say how irregular the stamps are.
-
-Conserved quantities.  What is conserved depends on the scene's effects.  An offline bag
-names them, their parameters and the body's mass and inertia in its custom data (keys
-``rigid_body_sim.*``); a live bag carries none of it and is treated as torque-free, which
-the panel says.
-
-- Torque-free about the COM (no effect, or uniform gravity, which acts at the COM):
-  the rotational energy T_rot = 1/2 Omega . (R^T L), which needs no inertia, and |L|.
-- Internal dissipation: |L| (internal friction exerts no external torque), while T_rot
-  drains toward the spin about the major axis.
-- A pivot (a body point held fixed), with or without gravity: the total energy
-  E = T_rot + 1/2 m |v|^2 - m g . x (the pivot's reaction does no work: its point does not
-  move); the angular momentum about the pivot, L_p = L + m (x - a) x v (a the anchor),
-  along gravity (the weight's torque about the pivot is horizontal), all of it without
-  gravity; and for a body symmetric about an axis e3 through the pivot (a Lagrange top,
-  a wheel on its axle) L . e3 = I3 omega3, as the torque r x m g is normal to e3.
-- Drag, a torque oscillating in time: none.
-
-Each effect's class declares what it conserves (``conserves``, ``keeps_pivot_invariants``:
-physics/effects/registry.py), so a new effect needs no case here.
-
-Each drift is relative to a physical scale: the energy's to the initial kinetic energy
-(the potential's zero is arbitrary), a momentum's to the initial |L| (a component may start
-at zero).
+The motion, its time axis and what its scene conserves come from :mod:`.motion`.
 
 The figure (matplotlib, Agg backend) has four panels: Omega's components against time (one
 spinning many times faster than the others on an axis of its own; a component oscillating
@@ -55,38 +13,26 @@ moves in (with equal scales) and its height z(t) with the apex, else the polhode
 of Omega in the body frame).
 """
 
-import json
 from pathlib import Path
 
 import numpy as np
-from rosbags.rosbag2 import Reader
-from rosbags.rosbag2 import ReaderError
-from ruamel.yaml import YAML
 
-from .bag_writer import typestore
-from ..physics.effects import EFFECTS
+from .motion import conserved_quantities
+from .motion import read_motion
+from ..drawing import AXIS_COLOURS
 
 __all__ = [
-    'BagMotion',
-    'ConservedQuantity',
     'apex_index',
     'com_moves',
-    'conserved_quantities',
     'oscillations',
     'plane_of_motion',
     'plot_bag',
     'plot_motion',
-    'read_motion',
-    'symmetry_axis',
 ]
 
-_ODOMETRY = 'nav_msgs/msg/Odometry'
-_DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
-_VECTOR3_STAMPED = 'geometry_msgs/msg/Vector3Stamped'
 # The COM "moves" when its path spans more than this (m): below, it is at rest up to
 # round-off and its panel shows the polhode instead.
 _MOTION_THRESHOLD = 1e-9
-_AXIS_COLORS = ('tab:red', 'tab:green', 'tab:blue')
 # An axis whose tip travels more than this many turns, and 20 times as far as the slowest
 # axis, spins: its path would cover the sphere.
 _FAST_TURNS = 10
@@ -94,7 +40,6 @@ _FAST_TURNS = 10
 _DRAWN_TURNS = 4
 # Points per 3D path: more only slow the drawing down, the lines look the same.
 _PATH_POINTS = 6000
-_CUSTOM_PREFIX = 'rigid_body_sim.'
 # A time series with more oscillations than this over the panel's ~600 pixel columns
 # fills its band nearly solid (a cycle in fewer than ~15 columns, two lines each): it is
 # drawn as its envelope.
@@ -103,435 +48,6 @@ _ENVELOPE_CYCLES = 40
 _THIN_CYCLES = 10
 # Points of an envelope: about the panel's width in pixels.
 _ENVELOPE_BINS = 500
-# Stamps before this (one year after the epoch, ns) are simulated time, not the wall clock.
-_SIMULATED_STAMPS_BEFORE = 365 * 86400 * 10**9
-# Two principal moments closer than this (relative to the largest) are equal: the body is
-# symmetric about the third axis.
-_SYMMETRY_TOLERANCE = 1e-9
-
-
-class BagMotion:
-    """
-    The motion in a bag, as arrays over the paired ticks (n of them).
-
-    Attributes
-    ----------
-    time : ndarray (n,)
-        Simulated time in s from the scene's start (see the module docstring), or, for a
-        bag stamped with the wall clock, s from the first message.
-    time_is_simulated : bool
-        Whether `time` is simulated time from the start.
-    stamps : ndarray (n,) of int64
-        The header stamps, ns.
-    quaternion : ndarray (n, 4)
-        Orientation (x, y, z, w), body to world.
-    position : ndarray (n, 3)
-        COM position in m, world frame.
-    velocity_body : ndarray (n, 3)
-        COM velocity in m/s, body frame (odom's twist.linear).
-    angular_velocity_body : ndarray (n, 3)
-        Omega in rad/s, body frame.
-    angular_momentum : ndarray (n, 3)
-        L about the COM in kg m^2/s, world frame.
-    custom_data : dict
-        The bag's custom data (scene, integrator, mass, effects, ... of an offline run).
-
-    """
-
-    def __init__(self, stamps, quaternion, position, angular_velocity_body, angular_momentum,
-                 custom_data, name, velocity_body=None, reports=()):
-        self.stamps = np.asarray(stamps, dtype=np.int64)
-        self.custom_data = dict(custom_data or {})
-        origin, self.time_is_simulated = _time_origin(self.stamps, self.custom_data)
-        # Division, not * 1e-9: correctly rounded, so tick 500 at 100 Hz reads 5.0 exactly.
-        self.time = (self.stamps - origin) / 1e9
-        self.timed_by_reports = False
-        self.quaternion = np.asarray(quaternion, dtype=float)
-        self.position = np.asarray(position, dtype=float)
-        self.angular_velocity_body = np.asarray(angular_velocity_body, dtype=float)
-        self.angular_momentum = np.asarray(angular_momentum, dtype=float)
-        self.velocity_body = (np.zeros_like(self.position) if velocity_body is None
-                              else np.asarray(velocity_body, dtype=float))
-        self.name = name
-        if not self.time_is_simulated and len(reports):
-            timed = simulated_time_from_reports(self.stamps, self._moved(), reports)
-            if timed is not None:
-                self.time, self.time_is_simulated, self.timed_by_reports = timed, True, True
-
-    def _moved(self):
-        """Return whether each tick's state differs from the one before (n,) bool."""
-        state = np.hstack((self.quaternion, self.angular_velocity_body, self.position))
-        moved = np.ones(len(state), dtype=bool)
-        moved[1:] = np.any(state[1:] != state[:-1], axis=1)
-        return moved
-
-    @property
-    def stamp_spacing(self):
-        """Return (least, largest) spacing of the header stamps in s, or None for one tick."""
-        if len(self.stamps) < 2:
-            return None
-        spacing = np.diff(self.stamps) / 1e9
-        return float(spacing.min()), float(spacing.max())
-
-    @property
-    def rotation(self):
-        """Return R (n, 3, 3), body to world, of the quaternions."""
-        x, y, z, w = self.quaternion.T
-        return np.stack([
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-        ], -2)
-
-    @property
-    def velocity(self):
-        """Return the COM velocity v = R v_body in m/s, world frame, (n, 3)."""
-        return np.einsum('nij,nj->ni', self.rotation, self.velocity_body)
-
-    @property
-    def rotational_energy(self):
-        """Return T_rot = 1/2 Omega . (R^T L) in J, (n,)."""
-        momentum_body = np.einsum('nji,nj->ni', self.rotation, self.angular_momentum)
-        return 0.5 * np.einsum('ni,ni->n', self.angular_velocity_body, momentum_body)
-
-    @property
-    def momentum_magnitude(self):
-        """Return |L| in kg m^2/s, (n,)."""
-        return np.linalg.norm(self.angular_momentum, axis=1)
-
-    def custom(self, key, default=None):
-        """Return the custom data value ``rigid_body_sim.<key>`` (a string), or `default`."""
-        return self.custom_data.get(_CUSTOM_PREFIX + key, default)
-
-    @property
-    def mass(self):
-        """Return the body's mass in kg from the custom data, or None if the bag lacks it."""
-        value = self.custom('mass')
-        return None if value is None else float(value)
-
-    @property
-    def inertia(self):
-        """Return the inertia about the COM (3, 3) in kg m^2, body frame, or None."""
-        value = self.custom('inertia')
-        return None if value is None else np.array(value.split(), dtype=float).reshape(3, 3)
-
-    @property
-    def effects(self):
-        """
-        Return the scene's effects as a list of {'effect': name, parameter: value}, or None.
-
-        None when the bag does not name them (a live recording); an offline bag of an
-        older version names them without parameters.
-        """
-        parameters = self.custom('effect_parameters')
-        if parameters is not None:
-            return json.loads(parameters)
-        names = self.custom('effects')
-        if names is None:
-            return None
-        return [{'effect': name.strip()} for name in names.split(',')
-                if name.strip() and name.strip() != 'none']
-
-    def total_energy(self, gravity):
-        """Return E = T_rot + 1/2 m |v|^2 - m g . x in J, (n,); `gravity` in m/s^2 or None."""
-        mass = self.mass
-        velocity = self.velocity
-        energy = self.rotational_energy + 0.5 * mass * np.einsum('ni,ni->n', velocity, velocity)
-        if gravity is not None:
-            energy -= mass * (self.position @ np.asarray(gravity, dtype=float))
-        return energy
-
-    def angular_momentum_about(self, point):
-        """Return L_p = L + m (x - p) x v in kg m^2/s about the world point `point`, (n, 3)."""
-        arm = self.position - np.asarray(point, dtype=float)
-        return self.angular_momentum + self.mass * np.cross(arm, self.velocity)
-
-
-def simulated_time_from_reports(stamps, moved, reports):
-    """
-    Return the simulated time (s) of live ticks from the node's reports, or None.
-
-    `stamps` (n,) are the ticks' header stamps (ns) and `moved` (n,) whether each tick's
-    state differs from the one before; `reports` are (stamp ns, simulated time s, rate Hz)
-    of the node's /diagnostics.  A report belongs to the latest tick stamped at or before it
-    (the node publishes a tick's state, then its report); a tick is timed from the last
-    report at or before it, plus one period per moving tick since; ticks before the first
-    report count back from it.  None if no report falls among the ticks.
-    """
-    reports = sorted(reports)
-    anchors = []  # (tick index, simulated time, rate)
-    for stamp, simulated, rate in reports:
-        index = int(np.searchsorted(stamps, stamp, side='right')) - 1
-        if 0 <= index < len(stamps) and rate > 0.0:
-            anchors.append((index, simulated, rate))
-    if not anchors:
-        return None
-    steps = np.cumsum(moved.astype(float))  # moving ticks up to and including each
-    time = np.empty(len(stamps))
-    first, first_time, first_rate = anchors[0]
-    time[:first] = first_time - (steps[first] - steps[:first]) / first_rate
-    bounds = [anchor[0] for anchor in anchors[1:]] + [len(stamps)]
-    for (index, simulated, rate), end in zip(anchors, bounds):
-        time[index:end] = simulated + (steps[index:end] - steps[index]) / rate
-    return time
-
-
-def _time_origin(stamps, custom_data):
-    """Return (stamp of time 0 in ns, whether the time is simulated time)."""
-    start = custom_data.get(_CUSTOM_PREFIX + 'start_time')
-    if start is not None:
-        return int(start), True
-    if stamps[0] < _SIMULATED_STAMPS_BEFORE:
-        return 0, True
-    return int(stamps[0]), False
-
-
-class ConservedQuantity:
-    """
-    A quantity the physics of the scene conserves (or, with `conserved` False, shown anyway).
-
-    Attributes
-    ----------
-    label : str
-        Its name in mathtext, e.g. '$E = T + V$'.
-    values : ndarray (n,)
-        Its value at each tick.
-    unit : str
-        Its unit.
-    scale, scale_label : float, str
-        The physical scale its drift is divided by, and that scale's name.
-    conserved : bool
-        Whether the physics conserves it here.
-
-    """
-
-    def __init__(self, label, values, unit, scale, scale_label, conserved=True):
-        self.label = label
-        self.values = np.asarray(values, dtype=float)
-        self.unit = unit
-        self.scale = float(scale)
-        self.scale_label = scale_label
-        self.conserved = conserved
-
-    @property
-    def drift(self):
-        """Return (X(t) - X(first)) / scale (absolute if the scale is 0)."""
-        change = self.values - self.values[0]
-        return change / self.scale if self.scale != 0.0 else change
-
-
-def _effect(effects, name):
-    for effect in effects:
-        if effect.get('effect') == name:
-            return effect
-    return None
-
-
-def symmetry_axis(inertia):
-    """
-    Return the unit axis (body frame) a body is symmetric about, or None.
-
-    A body is symmetric about the principal axis of its odd moment when the other two are
-    equal (to 1e-9 of the largest); `inertia` is (3, 3) in kg m^2 about the COM.
-    """
-    moments, axes = np.linalg.eigh(inertia)
-    tolerance = _SYMMETRY_TOLERANCE * moments[-1]
-    if abs(moments[1] - moments[0]) <= tolerance and abs(moments[2] - moments[1]) > tolerance:
-        return axes[:, 2]
-    if abs(moments[2] - moments[1]) <= tolerance and abs(moments[1] - moments[0]) > tolerance:
-        return axes[:, 0]
-    return None
-
-
-def conserved_quantities(motion):
-    """
-    Return (title, [ConservedQuantity]) of what the scene of `motion` conserves.
-
-    See the module docstring for the physics; the title says what is conserved and why.
-    """
-    rotational = ConservedQuantity(
-        '$T_{rot} = \\frac{1}{2}\\,\\Omega \\cdot R^T L$', motion.rotational_energy, 'J',
-        motion.rotational_energy[0], '$T_{rot}(0)$')
-    magnitude = ConservedQuantity('$|L|$', motion.momentum_magnitude, 'kg m$^2$/s',
-                                  motion.momentum_magnitude[0], '$|L(0)|$')
-    effects = motion.effects
-    if effects is None:
-        return ('Drift of $T_{rot}$ and $|L|$ (conserved if torque-free about the COM; the '
-                'bag does not name the effects)', [rotational, magnitude])
-    names = {effect['effect'] for effect in effects}
-    # What each effect conserves, as its class declares it (physics/effects/registry.py); an
-    # effect this version does not know conserves nothing.
-    classes = {name: EFFECTS.get(name) for name in names}
-    if 'pivot' in names:
-        pivot = _effect(effects, 'pivot')
-        kept = all(cls is not None and cls.keeps_pivot_invariants
-                   for name, cls in classes.items() if name != 'pivot')
-        if kept and motion.mass is not None and 'anchor' in pivot:
-            return _pivot_quantities(motion, pivot, _effect(effects, 'gravity'))
-        for quantity in (rotational, magnitude):
-            quantity.conserved = False
-        reason = (', '.join(sorted(names)) if not kept
-                  else 'the pivot torques the body; the bag lacks its parameters')
-        return (f'$T_{{rot}}$ and $|L|$: not conserved here ({reason})',
-                [rotational, magnitude])
-    conserved = {'angular_momentum', 'rotational_energy'}
-    for cls in classes.values():
-        conserved &= set(() if cls is None else cls.conserves)
-    rotational.conserved = 'rotational_energy' in conserved
-    magnitude.conserved = 'angular_momentum' in conserved
-    if rotational.conserved and magnitude.conserved:
-        return 'Conserved without torque about the COM: drift of $T_{rot}$ and $|L|$', \
-            [rotational, magnitude]
-    if magnitude.conserved:
-        changing = sorted(name for name, cls in classes.items()
-                          if cls is None or 'rotational_energy' not in cls.conserves)
-        return (f'$|L|$ is conserved; {", ".join(changing)} changes $T_{{rot}}$',
-                [magnitude, rotational])
-    return (f'$T_{{rot}}$ and $|L|$: not conserved here ({", ".join(sorted(names))})',
-            [rotational, magnitude])
-
-
-def _pivot_quantities(motion, pivot, gravity):
-    """Return the conserved quantities of a body turning about a fixed point (see above)."""
-    acceleration = None if gravity is None else np.asarray(gravity['acceleration'], float)
-    velocity = motion.velocity
-    kinetic = motion.rotational_energy[0] + 0.5 * motion.mass * float(velocity[0] @ velocity[0])
-    quantities = [ConservedQuantity(
-        '$E = T + V$' if acceleration is not None else '$E = T$',
-        motion.total_energy(acceleration), 'J', kinetic, '$T(0)$')]
-    about_pivot = motion.angular_momentum_about(pivot['anchor'])
-    scale = float(np.linalg.norm(about_pivot[0]))
-    if acceleration is not None and np.any(acceleration):
-        up = -acceleration / np.linalg.norm(acceleration)
-        if np.allclose(up, (0.0, 0.0, 1.0)):
-            label = '$L_{p,z}$ (world z, about the pivot)'
-        else:
-            label = '$L_p \\cdot \\hat{u}$ (up, about the pivot)'
-        quantities.append(ConservedQuantity(label, about_pivot @ up, 'kg m$^2$/s', scale,
-                                            '$|L_p(0)|$'))
-    else:
-        quantities.append(ConservedQuantity('$|L_p|$ (about the pivot)',
-                                            np.linalg.norm(about_pivot, axis=1), 'kg m$^2$/s',
-                                            scale, '$|L_p(0)|$'))
-    inertia = motion.inertia
-    axis = None if inertia is None else symmetry_axis(inertia)
-    point = np.asarray(pivot.get('point', (0.0, 0.0, 0.0)), dtype=float)
-    if axis is not None and np.linalg.norm(np.cross(point, axis)) <= \
-            _SYMMETRY_TOLERANCE * max(np.linalg.norm(point), 1e-300):
-        # The symmetry axis in the world frame at each tick; its sign as given.
-        axis_world = np.einsum('nij,j->ni', motion.rotation, axis)
-        along = np.einsum('ni,ni->n', motion.angular_momentum, axis_world)
-        name = {0: 'x', 1: 'y', 2: 'z'}.get(int(np.argmax(np.abs(axis))), '3')
-        quantities.append(ConservedQuantity(
-            f'$L \\cdot e_3$ (body {name} axis: symmetry axis through the pivot)', along,
-            'kg m$^2$/s', scale, '$|L_p(0)|$'))
-    title = 'Conserved about the pivot: energy, ' + (
-        'vertical $L_p$' if len(quantities) > 1 and acceleration is not None else '$|L_p|$')
-    if len(quantities) == 3:
-        title += ', spin $L \\cdot e_3$'
-    return title, quantities
-
-
-def _find_topic(connections, suffix, message_type, namespace):
-    wanted = f'{namespace}/{suffix}'
-    candidates = [c for c in connections if c.msgtype == message_type]
-    for connection in candidates:
-        if connection.topic == wanted:
-            return connection
-    matching = [c for c in candidates if c.topic.endswith('/' + suffix)]
-    if len(matching) == 1:
-        return matching[0]
-    found = ', '.join(f'{c.topic} ({c.msgtype})' for c in connections) or 'none'
-    raise ValueError(f'the bag has no single {message_type} topic named {wanted!r} (or '
-                     f'ending in /{suffix}); its topics: {found}')
-
-
-def read_motion(bag, namespace=''):
-    """
-    Read the node's odom and angular_momentum topics of a bag; return a :class:`BagMotion`.
-
-    Raises
-    ------
-    ValueError
-        If the bag cannot be read or lacks the topics, or no stamp is in both.
-
-    """
-    bag = Path(bag)
-    namespace = (namespace or '').rstrip('/')
-    store = typestore()
-    odometry = {}
-    momentum = {}
-    reports = []
-    try:
-        with Reader(bag) as reader:
-            odom = _find_topic(reader.connections, 'odom', _ODOMETRY, namespace)
-            angular = _find_topic(reader.connections, 'angular_momentum', _VECTOR3_STAMPED,
-                                  namespace)
-            diagnostics = [c for c in reader.connections if c.msgtype == _DIAGNOSTIC_ARRAY]
-            node = f'{namespace}/'
-            for connection, _, raw in reader.messages(connections=[odom, angular,
-                                                                   *diagnostics]):
-                message = store.deserialize_cdr(raw, connection.msgtype)
-                stamp = message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
-                if connection.msgtype == _DIAGNOSTIC_ARRAY:
-                    reports.extend(_report(stamp, message, node))
-                elif connection.topic == odom.topic:
-                    pose, twist = message.pose.pose, message.twist.twist
-                    odometry[stamp] = (
-                        (pose.orientation.x, pose.orientation.y, pose.orientation.z,
-                         pose.orientation.w),
-                        (pose.position.x, pose.position.y, pose.position.z),
-                        (twist.angular.x, twist.angular.y, twist.angular.z),
-                        (twist.linear.x, twist.linear.y, twist.linear.z))
-                else:
-                    vector = message.vector
-                    momentum[stamp] = (vector.x, vector.y, vector.z)
-            custom = _custom_data(bag)
-    except FileNotFoundError:
-        raise ValueError(f'no bag at {bag}') from None
-    except ReaderError as error:
-        raise ValueError(f'cannot read the bag {bag}: {error} (if a recorder was killed, '
-                         f'try: rigid-body-sim record --recover {bag})') from None
-    stamps = sorted(set(odometry) & set(momentum))
-    if not stamps:
-        raise ValueError(f'{bag}: no stamp has both an odom and an angular_momentum message')
-    rows = [odometry[stamp] for stamp in stamps]
-    return BagMotion(stamps, [row[0] for row in rows], [row[1] for row in rows],
-                     [row[2] for row in rows], [momentum[stamp] for stamp in stamps],
-                     custom, bag.name, velocity_body=[row[3] for row in rows],
-                     reports=reports)
-
-
-def _custom_data(bag):
-    """
-    Return the custom data of a bag directory's ``metadata.yaml`` ({} if it has none).
-
-    rosbag2 keeps it there (``custom_data``, since metadata version 6), where
-    :meth:`~rigid_body_sim.recording.bag_writer.BagWriter.set_custom_data` puts it; rosbags'
-    Reader has no public accessor for it.  A lone storage file has no metadata.yaml: {}.
-    """
-    metadata = bag / 'metadata.yaml'
-    if not bag.is_dir() or not metadata.is_file():
-        return {}
-    try:
-        document = YAML(typ='safe').load(metadata.read_text(encoding='utf-8'))
-        return dict(document['rosbag2_bagfile_information'].get('custom_data') or {})
-    except Exception as error:  # noqa: B902 (rosbags has just read it: damaged meanwhile)
-        raise ValueError(f'cannot read the custom data of {metadata}: {error}') from None
-
-
-def _report(stamp, message, node):
-    """Yield (stamp, simulated time, rate) of the node's status in a /diagnostics message."""
-    for status in message.status:
-        # The node's hardware_id is its fully qualified name: in the namespace asked for.
-        if not status.hardware_id.startswith(node) or '/' in status.hardware_id[len(node):]:
-            continue
-        values = {pair.key: pair.value for pair in status.values}
-        try:
-            yield (stamp, float(values['simulated time [s]']),
-                   float(values['requested rate [Hz]']))
-        except (KeyError, ValueError):
-            continue
 
 
 def oscillations(values):
@@ -747,7 +263,7 @@ def _angular_velocity_panel(figure, cell, motion, time_label):
     zoom = figure.add_subplot(cells[len(ratios) - 1]) if fast else None
     handles = []
     fast = []
-    for k, (name, color) in enumerate(zip('xyz', _AXIS_COLORS)):
+    for k, (name, color) in enumerate(zip('xyz', AXIS_COLOURS)):
         label = f'$\\Omega_{name}$'
         if k == dominant:
             # Its own scale; a spin constant to many digits is drawn as its change from a
@@ -778,7 +294,7 @@ def _angular_velocity_panel(figure, cell, motion, time_label):
             f'\\Omega_{names[1]}^2}}$'))
     else:
         for k in fast:
-            handles.append(_draw_series(axes, time, omega[:, k], _AXIS_COLORS[k],
+            handles.append(_draw_series(axes, time, omega[:, k], AXIS_COLOURS[k],
                                         f'$\\Omega_{"xyz"[k]}$'))
     title = 'Angular velocity in the body frame'
     if dominant is not None:
@@ -799,7 +315,7 @@ def _zoom_panel(figure, axes, time, omega, fast, time_label):
     span = 4.0 * (time[-1] - time[0]) / cycles
     shown = time <= time[0] + span
     for k in fast:
-        axes.plot(time[shown], omega[shown, k], color=_AXIS_COLORS[k], linewidth=1.0,
+        axes.plot(time[shown], omega[shown, k], color=AXIS_COLOURS[k], linewidth=1.0,
                   label=f'$\\Omega_{"xyz"[k]}$')
     axes.set(title=f'The first {span:.2g} s of the fast components, every tick',
              xlabel=time_label, ylabel='$\\Omega$ [rad/s]')
@@ -877,7 +393,7 @@ def _orientation_panel(axes, motion):
         if beyond.size:
             end = int(beyond[0]) + 1
     window_stride = max(1, -(-end // _PATH_POINTS))
-    for k, (label, color) in enumerate(zip('xyz', _AXIS_COLORS)):
+    for k, (label, color) in enumerate(zip('xyz', AXIS_COLOURS)):
         tips = rotation[:, :, k]
         if spinning[k]:
             # A fast-spinning axis would paint the whole sphere: only its ends are shown.
@@ -993,8 +509,8 @@ def com_moves(motion):
 
 
 def _title(motion):
-    custom = {key[len(_CUSTOM_PREFIX):]: value for key, value in motion.custom_data.items()
-              if key.startswith(_CUSTOM_PREFIX)}
+    custom = {key: motion.custom(key) for key in ('scene', 'integrator', 'rate', 'effects')
+              if motion.custom(key) is not None}
     span = f'{len(motion.time)} ticks to {motion.time[-1]:g} s' if motion.time_is_simulated \
         else f'{len(motion.time)} ticks over {motion.time[-1]:g} s'
     parts = [f'bag {motion.name}', span]

@@ -70,11 +70,11 @@ from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 
 from .bag_writer import BagWriter
+from .bag_writer import CUSTOM_DATA_PREFIX
 from .bag_writer import offered_qos
 from .bag_writer import qos_from_profile
 from .signals import StopOnSignals
 from .simulate import CLOCK_TOPIC
-from .simulate import CUSTOM_DATA_PREFIX
 from .simulate import DIAGNOSTICS_TOPIC
 from .simulate import message_type_name
 from .simulate import topic_names

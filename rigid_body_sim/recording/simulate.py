@@ -35,6 +35,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu
 
 from .bag_writer import BagWriter
+from .bag_writer import CUSTOM_DATA_PREFIX
 from .bag_writer import offered_qos
 from .state_batch import _column
 from .state_batch import BatchSerializer
@@ -81,8 +82,6 @@ FLUSH_PERIOD = 1.0
 a simulation writes far more per second, so less often keeps the cost below 1 %)."""
 # The first stamp builtin_interfaces/Time (int32 seconds) cannot hold.
 _LAST_STAMP = 2**31 * 10**9
-# Custom data keys in metadata.yaml (read by the plot).
-CUSTOM_DATA_PREFIX = 'rigid_body_sim.'
 
 
 class SimulationSummary:
