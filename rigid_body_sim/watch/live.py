@@ -23,6 +23,7 @@ import threading
 import numpy as np
 
 from ..physics import matrix_from_quaternion
+from ..physics.effects import EFFECTS
 
 __all__ = ['LiveState', 'Tick', 'DIAGNOSTICS_KEYS', 'format_number']
 
@@ -54,9 +55,9 @@ DIAGNOSTICS_KEYS = {
     # Not a key of the node's: the status's message ('running', 'paused', 'falling behind').
     'status': '(status message)',
 }
-# Effects under which the rotational energy 1/2 Omega . R^T L and |L| about the COM are
-# conserved (no torque about the COM) while no outside input acts.
-_TORQUE_FREE_EFFECTS = {'external_wrench', 'gravity'}
+# What an effect must conserve (its class's ``conserves``, physics/effects/registry.py) for
+# the view to chart the drift of the rotational energy 1/2 Omega . R^T L and of |L|.
+_TORQUE_FREE = {'angular_momentum', 'rotational_energy'}
 # Ticks kept while the first report is awaited (a second at 10 kHz).
 _PENDING_TICKS = 10000
 # A Dzhanibekov flip: the component of Omega the spin started about changes sign, counted
@@ -434,12 +435,18 @@ class Snapshot:
 
     @property
     def torque_free(self):
-        """Return True if the scene's effects leave T_rot and |L| conserved (no input)."""
+        """
+        Return True if the scene's effects leave T_rot and |L| conserved (no input).
+
+        Each effect's class declares what it conserves; an effect this version does not
+        know conserves nothing.
+        """
         effects = self.value('effects')
         if effects is None:
             return False
         names = {name.strip() for name in effects.split(',')} - {'none', ''}
-        return names <= _TORQUE_FREE_EFFECTS
+        return all(name in EFFECTS and _TORQUE_FREE <= set(EFFECTS[name].conserves)
+                   for name in names)
 
     def drifts(self):
         """
