@@ -22,12 +22,18 @@ import numpy as np
 from rclpy.serialization import serialize_message
 from visualization_msgs.msg import Marker
 
+from .cdr import byte_order
+from .cdr import field_target
+from .cdr import offset_of
+from .cdr import sentinels
+from .cdr import STAMP_SENTINEL
 from .marker import MARKER_COLOR
 from .marker import marker_geometry
 from .marker import MARKER_NAMESPACE
 from ..physics.kernels.derived import derived_quantities
 
 __all__ = [
+    'STATE_FIELDS',
     'STATE_TOPICS',
     'STATE_TYPES',
     'state_field_columns',
@@ -46,9 +52,7 @@ STATE_TYPES = {'pose': PoseStamped, 'twist': Twist, 'angular_momentum': Vector3S
 _POSE_FIELDS = ('position.x', 'position.y', 'position.z',
                 'orientation.x', 'orientation.y', 'orientation.z', 'orientation.w')
 _TWIST_FIELDS = ('linear.x', 'linear.y', 'linear.z', 'angular.x', 'angular.y', 'angular.z')
-# The state-dependent fields of each message, in the order of _state_values().  Everything
-# else in a message (frame ids, marker shape and colour, zero covariances) is fixed.
-_STATE_FIELDS = {
+STATE_FIELDS = {
     'pose': tuple('pose.' + field for field in _POSE_FIELDS),
     'twist': _TWIST_FIELDS,
     'angular_momentum': ('vector.x', 'vector.y', 'vector.z'),
@@ -56,12 +60,15 @@ _STATE_FIELDS = {
     + tuple('twist.twist.' + field for field in _TWIST_FIELDS),
     'marker': tuple('pose.' + field for field in _POSE_FIELDS),
 }
+"""Topic -> the paths of its message's state-dependent fields, in the order of the values
+:func:`state_field_columns` returns.  Everything else in a message (frame ids, the marker's
+shape and colour, zero covariances) is fixed."""
 _STAMPED = ('pose', 'angular_momentum', 'odom', 'marker')
 
 
 def state_field_columns(body, rows, marker_axes):
     """
-    Return topic -> the value columns of its _STATE_FIELDS for n packed states, SI.
+    Return topic -> the value columns of its :data:`STATE_FIELDS` for n packed states, SI.
 
     rows : (n, 13) q, x, p, L (world frame).  The velocities and the marker's orientation
     come from :func:`~rigid_body_sim.physics.kernels.derived.derived_quantities`, the one
@@ -89,7 +96,7 @@ def state_field_columns(body, rows, marker_axes):
 
 
 def _state_values(body, state, marker_axes):
-    """Return topic -> the values of its _STATE_FIELDS (floats, SI) for `state`."""
+    """Return topic -> the values of its STATE_FIELDS (floats, SI) for `state`."""
     # One state a tick: the columns of state_field_columns as Python floats, without the
     # column arrays (3 us a tick instead of 10).
     axes = _NO_TURN if marker_axes is None else np.asarray(marker_axes, dtype=float)
@@ -133,16 +140,9 @@ def _new_state_messages(world_frame, body_frame, geometry):
     messages.stamp = stamp
     messages.marker_axes = geometry.axes
     # (parent message, attribute) of every state field, resolved once.
-    messages.targets = {topic: [_target(messages[topic], path) for path in paths]
-                        for topic, paths in _STATE_FIELDS.items()}
+    messages.targets = {topic: [field_target(messages[topic], path) for path in paths]
+                        for topic, paths in STATE_FIELDS.items()}
     return messages
-
-
-def _target(message, path):
-    *parents, attribute = path.split('.')
-    for parent in parents:
-        message = getattr(message, parent)
-    return message, attribute
 
 
 class _StateMessages(dict):
@@ -254,25 +254,15 @@ def _layout(messages, topic):
     """
     message = messages[topic]
     targets = messages.targets[topic]
-    # Sentinels: distinct values whose bytes occur nowhere else in the template.
-    sentinels = [-8.765432109876e17 - 1.0e6 * k for k in range(len(targets))]
-    for (parent, attribute), value in zip(targets, sentinels):
+    values = sentinels(len(targets))
+    for (parent, attribute), value in zip(targets, values):
         setattr(parent, attribute, value)
-    stamp_sentinel = (1987654321, 987654321)
     if topic in _STAMPED:
-        messages.stamp.sec, messages.stamp.nanosec = stamp_sentinel
+        messages.stamp.sec, messages.stamp.nanosec = STAMP_SENTINEL
     template = bytearray(serialize_message(message))
-    # The CDR encapsulation header's second byte is 1 for little-endian data.
-    order = '<' if template[1] == 1 else '>'
-
-    def offset_of(packed, what):
-        offset = template.find(packed)
-        if offset < 0 or template.find(packed, offset + 1) >= 0:
-            raise RuntimeError(f'cannot locate {what} in the serialised {topic} message')
-        return offset
-
-    offsets = [offset_of(struct.pack(order + 'd', value), f'field {path}')
-               for value, path in zip(sentinels, _STATE_FIELDS[topic])]
+    order = byte_order(template)
+    offsets = [offset_of(template, struct.pack(order + 'd', value), f'{topic} field {path}')
+               for value, path in zip(values, STATE_FIELDS[topic])]
     runs = []
     first = 0
     for k in range(1, len(offsets) + 1):
@@ -282,5 +272,6 @@ def _layout(messages, topic):
     stamp_packer = stamp_offset = None
     if topic in _STAMPED:
         stamp_packer = struct.Struct(order + 'iI')
-        stamp_offset = offset_of(stamp_packer.pack(*stamp_sentinel), 'the stamp')
+        stamp_offset = offset_of(template, stamp_packer.pack(*STAMP_SENTINEL),
+                                 f'the {topic} stamp')
     return template, stamp_packer, stamp_offset, runs

@@ -19,14 +19,21 @@ from geometry_msgs.msg import TransformStamped
 import numpy as np
 from rclpy.serialization import serialize_message
 
+from .cdr import byte_order
+from .cdr import column
+from .cdr import offset_of
+from .cdr import rows_of
+from .cdr import sentinels
+from .cdr import STAMP_SENTINEL
+from .cdr import write_stamps
+
 __all__ = ['TF_TOPIC', 'TF_STATIC_TOPIC', 'TransformSerializer', 'static_transforms',
            'transform_message_class']
 
 TF_TOPIC = '/tf'
 TF_STATIC_TOPIC = '/tf_static'
-# Sentinels: values whose bytes occur nowhere else in the serialised message.
-_SENTINELS = [-8.765432109876e17 - 1.0e6 * k for k in range(7)]
-_STAMP_SENTINEL = (1987654321, 987654321)
+# The transform's 7 doubles, told apart in the template.
+_SENTINELS = sentinels(7)
 
 
 def transform_message_class():
@@ -78,15 +85,13 @@ class TransformSerializer:
         message = message_class(transforms=[_transform(
             parent_frame, child_frame, 0, _SENTINELS[:3], _SENTINELS[3:])])
         message.transforms[0].header.stamp.sec, message.transforms[0].header.stamp.nanosec = \
-            _STAMP_SENTINEL
+            STAMP_SENTINEL
         template = bytearray(serialize_message(message))
-        order = '<' if template[1] == 1 else '>'
-        pose = struct.pack(order + '7d', *_SENTINELS)
-        stamp = struct.pack(order + 'iI', *_STAMP_SENTINEL)
-        self._pose_offset = template.find(pose)
-        self._stamp_offset = template.find(stamp)
-        if self._pose_offset < 0 or self._stamp_offset < 0:
-            raise RuntimeError('cannot locate the transform in the serialised TFMessage')
+        order = byte_order(template)
+        self._pose_offset = offset_of(template, struct.pack(order + '7d', *_SENTINELS),
+                                      'the transform')
+        self._stamp_offset = offset_of(template, struct.pack(order + 'iI', *STAMP_SENTINEL),
+                                       'the transform stamp')
         self._little_endian = order == '<'
         self._pose_packer = struct.Struct(order + '7d')
         self._stamp_packer = struct.Struct(order + 'iI')
@@ -106,18 +111,8 @@ class TransformSerializer:
             raise RuntimeError('rclpy serialised big-endian CDR; rows are written '
                                'little-endian')
         stamps = np.asarray(stamps, dtype=np.int64)
-        template = np.frombuffer(bytes(self._template), dtype=np.uint8)
-        rows = np.empty((stamps.size, template.size), dtype=np.uint8)
-        rows[:] = template
-        seconds, nanoseconds = np.divmod(stamps, 1_000_000_000)
-        _column(rows, self._stamp_offset, '<i4')[:] = seconds
-        _column(rows, self._stamp_offset + 4, '<u4')[:] = nanoseconds
-        for index, column in enumerate(pose_columns):
-            _column(rows, self._pose_offset + 8 * index, '<f8')[:] = column
+        rows = rows_of(self._template, stamps.size)
+        write_stamps(rows, self._stamp_offset, stamps)
+        for index, values in enumerate(pose_columns):
+            column(rows, self._pose_offset + 8 * index, '<f8')[:] = values
         return rows
-
-
-def _column(data, offset, dtype):
-    dtype = np.dtype(dtype)
-    return np.ndarray((data.shape[0],), dtype=dtype, buffer=data, offset=offset,
-                      strides=(data.shape[1],))

@@ -37,10 +37,15 @@ from sensor_msgs.msg import Imu
 from .bag_writer import BagWriter
 from .bag_writer import CUSTOM_DATA_PREFIX
 from .bag_writer import offered_qos
-from .state_batch import _column
 from .state_batch import BatchSerializer
 from .state_batch import StateBatch
 from ..messages import qos
+from ..messages.cdr import column
+from ..messages.cdr import offset_of
+from ..messages.cdr import rows_of
+from ..messages.cdr import sentinels
+from ..messages.cdr import STAMP_SENTINEL
+from ..messages.cdr import write_stamps
 from ..messages.diagnostics import diagnostic_array
 from ..messages.diagnostics import NODE_NAME
 from ..messages.diagnostics import status_name
@@ -61,6 +66,7 @@ __all__ = [
     'CLOCK_TOPIC',
     'DIAGNOSTICS_TOPIC',
     'SimulationSummary',
+    'absolute_namespace',
     'effect_parameters_json',
     'message_type_name',
     'simulate_to_bag',
@@ -121,11 +127,12 @@ def message_type_name(message_class):
 
 def topic_names(namespace=''):
     """Return relative state topic -> absolute name under `namespace` ('' or '/ns')."""
-    namespace = _checked_namespace(namespace)
+    namespace = absolute_namespace(namespace)
     return {topic: f'{namespace}/{topic}' for topic in STATE_TOPICS}
 
 
-def _checked_namespace(namespace):
+def absolute_namespace(namespace):
+    """Return a namespace as a topic name's prefix: '' or '/name' (no trailing '/')."""
     namespace = (namespace or '').rstrip('/')
     if namespace and not namespace.startswith('/'):
         namespace = '/' + namespace
@@ -250,7 +257,7 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
     imu = scene.imu_sensor()
     imu_rows = _ImuRows(imu, simulator, imu_frame, 1.0 / rate)
     diagnostics = _OfflineDiagnostics(scene, simulator, rate, substeps,
-                                      _checked_namespace(namespace), clock)
+                                      absolute_namespace(namespace), clock)
     period = 1.0 / rate
 
     started = time.perf_counter()
@@ -264,7 +271,7 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
         connections = [(topic, writer.add_topic(names[topic], types[topic], state_offer))
                        for topic in STATE_TOPICS]
         connections.append((IMU_TOPIC, writer.add_topic(
-            f'{_checked_namespace(namespace)}/{IMU_TOPIC}', message_type_name(Imu),
+            f'{absolute_namespace(namespace)}/{IMU_TOPIC}', message_type_name(Imu),
             state_offer)))
         diagnostics_connection = writer.add_topic(
             DIAGNOSTICS_TOPIC, message_type_name(DiagnosticArray),
@@ -350,16 +357,19 @@ class _ImuRows:
         self._period = period
         self._values = []
         self._stamps = []
-        # The message's byte layout, found as messages/state.py does: sentinel values
-        # serialised once, then located (each a unique 8-byte pattern).
+        # The message's byte layout (messages/cdr.py): sentinel values serialised once,
+        # then located.
         message = imu_message(frame_id, imu, period)
-        sentinels = [-8.765432109876e17 - 1.0e6 * k for k in range(10)]
-        fill_imu_message(message, 1987654321 * 1_000_000_000 + 987654321, sentinels[0:4],
-                         sentinels[4:7], sentinels[7:10])
+        values = sentinels(10)
+        seconds, nanoseconds = STAMP_SENTINEL
+        fill_imu_message(message, seconds * 1_000_000_000 + nanoseconds, values[0:4],
+                         values[4:7], values[7:10])
         template = bytes(serialize_message(message))
-        self._offsets = [template.index(struct.pack('<d', value)) for value in sentinels]
-        self._stamp_offset = template.index(struct.pack('<iI', 1987654321, 987654321))
-        self._template = np.frombuffer(template, dtype=np.uint8)
+        self._offsets = [offset_of(template, struct.pack('<d', value), 'an imu field')
+                         for value in values]
+        self._stamp_offset = offset_of(template, struct.pack('<iI', *STAMP_SENTINEL),
+                                       'the imu stamp')
+        self._template = template
 
     def append(self, stamp):
         """Add the reading of the simulator's state, stamped `stamp` (ns)."""
@@ -375,25 +385,18 @@ class _ImuRows:
         """Return the rows added since the last take, (ticks, size) uint8."""
         values, stamps = np.array(self._values), np.array(self._stamps, dtype=np.int64)
         self._values, self._stamps = [], []
-        data = np.empty((len(values), self._template.size), dtype=np.uint8)
-        data[:] = self._template
-        seconds, nanoseconds = np.divmod(stamps, 1_000_000_000)
-        _column(data, self._stamp_offset, '<i4')[:] = seconds
-        _column(data, self._stamp_offset + 4, '<u4')[:] = nanoseconds
+        data = rows_of(self._template, len(values))
+        write_stamps(data, self._stamp_offset, stamps)
         for index, offset in enumerate(self._offsets):
-            _column(data, offset, '<f8')[:] = values[:, index]
+            column(data, offset, '<f8')[:] = values[:, index]
         return data
 
 
 def _clock_rows(stamps):
     """Return the serialised rosgraph_msgs/Clock of each stamp, (n, size) uint8."""
-    template = np.frombuffer(serialize_message(Clock()), dtype=np.uint8)
-    rows = np.empty((len(stamps), template.size), dtype=np.uint8)
-    rows[:] = template
+    rows = rows_of(serialize_message(Clock()), len(stamps))
     # CDR: the 4-byte encapsulation header, then clock.sec (int32), clock.nanosec (uint32).
-    seconds, nanoseconds = np.divmod(np.asarray(stamps, dtype=np.int64), 1_000_000_000)
-    rows[:, 4:8] = seconds.astype('<i4').view(np.uint8).reshape(-1, 4)
-    rows[:, 8:12] = nanoseconds.astype('<u4').view(np.uint8).reshape(-1, 4)
+    write_stamps(rows, 4, stamps)
     return rows
 
 

@@ -27,8 +27,17 @@ from rclpy.serialization import deserialize_message
 from rclpy.serialization import serialize_message
 
 from .bag_writer import typestore
+from ..messages.cdr import byte_order
+from ..messages.cdr import column
+from ..messages.cdr import field_target
+from ..messages.cdr import offset_of
+from ..messages.cdr import rows_of
+from ..messages.cdr import sentinels
+from ..messages.cdr import STAMP_SENTINEL
+from ..messages.cdr import write_stamps
 from ..messages.marker import marker_geometry
 from ..messages.state import state_field_columns
+from ..messages.state import STATE_FIELDS
 from ..messages.state import state_messages
 from ..messages.state import STATE_TOPICS
 from ..physics import State
@@ -37,21 +46,6 @@ __all__ = ['StateBatch', 'BatchSerializer', 'STATE_COLUMNS']
 
 STATE_COLUMNS = 13
 """Columns of a state row: quaternion (x, y, z, w), position, linear and angular momentum."""
-
-_POSE = ('position.x', 'position.y', 'position.z',
-         'orientation.x', 'orientation.y', 'orientation.z', 'orientation.w')
-_TWIST = ('linear.x', 'linear.y', 'linear.z', 'angular.x', 'angular.y', 'angular.z')
-# Each topic's state fields (message attribute paths), in the order of _values().
-_FIELDS = {
-    'pose': tuple('pose.' + field for field in _POSE),
-    'twist': _TWIST,
-    'angular_momentum': ('vector.x', 'vector.y', 'vector.z'),
-    'odom': tuple('pose.pose.' + field for field in _POSE)
-    + tuple('twist.twist.' + field for field in _TWIST),
-    'marker': tuple('pose.' + field for field in _POSE),
-}
-# A stamp no real message has, to find the header stamp in the template.
-_STAMP_SENTINEL = (1987654321, 987654321)
 
 
 class StateBatch:
@@ -141,17 +135,14 @@ class BatchSerializer:
         rows = np.asarray(rows, dtype=float)
         stamps = np.asarray(stamps, dtype=np.int64)
         values = self._values(rows)
-        seconds, nanoseconds = np.divmod(stamps, 1_000_000_000)
         serialized = {}
         for topic in self.topics:
             template, stamp_offset, offsets = self._layouts[topic]
-            data = np.empty((len(rows), template.size), dtype=np.uint8)
-            data[:] = template  # every byte, padding (zero) included
+            data = rows_of(template, len(rows))  # every byte, padding (zero) included
             if stamp_offset is not None:
-                _column(data, stamp_offset, '<i4')[:] = seconds
-                _column(data, stamp_offset + 4, '<u4')[:] = nanoseconds
+                write_stamps(data, stamp_offset, stamps)
             for offset, value in zip(offsets, values[topic]):
-                _column(data, offset, '<f8')[:] = value
+                column(data, offset, '<f8')[:] = value
             serialized[topic] = data
         return serialized
 
@@ -160,48 +151,27 @@ class BatchSerializer:
         return state_field_columns(self._body, rows, self._marker_axes)
 
 
-def _column(data, offset, dtype):
-    """Return a view of one field (at byte `offset`) of every row of `data` (n, size)."""
-    dtype = np.dtype(dtype)
-    return np.ndarray((data.shape[0],), dtype=dtype, buffer=data, offset=offset,
-                      strides=(data.shape[1],))
-
-
-def _target(message, path):
-    *parents, attribute = path.split('.')
-    for parent in parents:
-        message = getattr(message, parent)
-    return message, attribute
-
-
 def _layout(messages, topic):
     """Return (template uint8 array, stamp offset or None, field offsets) of a topic."""
     message = messages[topic]
-    paths = _FIELDS[topic]
-    # Sentinels: values whose 8 bytes occur nowhere else in the message.
-    sentinels = [-8.765432109876e17 - 1.0e6 * k for k in range(len(paths))]
-    for path, value in zip(paths, sentinels):
-        parent, attribute = _target(message, path)
+    paths = STATE_FIELDS[topic]
+    values = sentinels(len(paths))
+    for path, value in zip(paths, values):
+        parent, attribute = field_target(message, path)
         setattr(parent, attribute, value)
     header = getattr(message, 'header', None)
     if header is not None:
-        header.stamp.sec, header.stamp.nanosec = _STAMP_SENTINEL
+        header.stamp.sec, header.stamp.nanosec = STAMP_SENTINEL
     template = serialize_message(message)
-    # The CDR encapsulation header: 0x00 0x01 for little-endian data.
-    if template[1] != 1:
+    if byte_order(template) != '<':
         raise RuntimeError('rclpy serialised big-endian CDR; the batch serializer writes '
                            'little-endian fields')
-
-    def offset_of(packed, what):
-        offset = template.find(packed)
-        if offset < 0 or template.find(packed, offset + 1) >= 0:
-            raise RuntimeError(f'cannot locate {what} in the serialised {topic} message')
-        return offset
-
-    offsets = [offset_of(struct.pack('<d', value), path) for value, path in zip(sentinels, paths)]
+    offsets = [offset_of(template, struct.pack('<d', value), f'{topic} field {path}')
+               for value, path in zip(values, paths)]
     stamp_offset = None
     if header is not None:
-        stamp_offset = offset_of(struct.pack('<iI', *_STAMP_SENTINEL), 'the stamp')
+        stamp_offset = offset_of(template, struct.pack('<iI', *STAMP_SENTINEL),
+                                 f'the {topic} stamp')
     buffer = _zero_padding(message, template)
     # The template's own values do not matter (every state field and the stamp are
     # overwritten), but zeros keep a mistake visible.
