@@ -97,6 +97,7 @@ __all__ = [
     'STORAGES',
     'BagWriter',
     'INFINITE_DURATION',
+    'fsync_file',
     'offered_qos',
     'qos_from_profile',
     'storage_file',
@@ -631,7 +632,7 @@ class _Sqlite3Storage:
         self.conn.commit()
         published = self.files[self._live]
         if sync:
-            _fsync(published)
+            fsync_file(published)
         publish(published)
         self.published = published
         self._live = 1 - self._live
@@ -687,7 +688,8 @@ class _Sqlite3Storage:
         """Nothing to do: flush(sync=True) fsyncs the file it publishes."""
 
 
-def _fsync(path):
+def fsync_file(path):
+    """Flush a file's data to the disk (fsync(2)), by its path: what a kill cannot undo."""
     descriptor = os.open(path, os.O_RDONLY)
     try:
         os.fsync(descriptor)

@@ -53,7 +53,6 @@ Killed.  Every `flush_period` (default 0.25 s) the bag is flushed (see
 import importlib
 import inspect
 import math
-import os
 import threading
 import time
 
@@ -71,9 +70,11 @@ from rosgraph_msgs.msg import Clock
 
 from .bag_writer import BagWriter
 from .bag_writer import CUSTOM_DATA_PREFIX
+from .bag_writer import fsync_file
 from .bag_writer import offered_qos
 from .bag_writer import qos_from_profile
 from .signals import StopOnSignals
+from .simulate import absolute_namespace
 from .simulate import CLOCK_TOPIC
 from .simulate import DIAGNOSTICS_TOPIC
 from .simulate import message_type_name
@@ -486,7 +487,7 @@ def record(bag, topics=None, storage='mcap', namespace='', depth=30000, flush_pe
             syncer.stop()
         writer.close()
         if sync:
-            _fsync_path(writer.storage_file)
+            fsync_file(writer.storage_file)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown(context=context)
@@ -531,20 +532,10 @@ class _Syncer:
             self._writer.sync_to_disk()
 
 
-def _fsync_path(path):
-    descriptor = os.open(path, os.O_RDONLY)
-    try:
-        os.fsync(descriptor)
-    finally:
-        os.close(descriptor)
-
-
 def _absolute_topics(topics, namespace):
     if not topics:
         return list(default_topics(namespace))
-    namespace = (namespace or '').rstrip('/')
-    if namespace and not namespace.startswith('/'):
-        namespace = '/' + namespace
+    namespace = absolute_namespace(namespace)
     names = []
     for topic in topics:
         name = topic if topic.startswith('/') else f'{namespace}/{topic}'
