@@ -29,46 +29,45 @@ STEP_RANGE = (1.0 / RATE_RANGE[1], 1.0 / RATE_RANGE[0])
 """The steps (s) ``run --dt`` takes: the periods of the node's rates."""
 
 
+def _within(value, option, low, high, allowed, above=False):
+    """Return `value` if low <= value <= high (low < value if `above`), else ValueError."""
+    # Written so that NaN, which compares False, is refused too.
+    if not ((low < value if above else low <= value) and value <= high):
+        shown = f'{value:g}' if isinstance(value, float) else value
+        raise ValueError(f'{option} must be {allowed}; got {shown}')
+    return value
+
+
 def check_duration(duration, option='--duration'):
     """Return `duration` (s) if it is above 0 and at most MAX_DURATION, else ValueError."""
-    if not 0.0 < duration <= MAX_DURATION:
-        raise ValueError(f'{option} must be above 0 and at most 2^31 s (68 years); got '
-                         f'{duration:g}')
-    return duration
+    return _within(duration, option, 0.0, MAX_DURATION,
+                   'above 0 and at most 2^31 s (68 years)', above=True)
 
 
 def check_rate(rate, option='--rate'):
     """Return `rate` (Hz) if it is one the node takes, else ValueError."""
-    if not RATE_RANGE[0] <= rate <= RATE_RANGE[1]:
-        raise ValueError(f'{option} must be {RATE_RANGE[0]:g} to {RATE_RANGE[1]:g} Hz, as '
-                         f"the node's rate; got {rate:g}")
-    return rate
+    return _within(rate, option, *RATE_RANGE,
+                   f"{RATE_RANGE[0]:g} to {RATE_RANGE[1]:g} Hz, as the node's rate")
 
 
 def check_step(step, option='--dt'):
     """Return `step` (s) if it is the period of a rate the node takes, else ValueError."""
-    if not STEP_RANGE[0] <= step <= STEP_RANGE[1]:
-        raise ValueError(f'{option} must be {STEP_RANGE[0]:g} to {STEP_RANGE[1]:g} s (the '
-                         f"node's rates, {RATE_RANGE[0]:g} to {RATE_RANGE[1]:g} Hz); got "
-                         f'{step:g}')
-    return step
+    return _within(step, option, *STEP_RANGE,
+                   f"{STEP_RANGE[0]:g} to {STEP_RANGE[1]:g} s (the node's rates, "
+                   f'{RATE_RANGE[0]:g} to {RATE_RANGE[1]:g} Hz)')
 
 
 def check_substeps(substeps, option='--substeps'):
     """Return `substeps` if it is a number of substeps the node takes, else ValueError."""
-    if not SUBSTEPS_RANGE[0] <= substeps <= SUBSTEPS_RANGE[1]:
-        raise ValueError(f'{option} must be {SUBSTEPS_RANGE[0]} to {SUBSTEPS_RANGE[1]}, as '
-                         f"the node's substeps; got {substeps}")
-    return substeps
+    return _within(substeps, option, *SUBSTEPS_RANGE,
+                   f"{SUBSTEPS_RANGE[0]} to {SUBSTEPS_RANGE[1]}, as the node's substeps")
 
 
 def check_tolerance(tolerance, option='--tolerance'):
     """Return `tolerance` (rad/s, 0: off) if the node takes it, else ValueError."""
-    if not TOLERANCE_RANGE[0] <= tolerance <= TOLERANCE_RANGE[1]:
-        raise ValueError(f'{option} must be {TOLERANCE_RANGE[0]:g} (off) to '
-                         f"{TOLERANCE_RANGE[1]:g} rad/s, as the node's tolerance; got "
-                         f'{tolerance:g}')
-    return tolerance
+    return _within(tolerance, option, *TOLERANCE_RANGE,
+                   f'{TOLERANCE_RANGE[0]:g} (off) to {TOLERANCE_RANGE[1]:g} rad/s, as the '
+                   "node's tolerance")
 
 
 def check_every(every, step, option='--every'):
