@@ -9,6 +9,7 @@ for a body known by its mass and inertia alone its inertia-equivalent box
 frame from the COM; lengths in m.  matplotlib is imported by :class:`BodyView` only.
 """
 
+from dataclasses import dataclass
 import math
 
 import numpy as np
@@ -30,6 +31,7 @@ _SHAPE_NAMES = {Marker.CUBE: 'box', Marker.SPHERE: 'ellipsoid', Marker.CYLINDER:
 _TRAIL_FRAMES = 45
 
 
+@dataclass(eq=False)
 class BodyShape:
     """
     The drawn shape in the body frame.
@@ -50,12 +52,17 @@ class BodyShape:
 
     """
 
-    def __init__(self, kind, scale, orientation, colour, origin):
-        self.kind = kind
-        self.scale = np.asarray(scale, dtype=float)
-        self.orientation = np.asarray(orientation, dtype=float)
-        self.colour = tuple(colour)
-        self.origin = origin
+    kind: str
+    scale: np.ndarray
+    orientation: np.ndarray
+    colour: tuple
+    origin: str
+
+    def __post_init__(self):
+        """Hold the sizes and axes as float arrays, the colour as a tuple."""
+        self.scale = np.asarray(self.scale, dtype=float)
+        self.orientation = np.asarray(self.orientation, dtype=float)
+        self.colour = tuple(self.colour)
 
     def faces(self):
         """Return the surface as a list of polygons (k, 3) in the body frame, m."""

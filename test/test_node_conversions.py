@@ -15,6 +15,7 @@ from rclpy.serialization import serialize_message
 from rigid_body_sim.messages.marker import inertia_equivalent_box
 from rigid_body_sim.messages.marker import marker_geometry
 from rigid_body_sim.messages.marker import marker_geometry_from_drawing
+from rigid_body_sim.messages.marker import MarkerGeometry
 from rigid_body_sim.messages.state import state_messages
 from rigid_body_sim.messages.state import STATE_TOPICS
 from rigid_body_sim.messages.state import StateSerializer
@@ -82,7 +83,7 @@ def test_marker_of_a_lamina_keeps_a_visible_thickness():
 def test_marker_of_a_shape_is_that_shape(shape, size, marker_type, scale):
     """Shapes are drawn as themselves, full extents along the body axes."""
     geometry = marker_geometry(RigidBody(1.0, [1.0, 1.0, 1.0]), shape, size)
-    assert geometry == (marker_type, scale, None, None)  # body axes, default colour
+    assert geometry == MarkerGeometry(marker_type, scale, None, None)  # body axes, default colour
 
 
 def test_marker_of_a_shape_needs_its_number_of_sizes():

@@ -7,6 +7,7 @@ ticks, ``rigid-body-sim simulate`` from an offline run (:mod:`rigid_body_sim.rec
 :func:`diagnostic_array` into the message.
 """
 
+from dataclasses import dataclass
 import math
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -34,6 +35,7 @@ STATUS_KEYS = (
 """Every key of the status, in order."""
 
 
+@dataclass(eq=False)
 class TickFigures:
     """
     What one reporting window measured: the inputs of :func:`status_values`.
@@ -45,12 +47,16 @@ class TickFigures:
         ticks x period is used).
     """
 
-    def __init__(self, achieved, missed, step_durations, tick_durations, simulated):
-        self.achieved = achieved
-        self.missed = missed
-        self.step_durations = np.asarray(step_durations)
-        self.tick_durations = np.asarray(tick_durations)
-        self.simulated = simulated
+    achieved: float
+    missed: int
+    step_durations: np.ndarray
+    tick_durations: np.ndarray
+    simulated: float
+
+    def __post_init__(self):
+        """Hold the durations as arrays."""
+        self.step_durations = np.asarray(self.step_durations)
+        self.tick_durations = np.asarray(self.tick_durations)
 
 
 def status_name(node_name=NODE_NAME):

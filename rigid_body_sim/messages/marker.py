@@ -8,7 +8,7 @@ gives its inertia-equivalent box (:func:`inertia_equivalent_box`), which is what
 given by its inertia looks like.  Lengths in m, frames as in :mod:`.state`.
 """
 
-import collections
+from dataclasses import dataclass
 
 import numpy as np
 from visualization_msgs.msg import Marker
@@ -39,16 +39,30 @@ _SIZE_COUNTS = {'box': 3, 'cylinder': 2, 'sphere': 1, 'ellipsoid': 3}
 # which RViz would not draw at all.
 _MIN_EDGE_FRACTION = 0.02
 
-MarkerGeometry = collections.namedtuple('MarkerGeometry', 'marker_type scale axes color',
-                                        defaults=(None,))
-MarkerGeometry.__doc__ = """How the body is drawn: an RViz marker type, its extent and colour.
 
-marker_type : int, a visualization_msgs/Marker type (CUBE, CYLINDER or SPHERE).
-scale : tuple of 3 floats, the marker's full extent along its own x, y, z (m).
-axes : quaternion (x, y, z, w) of the marker's axes in the body frame, or None when they
-    are the body axes.
-color : (r, g, b, a), each 0..1, or None (default) for the package's orange.
-"""
+@dataclass(frozen=True)
+class MarkerGeometry:
+    """
+    How the body is drawn: an RViz marker type, its extent and colour.
+
+    Attributes
+    ----------
+    marker_type : int
+        A visualization_msgs/Marker type (CUBE, CYLINDER or SPHERE).
+    scale : tuple of 3 floats
+        The marker's full extent along its own x, y, z (m).
+    axes : tuple of 4 floats or None
+        Quaternion (x, y, z, w) of the marker's axes in the body frame, or None when they
+        are the body axes.
+    color : tuple of 4 floats or None
+        (r, g, b, a), each 0..1, or None (default) for :data:`MARKER_COLOR`.
+
+    """
+
+    marker_type: int
+    scale: tuple
+    axes: tuple = None
+    color: tuple = None
 
 
 def inertia_equivalent_box(body):

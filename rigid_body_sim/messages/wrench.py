@@ -7,7 +7,7 @@ The torque and wrench the node takes: a message validated into a :class:`WrenchI
 frame; ``body_frame`` is attached to the body with its origin at the COM.  Units: SI.
 """
 
-import collections
+from dataclasses import dataclass
 import math
 
 import numpy as np
@@ -16,13 +16,27 @@ from ..text import shortened
 
 __all__ = ['RejectedInput', 'WrenchInput', 'frame_from_frame_id', 'wrench_input_from_message']
 
-WrenchInput = collections.namedtuple('WrenchInput', 'force torque frame')
-WrenchInput.__doc__ = """A validated external wrench from a message.
 
-force : ndarray (3,), through the COM, N.  torque : ndarray (3,), about the COM, N m.
-frame : 'world' (fixed in the world frame) or 'body' (fixed in the body, turning with it),
-    in the terms of :meth:`rigid_body_sim.physics.Simulator.set_wrench`.
-"""
+@dataclass(frozen=True, eq=False)
+class WrenchInput:
+    """
+    A validated external wrench from a message.
+
+    Attributes
+    ----------
+    force : ndarray (3,)
+        Through the COM, N.
+    torque : ndarray (3,)
+        About the COM, N m.
+    frame : str
+        'world' (fixed in the world frame) or 'body' (fixed in the body, turning with it),
+        in the terms of :meth:`rigid_body_sim.physics.Simulator.set_wrench`.
+
+    """
+
+    force: np.ndarray
+    torque: np.ndarray
+    frame: str
 
 
 class RejectedInput(ValueError):

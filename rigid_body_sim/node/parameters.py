@@ -31,7 +31,8 @@ What the user gave (``-p name:=value``, ``--params-file``) is read once, by
 and a refused override quoted.
 """
 
-import collections
+import dataclasses
+from dataclasses import dataclass
 import math
 
 import numpy as np
@@ -88,11 +89,36 @@ NOT_SET = _Placeholder('NOT_SET')
 SCENE_VALUE = _Placeholder('SCENE_VALUE')
 """Default of a parameter declared with the scene's value as its default."""
 
-ParameterSpec = collections.namedtuple(
-    'ParameterSpec', 'name kind default description read_only value_range constraints')
-ParameterSpec.__doc__ = """One parameter: name, kind (its Python type: float, int, str, bool
-or list, a list of doubles), default (a value, SCENE_VALUE or NOT_SET), description,
-read_only, value_range ((from, to) inclusive, or None) and constraints (text)."""
+
+@dataclass(frozen=True)
+class ParameterSpec:
+    """
+    One parameter of the node.
+
+    Attributes
+    ----------
+    name : str
+    kind : type
+        Its Python type: float, int, str, bool or list (a list of doubles).
+    default
+        A value, :data:`SCENE_VALUE` or :data:`NOT_SET`.
+    description : str
+    read_only : bool
+    value_range : (from, to) or None
+        Inclusive.
+    constraints : str
+        What the value must be, in words.
+
+    """
+
+    name: str
+    kind: type
+    default: object
+    description: str
+    read_only: bool
+    value_range: tuple
+    constraints: str
+
 
 # A unit quaternion given to 4 decimals is off by up to ~1e-4 in norm; such a slightly
 # unnormalised value is normalised, anything further from 1 is a mistake and is refused.
@@ -344,7 +370,7 @@ def _declare(node, spec, default, overrides):
     if default is NOT_SET:
         default = _PARAMETER_TYPES[spec.kind][1]  # declared typed, without a value
         # Writable until show_effective_values has given it the value that runs.
-        spec = spec._replace(read_only=False)
+        spec = dataclasses.replace(spec, read_only=False)
     try:
         node.declare_parameter(spec.name, default, parameter_descriptor(spec))
     except InvalidParameterTypeException:

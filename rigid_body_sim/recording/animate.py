@@ -26,6 +26,7 @@ A GIF above the size budget is scaled down (whole frames, to within the budget) 
 written too large.
 """
 
+from dataclasses import dataclass
 import io
 import math
 from pathlib import Path
@@ -103,6 +104,7 @@ def read_shape(bag, motion, namespace=''):
     return equivalent_box_shape(mass, inertia)
 
 
+@dataclass(eq=False)
 class AnimationPlan:
     """
     Which tick each frame shows.
@@ -121,11 +123,10 @@ class AnimationPlan:
 
     """
 
-    def __init__(self, indices, times, fps, speed):
-        self.indices = indices
-        self.times = times
-        self.fps = fps
-        self.speed = speed
+    indices: np.ndarray
+    times: np.ndarray
+    fps: float
+    speed: float
 
     @property
     def frames(self):
@@ -224,15 +225,15 @@ def _palette(image):
                           dither=Image.Dither.NONE)
 
 
+@dataclass(eq=False)
 class Animation:
     """An animation checked and ready to render: output, motion, frames, shape, budget."""
 
-    def __init__(self, out, motion, plan, shape, max_bytes):
-        self.out = out
-        self.motion = motion
-        self.plan = plan
-        self.shape = shape
-        self.max_bytes = max_bytes
+    out: Path
+    motion: object
+    plan: AnimationPlan
+    shape: object
+    max_bytes: int
 
 
 def prepare_animation(bag, out=None, fps=DEFAULT_FPS, speed=DEFAULT_SPEED, namespace='',

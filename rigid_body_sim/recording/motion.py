@@ -50,6 +50,7 @@ Each drift is relative to a physical scale: the energy's to the initial kinetic 
 at zero).
 """
 
+from dataclasses import dataclass
 import json
 from pathlib import Path
 
@@ -257,6 +258,7 @@ def _time_origin(stamps, custom_data):
     return int(stamps[0]), False
 
 
+@dataclass(eq=False)
 class ConservedQuantity:
     """
     A quantity the physics of the scene conserves (or, with `conserved` False, shown anyway).
@@ -276,13 +278,17 @@ class ConservedQuantity:
 
     """
 
-    def __init__(self, label, values, unit, scale, scale_label, conserved=True):
-        self.label = label
-        self.values = np.asarray(values, dtype=float)
-        self.unit = unit
-        self.scale = float(scale)
-        self.scale_label = scale_label
-        self.conserved = conserved
+    label: str
+    values: np.ndarray
+    unit: str
+    scale: float
+    scale_label: str
+    conserved: bool = True
+
+    def __post_init__(self):
+        """Hold the values as a float array and the scale as a float."""
+        self.values = np.asarray(self.values, dtype=float)
+        self.scale = float(self.scale)
 
     @property
     def drift(self):

@@ -50,6 +50,8 @@ Killed.  Every `flush_period` (default 0.25 s) the bag is flushed (see
 ``rigid-body-sim record --recover BAG`` rewrites it into a complete bag.
 """
 
+from dataclasses import dataclass
+from dataclasses import field
 import importlib
 import inspect
 import math
@@ -110,6 +112,7 @@ def default_topics(namespace=''):
     return topics
 
 
+@dataclass
 class RecordingSummary:
     """
     Messages recorded per topic, losses seen in sequence numbers, time and CPU used.
@@ -118,16 +121,18 @@ class RecordingSummary:
     dispatching, `longest_flush` the longest flush.
     """
 
-    def __init__(self, bag, counts, lost, wall_time, cpu_time, longest_pause=0.0,
-                 longest_flush=0.0, missing=()):
-        self.bag = bag
-        self.missing = list(missing)
-        self.counts = counts
-        self.lost = lost
-        self.wall_time = wall_time
-        self.cpu_time = cpu_time
-        self.longest_pause = longest_pause
-        self.longest_flush = longest_flush
+    bag: object
+    counts: dict
+    lost: dict
+    wall_time: float
+    cpu_time: float
+    longest_pause: float = 0.0
+    longest_flush: float = 0.0
+    missing: list = field(default_factory=list)
+
+    def __post_init__(self):
+        """Hold the missing topics as a list."""
+        self.missing = list(self.missing)
 
     @property
     def cpu_fraction(self):
@@ -155,20 +160,20 @@ class RecordingSummary:
         return '\n'.join(lines)
 
 
+@dataclass(eq=False)
 class _Topic:
     """One recorded topic: its subscription, bag connection and loss count."""
 
-    def __init__(self, name, type_name, message_class, publisher_qos, recorded=True):
-        self.name = name
-        self.recorded = recorded
-        self.type_name = type_name
-        self.message_class = message_class
-        self.publisher_qos = publisher_qos
-        self.subscription = None
-        self.connection = None
-        self.last_sequence = None
-        self.lost = 0
-        self.count = 0
+    name: str
+    type_name: str
+    message_class: type
+    publisher_qos: list
+    recorded: bool = True
+    subscription: object = field(default=None, init=False)
+    connection: object = field(default=None, init=False)
+    last_sequence: int = field(default=None, init=False)
+    lost: int = field(default=0, init=False)
+    count: int = field(default=0, init=False)
 
 
 def _log_time(item):

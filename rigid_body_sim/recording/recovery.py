@@ -24,6 +24,7 @@ What can be read from such a file (tested):
 damaged original is kept beside it, byte for byte, as ``<bag>.orig``.
 """
 
+from dataclasses import dataclass
 from pathlib import Path
 import shutil
 import sqlite3
@@ -50,14 +51,14 @@ from .bag_writer import typestore
 __all__ = ['RecoverySummary', 'bag_is_complete', 'recover_bag']
 
 
+@dataclass
 class RecoverySummary:
     """What :func:`recover_bag` found: messages per topic, and whether the end was cut."""
 
-    def __init__(self, bag, original, counts, truncated):
-        self.bag = bag
-        self.original = original
-        self.counts = counts
-        self.truncated = truncated
+    bag: Path
+    original: Path
+    counts: dict
+    truncated: bool
 
     def __str__(self):
         end = ('the file was cut inside a record; everything before it is kept'

@@ -21,6 +21,7 @@ for a bag that looks like a live recording.  Successive stamps are exactly 1e9/r
 apart when that is a whole number of ns, else within 1 ns of it.
 """
 
+from dataclasses import dataclass
 import json
 import math
 import struct
@@ -90,6 +91,7 @@ a simulation writes far more per second, so less often keeps the cost below 1 %)
 _LAST_STAMP = 2**31 * 10**9
 
 
+@dataclass
 class SimulationSummary:
     """
     What :func:`simulate_to_bag` did: ticks, messages per topic, wall time, speed.
@@ -98,13 +100,12 @@ class SimulationSummary:
     the run was stopped early (`stopped`).
     """
 
-    def __init__(self, bag, ticks, duration, message_counts, wall_time, stopped=False):
-        self.bag = bag
-        self.stopped = stopped
-        self.ticks = ticks
-        self.duration = duration
-        self.message_counts = message_counts
-        self.wall_time = wall_time
+    bag: object
+    ticks: int
+    duration: float
+    message_counts: dict
+    wall_time: float
+    stopped: bool = False
 
     @property
     def speed(self):

@@ -13,6 +13,7 @@ EventsExecutor, cheaper per message, never ran a timer spun from a second thread
 its shutdown hung.)
 """
 
+from dataclasses import dataclass
 import os
 import threading
 import time
@@ -31,15 +32,15 @@ _DISCOVERY_PERIOD = 0.5
 _GONE_AFTER = 3.0
 
 
+@dataclass
 class NodeCandidate:
     """A node that publishes the rigid_body_sim state topics: its name and topic names."""
 
-    def __init__(self, name, namespace, odom, angular_momentum, marker):
-        self.name = name
-        self.namespace = namespace
-        self.odom = odom
-        self.angular_momentum = angular_momentum
-        self.marker = marker
+    name: str
+    namespace: str
+    odom: str
+    angular_momentum: str
+    marker: str
 
     @property
     def fully_qualified_name(self):

@@ -17,6 +17,8 @@ come before the first report wait for it (at most a second).
 """
 
 from collections import deque
+from dataclasses import dataclass
+from dataclasses import field
 import math
 import threading
 
@@ -77,6 +79,7 @@ def format_number(value, digits=9, signed=True):
     return f'{value:{"+" if signed else ""}#.{digits}g}'
 
 
+@dataclass(eq=False, slots=True)
 class Tick:
     """
     One tick of the node as its messages tell it.
@@ -100,17 +103,21 @@ class Tick:
 
     """
 
-    __slots__ = ('stamp', 'quaternion', 'position', 'angular_velocity_body',
-                 'angular_momentum', 'moved', 'time')
+    stamp: int
+    quaternion: np.ndarray
+    position: np.ndarray
+    angular_velocity_body: np.ndarray
+    angular_momentum: np.ndarray
+    moved: bool = field(default=True, init=False)
+    time: float = field(default=None, init=False)
 
-    def __init__(self, stamp, quaternion, position, angular_velocity_body, angular_momentum):
-        self.stamp = int(stamp)
-        self.quaternion = np.asarray(quaternion, dtype=float)
-        self.position = np.asarray(position, dtype=float)
-        self.angular_velocity_body = np.asarray(angular_velocity_body, dtype=float)
-        self.angular_momentum = np.asarray(angular_momentum, dtype=float)
-        self.moved = True
-        self.time = None
+    def __post_init__(self):
+        """Hold the stamp as an int and the vectors as float arrays."""
+        self.stamp = int(self.stamp)
+        self.quaternion = np.asarray(self.quaternion, dtype=float)
+        self.position = np.asarray(self.position, dtype=float)
+        self.angular_velocity_body = np.asarray(self.angular_velocity_body, dtype=float)
+        self.angular_momentum = np.asarray(self.angular_momentum, dtype=float)
 
     @property
     def rotational_energy(self):
