@@ -26,50 +26,34 @@ __all__ = ['STATE_QOS', 'INPUT_QOS', 'DIAGNOSTICS_QOS', 'CLOCK_QOS', 'TF_QOS', '
 _STATE_DEPTH = 1000  # 1 s at 1 kHz: resends cover a subscriber's stall of up to a second
 _DEPTH = 10
 
-STATE_QOS = QoSProfile(
-    reliability=ReliabilityPolicy.RELIABLE,
-    history=HistoryPolicy.KEEP_LAST,
-    depth=_STATE_DEPTH,
-    durability=DurabilityPolicy.VOLATILE)
+
+def _keep_last(depth, reliability=ReliabilityPolicy.RELIABLE,
+               durability=DurabilityPolicy.VOLATILE):
+    # Every topic of the node keeps the last `depth` samples: none blocks its publisher.
+    return QoSProfile(reliability=reliability, history=HistoryPolicy.KEEP_LAST, depth=depth,
+                      durability=durability)
+
+
+STATE_QOS = _keep_last(_STATE_DEPTH)
 """QoS of the state publishers (pose, twist, angular_momentum, odom, marker)."""
 
-INPUT_QOS = QoSProfile(
-    reliability=ReliabilityPolicy.RELIABLE,
-    history=HistoryPolicy.KEEP_LAST,
-    depth=_DEPTH,
-    durability=DurabilityPolicy.VOLATILE)
+INPUT_QOS = _keep_last(_DEPTH)
 """QoS of the torque and wrench subscriptions (matches ``ros2 topic pub``'s default)."""
 
 DIAGNOSTICS_QOS = INPUT_QOS
 """QoS of /diagnostics (what diagnostic_aggregator expects)."""
 
 # Best effort, keep last 1: only the newest time matters, and a late one is useless.
-CLOCK_QOS = QoSProfile(
-    reliability=ReliabilityPolicy.BEST_EFFORT,
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    durability=DurabilityPolicy.VOLATILE)
+CLOCK_QOS = _keep_last(1, reliability=ReliabilityPolicy.BEST_EFFORT)
 """QoS of /clock: rclcpp's ClockQoS, as rosbag2's player and rclpy's TimeSource use it."""
 
-TF_QOS = QoSProfile(
-    reliability=ReliabilityPolicy.RELIABLE,
-    history=HistoryPolicy.KEEP_LAST,
-    depth=100,
-    durability=DurabilityPolicy.VOLATILE)
+TF_QOS = _keep_last(100)
 """QoS of /tf: tf2_ros's DynamicBroadcasterQoS."""
 
-TF_STATIC_QOS = QoSProfile(
-    reliability=ReliabilityPolicy.RELIABLE,
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL)
+TF_STATIC_QOS = _keep_last(1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 """QoS of /tf_static: tf2_ros's StaticBroadcasterQoS (a late subscriber gets it too)."""
 
-SERVICE_QOS = QoSProfile(
-    reliability=ReliabilityPolicy.RELIABLE,
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1000,
-    durability=DurabilityPolicy.VOLATILE)
+SERVICE_QOS = _keep_last(1000)
 """QoS of the reset and pause services: a deep queue, so a burst of requests (a client
 calling asynchronously in a loop) is answered whole instead of losing all but the last 10
 (rclpy's default depth); each request costs microseconds to answer."""
