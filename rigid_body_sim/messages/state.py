@@ -101,8 +101,9 @@ def _state_values(body, state, marker_axes):
     # column arrays (3 us a tick instead of 10).
     axes = _NO_TURN if marker_axes is None else np.asarray(marker_axes, dtype=float)
     inverse = np.ascontiguousarray(body.inertia_inverse, dtype=float).reshape(9)
-    derived = derived_quantities(np.concatenate(state._fields())[None, :], inverse, body.mass,
-                                 axes)[0].tolist()
+    row = np.concatenate((state.quaternion, state.position, state.linear_momentum,
+                          state.angular_momentum))
+    derived = derived_quantities(row[None, :], inverse, body.mass, axes)[0].tolist()
     position, quaternion = state.position.tolist(), state.quaternion.tolist()
     pose = position + quaternion
     return {
