@@ -46,7 +46,8 @@ from scipy.linalg import expm
 
 __all__ = ['Motion', 'REFERENCE_STEPS', 'REFERENCE_EFFECTS', 'STRANG', 'SUZUKI',
            'reference_run', 'rotation_of_quaternion', 'rotation_angle', 'motion_error',
-           'kick', 'buss_drift', 'held_wrench', 'pivot_system', 'exact_drift']
+           'kick', 'buss_drift', 'held_wrench', 'pivot_system', 'exact_drift',
+           'dop853_solution']
 
 EPS = np.finfo(float).eps
 # The exact drift's DOP853 solve: over a step of |Omega| h < 1 rad it reaches round-off.
@@ -256,6 +257,36 @@ def exact_drift(body, motion, h):
     # World L is the flow's invariant: kept as it is; R from the solved quaternion.
     return _translated(replace(motion, rotation=rotation_of_quaternion(solution.y[:4, -1])),
                        body, h)
+
+
+def dop853_solution(body, motion, duration, wrench=None, start_time=0.0, rtol=1e-13):
+    """
+    Return the Motion after `duration` s of the equations of motion, by DOP853 at `rtol`.
+
+    World frame: dq/dt = 1/2 (omega, 0) q, omega = R I_b^{-1} R^T L, dx/dt = p / m,
+    dp/dt = F, dL/dt = tau, with a reference `wrench(motion, time)` (or none).
+    """
+    inverse = body.inertia_inverse
+    scale = max(1.0, float(np.linalg.norm(motion.angular_momentum)),
+                float(np.linalg.norm(motion.linear_momentum)))
+
+    def rate(time, y):
+        q, x, p, momentum = y[:4], y[4:7], y[7:10], y[10:]
+        rotation = rotation_of_quaternion(q)
+        omega = rotation @ inverse @ rotation.T @ momentum
+        force = torque = np.zeros(3)
+        if wrench is not None:
+            force, torque = wrench(Motion(rotation, x, p, momentum), time)
+        return np.concatenate([0.5 * _hamilton(np.append(omega, 0.0), q), p / body.mass,
+                               force, torque])
+
+    y0 = np.concatenate([_quaternion_of_rotation(motion.rotation), motion.position,
+                         motion.linear_momentum, motion.angular_momentum])
+    solution = solve_ivp(rate, (start_time, start_time + duration), y0, method='DOP853',
+                         rtol=rtol, atol=1e-15 * scale)
+    assert solution.success, solution.message
+    y = solution.y[:, -1]
+    return Motion(rotation_of_quaternion(y[:4]), y[4:7], y[7:10], y[10:])
 
 
 def _kicked(drift, stages):
