@@ -241,10 +241,13 @@ class Simulator:
         """
         Give the controller the order of the steps as taken.
 
-        The integrator's, at most 2 with a flow (flow(h/2) step(h) flow(h/2) is a Strang
-        composition: second order).
+        The integrator's (its order under a momentum-dependent wrench if an effect is one),
+        at most 2 with a flow (flow(h/2) step(h) flow(h/2) is a Strang composition: second
+        order).
         """
-        order = self._integrator.order
+        integrator = self._integrator
+        order = (integrator.momentum_dependent_order
+                 if self._model_arguments['momentum_dependent'] else integrator.order)
         if self._flows:
             order = min(order, 2)
         error_control.set_order(self._control, order)

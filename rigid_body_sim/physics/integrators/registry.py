@@ -38,7 +38,12 @@ class Integrator:
     name : str
         Its registered name.
     order : int
-        Its order of convergence with any wrench (an error O(h^order) over a fixed span).
+        Its order of convergence (an error O(h^order) over a fixed span) torque-free and with
+        any wrench of the configuration and time.
+    momentum_dependent_order : int
+        Its order with a wrench that depends on the momenta (drag), which a kicking method
+        takes by the kicks' explicit midpoint rule, second order (kernels/model.py's
+        impulse).
     summary : str
         One line on what it is (the docs' table).
     kicks : tuple of float
@@ -69,7 +74,8 @@ class Integrator:
     """
 
     def __init__(self, name, order, run, method=(), summary='', kicks=(),
-                 wrench_samples=None, conserves=(), exact_torque_free=False):
+                 wrench_samples=None, conserves=(), exact_torque_free=False,
+                 momentum_dependent_order=None):
         unknown = set(conserves) - set(CONSERVED_QUANTITIES)
         if unknown:
             raise ValueError(f'integrator {name!r}: unknown conserved quantities {unknown}; '
@@ -85,6 +91,8 @@ class Integrator:
                              '(kicks or wrench_samples)')
         self.name = name
         self.order = int(order)
+        self.momentum_dependent_order = int(order if momentum_dependent_order is None
+                                            else momentum_dependent_order)
         self.summary = summary
         self.kicks = kicks
         self.wrench_samples = tuple((float(t), float(w)) for t, w in wrench_samples)
@@ -124,17 +132,18 @@ def _kick_samples(kicks):
 
 
 def register_integrator(name, order, run, method=(), summary='', kicks=(), wrench_samples=None,
-                        conserves=(), exact_torque_free=False):
+                        conserves=(), exact_torque_free=False, momentum_dependent_order=None):
     """
     Register the method `name` (see :class:`Integrator` for the arguments) and return it.
 
     run: its run kernel (kernels/loop.run_kernel, which declares the compile estimate);
-    method: its constants (passed to the kernel, at most kernels/loop.METHOD_SIZE).
+    method: its constants (passed to the kernel, at most kernels/loop.METHOD_SIZE);
+    momentum_dependent_order: default `order`.
     """
     if name in INTEGRATORS:
         raise ValueError(f'integrator {name!r} is registered twice')
     integrator = Integrator(name, order, run, method, summary, kicks, wrench_samples,
-                            conserves, exact_torque_free)
+                            conserves, exact_torque_free, momentum_dependent_order)
     INTEGRATORS[name] = integrator
     return integrator
 
