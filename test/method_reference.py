@@ -306,7 +306,7 @@ def _kicked(drift, stages):
 
 
 def _first_order(body, motion, time, dt, wrench):
-    """The seed's method: turn by h omega, the wrench held over the step from its start."""
+    """Take the seed's step: turn by h omega, the wrench held over the step from its start."""
     rotation = motion.rotation
     omega = rotation @ body.inertia_inverse @ rotation.T @ motion.angular_momentum
     force = torque = np.zeros(3)
@@ -485,6 +485,18 @@ REFERENCE_EFFECTS = {
 effect (test_fast_paths checks that every one has its reference)."""
 
 
+def _summed(parts, momentum_dependent):
+    """Return the reference wrench that sums `parts` (each ``(motion, time) -> (F, tau)``)."""
+    def wrench(motion, time):
+        force, torque = np.zeros(3), np.zeros(3)
+        for part in parts:
+            f, t = part(motion, time)
+            force, torque = force + f, torque + t
+        return force, torque
+    wrench.momentum_dependent = momentum_dependent
+    return wrench
+
+
 def reference_run(name, body, state, dt, steps, effects=(), held=None, wrenches=(),
                   start_time=0.0):
     """
@@ -512,15 +524,7 @@ def reference_run(name, body, state, dt, steps, effects=(), held=None, wrenches=
             flows.append(make(effect, physical))
         elif kind == 'constraint':
             constraint = make(effect, physical)
-    wrench = None
-    if parts:
-        def wrench(motion, time):
-            force, torque = np.zeros(3), np.zeros(3)
-            for part in parts:
-                f, t = part(motion, time)
-                force, torque = force + f, torque + t
-            return force, torque
-        wrench.momentum_dependent = momentum_dependent
+    wrench = _summed(parts, momentum_dependent) if parts else None
     motion = Motion.of(state)
     integrated = physical
     if constraint is not None:

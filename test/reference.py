@@ -8,8 +8,8 @@ unit quaternion q (x, y, z, w), body to world, with scipy's DOP853 at rtol 1e-13
     dx/dt = p / m,  dp/dt = F,  dL/dt = tau
 
 It shares no code with the integrators under test (only the State container, so that the
-same wrench callables drive both, and the registry's declarations), and its error (~1e-12) is far below the errors the
-convergence tests measure.  Everything is world frame and SI.
+same wrench callables drive both, and the registry's declarations), and its error (~1e-12)
+is far below the errors the convergence tests measure.  Everything is world frame and SI.
 """
 
 import math

@@ -14,8 +14,8 @@ two turns a step for a flow) bounds that.
 
 import math
 
-from method_reference import Motion
 from method_reference import dop853_solution
+from method_reference import Motion
 from method_reference import motion_error
 from method_reference import pivot_system
 from method_reference import reference_run

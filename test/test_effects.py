@@ -18,10 +18,10 @@ import numpy as np
 import pytest
 from reference import random_rotation
 from reference import rotation_angle_between
+from rigid_body_sim.physics import effects as effects_package
 from rigid_body_sim.physics import RigidBody
 from rigid_body_sim.physics import Simulator
 from rigid_body_sim.physics import State
-from rigid_body_sim.physics import effects as effects_package
 from rigid_body_sim.physics.effects import create_effect
 from rigid_body_sim.physics.effects import Dissipation
 from rigid_body_sim.physics.effects import Drag

@@ -5,8 +5,8 @@ References: a Taylor-series integration of the torque-free equations in 30-digit
 arithmetic (here, sharing no code with the package; its own error is ~1e-26 rad over 10 s,
 tested), scipy.special for the elliptic functions (test/elliptic_reference.py), and
 test/reference.py's DOP853 solve and test/method_reference.py's exact step (kicks around a
-DOP853 solve of the free motion) for the motion under a torque.  Errors are rotation angles (rad) between the double quaternion
-and the decimal one, computed in decimals.
+DOP853 solve of the free motion) for the motion under a torque.  Errors are rotation angles
+(rad) between the double quaternion and the decimal one, computed in decimals.
 
 What sets the tolerances:
 - round-off: each exact step rounds the state once, like an ideal stepper that evaluates the

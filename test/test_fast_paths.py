@@ -19,8 +19,8 @@ reference is written.
 
 from method_reference import Motion
 from method_reference import motion_error
-from method_reference import reference_run
 from method_reference import REFERENCE_EFFECTS
+from method_reference import reference_run
 from method_reference import REFERENCE_STEPS
 import numpy as np
 import pytest

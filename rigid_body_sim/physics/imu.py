@@ -12,8 +12,9 @@ a_COM and alpha are the instantaneous accelerations of the simulated motion: fro
 wrench of the held inputs and the effects (gravity, drag, ...) by Newton and Euler, and for
 a body on a pivot from the pivot system (Euler's equation about the fixed point with the
 parallel-axis inertia, then a_COM = alpha x r_c + omega x (omega x r_c)), so the pivot's
-reaction, which is never computed, is in it all the same.  Not in it: the internal torque of the `dissipation` effect, which changes omega at
-constant L through the integrator only (its alpha is of the order of damping x omega^2).
+reaction, which is never computed, is in it all the same.  Not in it: the internal torque
+of the `dissipation` effect, which changes omega at constant L through the integrator only
+(its alpha is of the order of damping x omega^2).
 
 Noise (off by default): :class:`KalibrNoise` per sensor, the white noise and bias random
 walk of Kalibr's IMU model (units as Kalibr defines them), a turn-on bias, a seed.

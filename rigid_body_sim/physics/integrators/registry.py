@@ -83,7 +83,7 @@ class Integrator:
         kicks = tuple(float(c) for c in kicks)
         if kicks:
             if wrench_samples is not None:
-                raise ValueError(f'integrator {name!r}: a kicking method\'s wrench samples '
+                raise ValueError(f'integrator {name!r}: the wrench samples of a kicking method '
                                  'follow from its kicks; give one of them')
             wrench_samples = _kick_samples(kicks)
         if not wrench_samples:

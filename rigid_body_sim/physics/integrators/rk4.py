@@ -165,5 +165,5 @@ def run(state, model, method, dt, steps, time):
 
 rk4 = register_integrator(
     'rk4', order=4, run=run,
-    summary="classical Runge-Kutta on the body-frame Euler equations and the quaternion",
+    summary='classical Runge-Kutta on the body-frame Euler equations and the quaternion',
     wrench_samples=((0.0, 1.0 / 6.0), (0.5, 1.0 / 3.0), (0.5, 1.0 / 3.0), (1.0, 1.0 / 6.0)))
