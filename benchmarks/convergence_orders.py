@@ -2,7 +2,7 @@
 """
 Print the observed convergence order of each seed integrator, body and wrench.
 
-The same measurement as ``test/test_integrator_convergence.py`` (the readable step functions
+The same measurement as ``test/test_integrator_convergence.py`` (every registered kernel
 at dt and dt/2 against scipy's DOP853 at rtol 1e-13), printed as a table: the observed order
 log2(error(dt) / error(dt/2)) of the whole state error, per method (rows) and per body and
 wrench (columns), and the smallest and largest over each row.

@@ -10,8 +10,7 @@ CPU time of this process (time.process_time, not wall-clock: the machine may be 
 the median over K repeats, in microseconds per step:
 
 - run: N steps in one Simulator.run call (the offline tools, the benchmark);
-- step(): one Simulator.step call per step, as the node ticks (N / 10 calls);
-- readable: Simulator.run with fast=False, the readable reference definitions (N / 100).
+- step(): one Simulator.step call per step, as the node ticks (N / 10 calls).
 
 NAME ... limits the table to those integrators (default: all).
 """
@@ -27,17 +26,17 @@ from rigid_body_sim.scenes import load_scene
 DT = 1e-3
 
 
-def _simulator(name, fast, torque):
+def _simulator(name, torque):
     scene = load_scene('default')
-    simulator = Simulator(scene.body, scene.state, integrator=name, fast=fast)
+    simulator = Simulator(scene.body, scene.state, integrator=name)
     if torque:
         simulator.set_wrench(torque=[0.01, 0.0, 0.02], frame='body')
     return simulator
 
 
-def microseconds_per_step(name, steps, repeats, fast, torque, per_call):
+def microseconds_per_step(name, steps, repeats, torque, per_call):
     """Return the median CPU us/step of `name` over `repeats` timed runs of `steps` steps."""
-    simulator = _simulator(name, fast, torque)
+    simulator = _simulator(name, torque)
     simulator.run(min(steps, 1000) * DT, DT)
     samples = []
     for _ in range(repeats):
@@ -64,21 +63,16 @@ def main():
     if unknown:
         parser.error(f'unknown integrator(s) {", ".join(unknown)}; valid: '
                      f'{", ".join(sorted(INTEGRATORS))}')
-    columns = (('run', True, False), ('step()', True, True), ('readable', False, False))
-    header = ''.join(f'{f"{label}, {kind}":>17}' for label, _, _ in columns
+    columns = (('run', False), ('step()', True))
+    header = ''.join(f'{f"{label}, {kind}":>17}' for label, _ in columns
                      for kind in ('free', 'torque'))
     print(f'{"integrator":<12}{header}   (CPU us/step, median of {args.repeats})')
     for name in args.names or sorted(INTEGRATORS):
         row = []
-        for _, fast, per_call in columns:
-            if not fast:
-                steps = max(args.steps // 100, 200)
-            elif per_call:
-                steps = max(args.steps // 10, 1000)
-            else:
-                steps = args.steps
+        for _, per_call in columns:
+            steps = max(args.steps // 10, 1000) if per_call else args.steps
             for torque in (False, True):
-                cost = microseconds_per_step(name, steps, args.repeats, fast, torque, per_call)
+                cost = microseconds_per_step(name, steps, args.repeats, torque, per_call)
                 row.append(f'{cost:.3f}')
         print(f'{name:<12}' + ''.join(f'{cell:>17}' for cell in row))
 

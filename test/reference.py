@@ -8,13 +8,14 @@ unit quaternion q (x, y, z, w), body to world, with scipy's DOP853 at rtol 1e-13
     dx/dt = p / m,  dp/dt = F,  dL/dt = tau
 
 It shares no code with the integrators under test (only the State container, so that the
-same wrench callables drive both), and its error (~1e-12) is far below the errors the
-convergence tests measure.  Everything is world frame and SI.
+same wrench callables drive both, and the registry's declarations), and its error (~1e-12)
+is far below the errors the convergence tests measure.  Everything is world frame and SI.
 """
 
 import math
 
 import numpy as np
+from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import State
 from scipy.integrate import solve_ivp
 from scipy.special import ellipk
@@ -217,20 +218,22 @@ def first_order_energy_gain_rate(body, state, dt):
 # step's increment, <= 1 ulp of |L| (an increment below half an ulp leaves L bit-identical).
 # Measured over the torque-free runs of test_hard_cases and test_conservation: K at most
 # 3.5e-5; with test_core_speed_paths' dissipation, which sweeps the body across its polhodes,
-# 3.8e-4.  Allowed 2e-3.
-RK4_MOMENTUM_K = 2e-3
+# 3.8e-4.  Allowed 2e-3, for every method that writes L torque-free.
+MOMENTUM_WRITING_K = 2e-3
 
 
 def torque_free_momentum_drift(name, body, state, dt, steps):
     """
     Return how far (kg m^2/s) torque-free world L may move in `steps` steps of dt s.
 
-    0 for the methods that never write L without a wrench (it stays bit-identical); for rk4
-    its order bound plus round-off (see RK4_MOMENTUM_K).
+    0 for the methods registered as conserving world L (they never write L without a wrench:
+    it stays bit-identical); for the others their order bound plus round-off (see
+    MOMENTUM_WRITING_K).
     """
-    if name != 'rk4':
+    integrator = INTEGRATORS[name]
+    if 'angular_momentum' in integrator.conserves:
         return 0.0
     omega = np.linalg.norm(state.angular_velocity_body(body))
     magnitude = np.linalg.norm(state.angular_momentum)
-    return magnitude * (RK4_MOMENTUM_K * (omega * dt) ** 4 * omega * steps * dt
-                        + steps * np.finfo(float).eps)
+    return magnitude * (MOMENTUM_WRITING_K * (omega * dt) ** integrator.order * omega * steps
+                        * dt + steps * np.finfo(float).eps)

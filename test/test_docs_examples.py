@@ -16,8 +16,8 @@ says why and is checked as far as it can be:
   Ctrl-C, with a node): their arguments are parsed by the real parser (an option that no
   longer exists fails), not run; their ``--help`` runs.
 
-Also here: the help texts and lists the pages promise (every integrator on
-docs/physics_api.md, imu in ``rigid_body_node --help``, the README's figures as
+Also here: the help texts and lists the pages promise (the table of every integrator on
+docs/physics_api.md, as registered; imu in ``rigid_body_node --help``, the README's figures as
 docs/benchmark.md has them) and every script in benchmarks/ answering ``--help``.
 """
 
@@ -139,11 +139,36 @@ def test_the_pages_have_examples_to_run():
     assert any(language == 'python' for _, _, language, _ in EXAMPLES)
 
 
-def test_physics_api_names_every_integrator():
+_CONSERVED = {'angular_momentum': 'world L', 'rotational_energy': 'energy'}
+_TABLE = re.compile(r'<!-- integrators: .*? -->\n(.*?)\n<!-- end of integrators -->', re.S)
+
+
+def integrator_table():
+    """Return docs/physics_api.md's table of the integrators, from their registrations."""
     from rigid_body_sim.physics import INTEGRATORS
+    rows = ['| integrator | order | with drag | wrench evaluations a step | kick-drift-kick '
+            'stages | torque-free, keeps exactly | compile job, est. CPU s | what it is |',
+            '|---|---|---|---|---|---|---|---|']
+    for name, integrator in sorted(INTEGRATORS.items()):
+        kept = ', '.join(_CONSERVED[q] for q in integrator.conserves) or '-'
+        if integrator.exact_torque_free:
+            kept += ' (the exact flow)'
+        rows.append(f'| `{name}` | {integrator.order} | {integrator.momentum_dependent_order} '
+                    f'| {integrator.stages} | {len(integrator.kicks) or "-"} | {kept} '
+                    f'| `{integrator.compile_job}`, {integrator.compile_seconds:g} '
+                    f'| {integrator.summary} |')
+    return '\n'.join(rows)
+
+
+def test_physics_api_tables_every_integrator_as_registered():
+    # The table is the registry's: a registration changed or added and the page not is a
+    # failure that prints the table to paste.
     text = (ROOT / 'docs' / 'physics_api.md').read_text()
-    missing = [name for name in INTEGRATORS if f'`{name}`' not in text]
-    assert not missing, f'docs/physics_api.md does not name {missing}'
+    found = _TABLE.search(text)
+    assert found, 'docs/physics_api.md has no generated table of the integrators'
+    assert found.group(1) == integrator_table(), (
+        'docs/physics_api.md: replace the table of the integrators with\n'
+        + integrator_table())
 
 
 def test_the_node_help_lists_every_published_topic():

@@ -6,11 +6,19 @@ integrator (buss) is second order, so halving the step must divide an error by ~
 """
 
 import math
+from pathlib import Path
 
+from method_reference import buss_drift
+from method_reference import kick
+from method_reference import Motion
+from method_reference import motion_error
+from method_reference import REFERENCE_EFFECTS
+from method_reference import reference_run
 import numpy as np
 import pytest
 from reference import random_rotation
 from reference import rotation_angle_between
+from rigid_body_sim.physics import effects as effects_package
 from rigid_body_sim.physics import RigidBody
 from rigid_body_sim.physics import Simulator
 from rigid_body_sim.physics import State
@@ -25,12 +33,8 @@ from rigid_body_sim.physics.effects import ParameterError
 from rigid_body_sim.physics.effects import Pivot
 from rigid_body_sim.physics.effects import register_effect
 from rigid_body_sim.physics.effects import SinusoidalTorque
-from rigid_body_sim.physics.integrators import readable
-from rigid_body_sim.physics.integrators.buss import buss_free_step
 from rigid_body_sim.physics.rotations import quaternion_multiply
 from scipy.integrate import solve_ivp
-from spy_effects import CountingWrench
-from spy_effects import evaluations
 
 # Second order: halving the step divides the error by 4; allow 3.4..4.6 for the next
 # order's share at these steps (checked: the ratios measured are within 1 % of 4).
@@ -51,9 +55,14 @@ def _random_state(body, rng, speed=1.0, spin=3.0):
 # -- registry
 
 
-def test_registry_holds_the_built_in_effects_by_name():
-    # A subset: registering another effect (one module and the registry) must not break it.
-    assert {'external_wrench', 'gravity', 'pivot', 'drag', 'dissipation'} <= set(EFFECTS)
+def test_registry_holds_the_effect_of_each_module_by_name():
+    # Each module of physics/effects/ but the registry registers one effect, named as the
+    # module (another registered from outside the package would be an addition).
+    folder = Path(effects_package.__file__).parent
+    modules = {path.stem for path in folder.glob('*.py')} - {'__init__', 'registry'}
+    assert modules <= set(EFFECTS)
+    for name in modules:
+        assert EFFECTS[name].__module__.rsplit('.', 1)[-1] == name
     for name, cls in EFFECTS.items():
         assert cls.effect_name == name
         assert (cls.__doc__ or '').strip(), f'effect {name} has no docstring'
@@ -90,7 +99,7 @@ def test_unknown_effect_is_an_error_listing_the_valid_ones():
     with pytest.raises(ValueError) as caught:
         create_effect('magnetism')
     assert str(caught.value) == f"unknown effect 'magnetism'; valid effects: {valid}"
-    assert {'dissipation', 'drag', 'gravity'} <= set(valid.split(', '))
+    assert set(valid.split(', ')) == set(EFFECTS)
 
 
 def test_registering_a_name_twice_is_an_error():
@@ -130,37 +139,10 @@ def test_an_unused_external_wrench_costs_nothing_and_a_held_one_pushes():
     assert not np.array_equal(marked.step(0.01).angular_momentum, state.angular_momentum)
 
 
-def test_a_wrench_term_is_evaluated_at_the_methods_kick_points_only_while_named():
-    body = _asymmetric_body()
-    state = State.from_velocity(body, angular_velocity_body=(1, 2, 3))
-    counted = Simulator(body, state, effects=[CountingWrench()])
-    counted.run(0.1, 0.01)
-    # buss evaluates the wrench in its two half kicks, rk4 at its four stages.
-    assert evaluations(counted) == 2 * 10
-    counted = Simulator(body, state, integrator='rk4', effects=[CountingWrench()])
-    counted.run(0.1, 0.01)
-    assert evaluations(counted) == 4 * 10
-
-
-class _MomentumDependentCount(CountingWrench):
-    momentum_dependent = True
-
-
-@pytest.mark.parametrize('name', ['buss', 'exact', 'splitting'])
-def test_a_momentum_dependent_wrench_is_evaluated_three_times_a_strang_step(name):
-    # The opening kick's midpoint rule twice, the closing kick once, from the estimate.
-    body = _asymmetric_body()
-    state = State.from_velocity(body, angular_velocity_body=(1, 2, 3))
-    counted = Simulator(body, state, integrator=name, effects=[_MomentumDependentCount()])
-    counted.run(0.1, 0.01)
-    assert evaluations(counted) == 3 * 10
-
-
-@pytest.mark.parametrize('fast', [True, False])
-def test_gravity_gives_the_exact_parabola_of_the_com(fast):
+def test_gravity_gives_the_exact_parabola_of_the_com():
     body = _asymmetric_body()
     state = _random_state(body, np.random.default_rng(1))
-    simulator = Simulator(body, state, effects=[Gravity()], fast=fast)
+    simulator = Simulator(body, state, effects=[Gravity()])
     simulator.run(1.0, 0.01)
     # Leapfrog is exact for a constant force.
     g = np.array([0.0, 0.0, -9.81])
@@ -277,26 +259,28 @@ def test_drag_follows_its_closed_form_to_second_order(case):
 def test_a_closing_kick_started_from_the_estimate_keeps_the_error_of_two_evaluations():
     # A Buss step evaluates drag three times (kernels/model.py's impulse: the closing kick's
     # midpoint starts from the opening kick's extrapolated estimate).  Against the same step
-    # whose kicks each evaluate it twice (the readable kick without an estimate), strong
-    # drag on a tumbling box: the same error at second order, within 5 %.
+    # whose kicks each evaluate it twice (test/method_reference.py's kick without an
+    # estimate around its Buss drift), strong drag on a tumbling box: the same error at
+    # second order, within 5 %.
     body = RigidBody.box(1.0, (0.4, 0.2, 0.1))
     state = State.from_velocity(body, angular_velocity_body=(2.0, 3.0, 0.5),
                                 velocity=(1.0, 0.5, 0.0))
     drag = Drag(linear=0.5, quadratic=0.3, rotational_linear=2e-3, rotational_quadratic=1e-3)
     duration = 2.0
     reference = Simulator(body, state, integrator='rk4', effects=[drag]).run(duration, 1e-4)
-    wrench = Simulator(body, state, effects=[drag]).wrench_function()
+    wrench = REFERENCE_EFFECTS['drag'][1](drag, body)
+    wrench.momentum_dependent = True
 
     def error(final):
         return (np.linalg.norm(final.angular_momentum - reference.angular_momentum)
                 + np.linalg.norm(final.linear_momentum - reference.linear_momentum))
 
     def four_evaluations(dt):
-        current, half = state, 0.5 * dt
+        current, half = Motion.of(state), 0.5 * dt
         for k in range(round(duration / dt)):
-            current = readable.kick(current, k * dt, half, wrench)[0]
-            current = buss_free_step(body, current, dt)
-            current = readable.kick(current, (k + 1) * dt, half, wrench)[0]
+            current = kick(current, k * dt, half, wrench)[0]
+            current = buss_drift(body, current, dt)
+            current = kick(current, (k + 1) * dt, half, wrench)[0]
         return current
 
     errors = {}
@@ -392,17 +376,17 @@ def test_pivot_at_the_com_turns_like_the_free_body():
     np.testing.assert_array_equal(pivoted.position, [0.0, 0.0, 0.0])
 
 
-def test_pivot_with_a_held_torque_takes_the_kernel_and_equals_the_readable_step():
+def test_pivot_with_a_held_torque_takes_the_kernel_and_equals_its_reference():
     body, state, pivot = _top()
     torque = (0.0, 0.01, 0.02)
     fast = Simulator(body, state, effects=[pivot])
-    readable = Simulator(body, state, effects=[pivot], fast=False)
-    for simulator in (fast, readable):
-        simulator.set_wrench(torque=torque)
-        simulator.run(0.5, 0.001)
-    assert rotation_angle_between(fast.state.rotation, readable.state.rotation) < 1e-12
-    np.testing.assert_allclose(fast.state.angular_momentum, readable.state.angular_momentum,
-                               rtol=1e-11)
+    fast.set_wrench(torque=torque)
+    fast.run(0.5, 0.001)
+    reference = reference_run(fast.integrator, body, state, 0.001, 500, effects=[pivot],
+                              held={'torque_world': torque})
+    # Round-off (test_fast_paths): 10 eps per wrench evaluation per step.
+    bound = 10 * np.finfo(float).eps * 500 * 2
+    assert max(motion_error(fast.state, reference)) <= bound
     # A world torque about the pivot: L_pivot(t) = L_pivot(0) + tau t exactly.
     constraint = pivot.constrain(body)
     np.testing.assert_allclose(
@@ -502,10 +486,13 @@ def test_dissipation_composed_with_buss_is_second_order():
     assert SECOND_ORDER_RATIO[0] < coarse / fine < SECOND_ORDER_RATIO[1]
 
 
-def test_dissipation_flow_runs_the_same_on_the_kernel_and_the_readable_path():
+def test_dissipation_flow_on_the_kernel_equals_its_reference_and_keeps_world_l():
     body = _asymmetric_body()
     state = State.from_velocity(body, angular_velocity_body=(0.4, 0.3, 3.0))
-    runs = [Simulator(body, state, effects=[Dissipation(0.2)], fast=fast).run(1.0, 0.01)
-            for fast in (True, False)]
-    assert rotation_angle_between(runs[0].rotation, runs[1].rotation) < 1e-12
-    np.testing.assert_array_equal(runs[0].angular_momentum, state.angular_momentum)
+    simulator = Simulator(body, state, effects=[Dissipation(0.2)])
+    final = simulator.run(1.0, 0.01)
+    reference = reference_run(simulator.integrator, body, state, 0.01, 100,
+                              effects=[Dissipation(0.2)])
+    # Round-off (test_fast_paths): 10 eps per evaluation per step, the flow's two turns too.
+    assert max(motion_error(final, reference)) <= 10 * np.finfo(float).eps * 100 * 4
+    np.testing.assert_array_equal(final.angular_momentum, state.angular_momentum)

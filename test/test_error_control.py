@@ -4,7 +4,8 @@ Error control (physics/error_control.py): the estimate, the substep counts, the 
 The estimate is step doubling with the integrator's order q: the error of one step of h is
 |difference| / (2^(q+1) - 2) between two steps of h and one of 2 h (two half steps and one
 of h for a single substep).  It is checked against the true local error of that step, from
-the exact torque-free flow or a converged fine-step run of the same held wrench.
+the exact torque-free flow, a DOP853 solve (test/reference.py) or a converged fine-step run
+of the same held wrench.
 
 The evidence: each built-in scene at 1e-3, 1e-5 and 1e-7 rad/s against its reference
 (benchmark.tolerance_sweep: the extended-precision Taylor solve for torque-free rotation,
@@ -14,6 +15,7 @@ the largest error over samples every 0.5 s must be within margin x tolerance x s
 
 import math
 
+from method_reference import REFERENCE_EFFECTS
 import numpy as np
 import pytest
 from reference import reference_solution
@@ -55,9 +57,9 @@ def _setups():
     }
 
 
-def _simulator(setup, integrator, fast_path=True):
+def _simulator(setup, integrator):
     body, state, effects, wrench = setup
-    simulator = Simulator(body, state, integrator=integrator, effects=effects, fast=fast_path)
+    simulator = Simulator(body, state, integrator=integrator, effects=effects)
     if wrench is not None:
         simulator.hold_wrench(*wrench)
     return simulator
@@ -65,7 +67,7 @@ def _simulator(setup, integrator, fast_path=True):
 
 def _estimated_error(setup, integrator, tick, substeps):
     """Return (e(h), start values, h): the controller's estimate of one step of h."""
-    simulator = _simulator(setup, integrator, fast_path=setup[2] == ())
+    simulator = _simulator(setup, integrator)
     start = simulator._values.copy()
     # A tolerance far above the rate and a lower bound of `substeps`: one estimate, n kept.
     simulator.substeps = substeps
@@ -89,14 +91,16 @@ def _true_error(setup, integrator, start, h):
     stepped.step(h)
     one = stepped._values.copy()
     if not effects and wrench is None:
-        exact = INTEGRATORS['exact']
-        reference = exact(body, State._from_values(start), 0.0, h, None)
-        truth = np.concatenate(reference._fields())
+        # Torque-free: one step of the exact flow (exact at any step).
+        exact = Simulator(body, State._from_values(start), integrator='exact').step(h)
+        truth = np.concatenate(exact._fields())
     elif any(isinstance(effect, Drag) for effect in effects):
-        # The momentum-dependent wrench: the DOP853 reference at rtol 1e-13.
-        fine = _simulator(setup, integrator, fast_path=False)
+        # The momentum-dependent wrench: the DOP853 reference at rtol 1e-13, drag as
+        # test/method_reference.py writes it.
+        drag = next(effect for effect in effects if isinstance(effect, Drag))
         truth = np.concatenate(reference_solution(
-            body, State._from_values(start), h, fine.wrench_function())._fields())
+            body, State._from_values(start), h,
+            REFERENCE_EFFECTS['drag'][1](drag, body))._fields())
     else:
         # A converged fine-step run of the same held wrench: rk4 at h / 2000.
         fine = _simulator(setup, 'rk4')
@@ -116,8 +120,8 @@ ESTIMATE_CASES = [
     for setup in ('free', 'world_torque', 'body_torque', 'pivot_gravity', 'dissipation', 'drag')
     for turn, substeps in (((0.2, 2), (0.1, 1)) if INTEGRATORS[integrator].order == 4
                            else ((0.02, 2), (0.004, 1)))
-    # The exact flow has no error torque-free (its estimate is round-off).
-    if not (integrator == 'exact' and setup == 'free')
+    # An exact flow has no error torque-free (its estimate is round-off).
+    if not (INTEGRATORS[integrator].exact_torque_free and setup == 'free')
 ]
 
 
@@ -141,7 +145,7 @@ def test_estimated_local_error_is_within_a_factor_3_of_the_true_one(
     assert 1.0 / ESTIMATE_FACTOR <= estimate / true <= ESTIMATE_FACTOR, (estimate, true)
 
 
-# -- the substep counts: smooth, continuous, the same compiled and readable
+# -- the substep counts: smooth, continuous, the same compiled and interpreted
 
 
 def _counts(simulator, tick, ticks, on_tick=None):
@@ -224,29 +228,35 @@ def test_a_change_at_run_time_keeps_the_state_continuous(change):
         assert simulator.substep_statistics()['substeps'] >= 7
 
 
-@pytest.mark.parametrize('integrator', ['buss', 'rk4', 'splitting4', 'exact'])
-def test_compiled_and_readable_error_control_take_the_same_substeps(integrator):
-    # The same controller (error_control.controlled_ticks compiled, and as Python around
-    # the readable steps) under a held world and body torque: the same counts tick by
-    # tick, and the same states to round-off.
+# A tolerance (rad/s) by the method's order that needs several substeps of each method.
+SEVERAL_SUBSTEPS = {1: 1e-3, 2: 1e-6, 4: 1e-10}
+
+
+@pytest.mark.parametrize('integrator', sorted(INTEGRATORS))
+def test_compiled_and_interpreted_error_control_take_the_same_substeps(integrator):
+    # A test of the compilation: the one controller (error_control.controlled_ticks) and the
+    # run kernel, compiled and as their interpreted source (kernels/interpreted.py, the same
+    # operations in the same order), under a held world and body torque: the same counts
+    # tick by tick, and the same states to round-off (a few ulp per step where a library
+    # function rounds differently).
     body, state = _asymmetric()
     tick, ticks = 0.02, 60
-    # A tolerance that needs several substeps of each method.
-    tolerance = 1e-10 if INTEGRATORS[integrator].order == 4 else 1e-6
+    tolerance = SEVERAL_SUBSTEPS[INTEGRATORS[integrator].order]
     runs = []
-    for fast_path in (True, False):
-        simulator = Simulator(body, state, integrator=integrator, fast=fast_path,
-                              tolerance=tolerance)
+    for interpreted in (False, True):
+        simulator = Simulator(body, state, integrator=integrator, tolerance=tolerance)
+        simulator.interpreted = interpreted
         simulator.hold_wrench(torque_world=(0.2, -0.1, 0.0), torque_body=(0.0, 0.0, 0.3))
         runs.append((simulator, _counts(simulator, tick, ticks)))
-    (compiled, compiled_counts), (readable, readable_counts) = runs
-    assert compiled.path == 'compiled' and readable.path == 'readable'
-    assert compiled_counts == readable_counts
+    (compiled, compiled_counts), (interpreted, interpreted_counts) = runs
+    assert compiled.path == 'compiled' and interpreted.path == 'interpreted'
+    assert compiled_counts == interpreted_counts
     assert max(compiled_counts) > 1
     steps = sum(compiled_counts)
-    assert rotation_angle(compiled.state.rotation, readable.state.rotation) \
+    assert rotation_angle(compiled.state.rotation, interpreted.state.rotation) \
         <= 8 * steps * np.finfo(float).eps
-    np.testing.assert_allclose(compiled.state.angular_momentum, readable.state.angular_momentum,
+    np.testing.assert_allclose(compiled.state.angular_momentum,
+                               interpreted.state.angular_momentum,
                                rtol=8 * steps * np.finfo(float).eps)
 
 

@@ -1,13 +1,17 @@
-"""Tests of the IMU core: the specific force at the mount point and Kalibr's noise model."""
+"""
+Tests of the IMU core: the specific force at the mount point and Kalibr's noise model.
+
+The compiled reading is held to test/imu_reference.py, the kinematics written in numpy.
+"""
 
 import math
 
+from imu_reference import accelerations
+from imu_reference import specific_force_body
 import numpy as np
 import pytest
-from rigid_body_sim.physics.imu import accelerations
 from rigid_body_sim.physics.imu import ImuModel
 from rigid_body_sim.physics.imu import KalibrNoise
-from rigid_body_sim.physics.imu import specific_force_body
 from rigid_body_sim.scenes import load_scene
 from rigid_body_sim.scenes import parse_scene
 
@@ -193,7 +197,7 @@ def test_noise_off_reads_the_truth_exactly_and_noise_on_follows_its_seed():
         assert not np.array_equal(readings[0][1], truth[1])
 
 
-def test_the_compiled_reading_equals_the_readable_formulas_to_round_off():
+def test_the_compiled_reading_equals_the_numpy_reference_to_round_off():
     scene = load_scene('heavy_top')
     simulator = scene.simulator()
     for _ in range(40):

@@ -42,6 +42,7 @@ from rcl_interfaces.srv import SetParameters
 from rcl_interfaces.srv import SetParametersAtomically
 from rigid_body_sim.messages.qos import SERVICE_QOS
 from rigid_body_sim.node.parameters import PARAMETERS
+from rigid_body_sim.physics import INTEGRATORS
 from std_srvs.srv import SetBool
 from std_srvs.srv import Trigger
 
@@ -72,7 +73,7 @@ def parameter_values(draw):
     value.bool_value = draw(st.booleans())
     value.integer_value = draw(INT64)
     value.double_value = draw(ANY_FLOAT)
-    value.string_value = draw(st.one_of(TEXT, st.sampled_from(['buss', 'rk4', 'exact'])))
+    value.string_value = draw(st.one_of(TEXT, st.sampled_from(sorted(INTEGRATORS))))
     value.byte_array_value = [bytes([b]) for b in draw(st.lists(st.integers(0, 255),
                                                                 max_size=5))]
     value.bool_array_value = draw(st.lists(st.booleans(), max_size=5))

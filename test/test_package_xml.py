@@ -48,22 +48,11 @@ BUILT = {'tf2_msgs'}
 PULLED_AT_RUN_TIME = {'std_msgs'}
 
 
-# Imported inside functions that only the tests call, when they are called: not run-time
-# dependencies (the file and the module).  physics/elliptic.py's readable functions are the
-# scipy definitions its compiled ones are tested against.
-TEST_ONLY_LAZY_IMPORTS = {('physics/elliptic.py', 'scipy')}
-
-
-def _imports(paths, lazy_test_only=()):
+def _imports(paths):
     """Return the top-level modules the files import (absolute imports, not the stdlib)."""
     modules = set()
     for path in paths:
         tree = ast.parse(path.read_text(), str(path))
-        local = set()
-        for function in ast.walk(tree):
-            if isinstance(function, (ast.FunctionDef, ast.AsyncFunctionDef)):
-                local.update(id(node) for node in ast.walk(function))
-        relative = path.relative_to(ROOT).as_posix().removeprefix('rigid_body_sim/')
         for node in ast.walk(tree):
             if isinstance(node, ast.Import):
                 names = [alias.name.split('.')[0] for alias in node.names]
@@ -71,8 +60,7 @@ def _imports(paths, lazy_test_only=()):
                 names = [node.module.split('.')[0]]
             else:
                 continue
-            modules.update(name for name in names
-                           if not (id(node) in local and (relative, name) in lazy_test_only))
+            modules.update(names)
     return modules - set(sys.stdlib_module_names) - {'rigid_body_sim'}
 
 
@@ -84,7 +72,7 @@ def _is_bench(path):
 def run_time_modules():
     """Return the top-level modules the installed package imports, the benchmark aside."""
     return _imports((path for path in (ROOT / 'rigid_body_sim').rglob('*.py')
-                     if not _is_bench(path)), TEST_ONLY_LAZY_IMPORTS)
+                     if not _is_bench(path)))
 
 
 def bench_and_test_modules():

@@ -2,14 +2,18 @@
 The Lie-Poisson splitting integrators 'splitting' (Strang, order 2) and 'splitting4' (Suzuki).
 
 Orders against scipy's DOP853 (test/reference.py, ~1e-12), conservation (world L exactly,
-energy bounded over a million steps), the compiled fast path against the readable step, and
-the measured choices the module docstring states (orderings of the flows, Suzuki over
-Yoshida).  Errors: rotation angle of R^T R_ref (rad) plus |L - L_ref| / |L_ref|.
+energy bounded over a million steps), the kernels against the independent reference of the
+method on random bodies (test/method_reference.py: matrix exponentials of the principal-axis
+rotations), and the measured choices the module docstring states (orderings of the flows,
+Suzuki over Yoshida).  Errors: rotation angle of R^T R_ref (rad) plus |L - L_ref| / |L_ref|.
+The methods are those the splitting module registers.
 """
 
 from fractions import Fraction
 import math
 
+from method_reference import motion_error
+from method_reference import reference_run
 import numpy as np
 import pytest
 from reference import random_rotation
@@ -20,17 +24,20 @@ from rigid_body_sim.physics import RigidBody
 from rigid_body_sim.physics import Simulator
 from rigid_body_sim.physics import State
 from rigid_body_sim.physics.integrators import splitting as splitting_module
-from rigid_body_sim.physics.integrators.exact import exact_free_flow
 from rigid_body_sim.physics.integrators.splitting import STRANG_AXES
 from rigid_body_sim.physics.integrators.splitting import SUZUKI_AXES
 from rigid_body_sim.physics.integrators.splitting import SUZUKI_COEFFICIENTS
 from rigid_body_sim.physics.kernels.layout import body_values
 from rigid_body_sim.physics.kernels.model import new_model
+from wrench_effects import OrientationDependent
+from wrench_effects import TimeDependent
 
 EPS = np.finfo(float).eps
-# Nominal order and coarse step count over 1 s (the fine run takes twice as many): in the
+METHODS = sorted(name for name, integrator in INTEGRATORS.items()
+                 if integrator.run_kernel is splitting_module.run)
+# Coarse step count over 1 s by the method's order (the fine run takes twice as many): in the
 # asymptotic range, with the fine error far above the reference's ~1e-12.
-METHODS = {'splitting': (2, 40), 'splitting4': (4, 10)}
+COARSE_STEPS = {2: 40, 4: 10}
 ORDER_TOLERANCE = 0.3
 MEASURABLE_ERROR = 1e-10
 ASYMPTOTIC_ERROR = 0.05
@@ -57,25 +64,15 @@ def _bodies():
 
 
 def _wrench(kind, body, state, duration):
-    """Return a wrench that changes L by ~|L0| and v by ~1 m/s over the run (or None)."""
+    """Return an effect that changes L by ~|L0| and v by ~1 m/s over the run (or None)."""
     torque_scale = np.linalg.norm(state.angular_momentum) / duration
     force_scale = body.mass / duration
-    vertical = np.array([0.0, 0.0, 1.0])
-
-    def orientation_dependent(state, time):
-        # A restoring torque k (R e3) x e_z, as gravity on an offset COM, and a force fixed
-        # along the body x axis.
-        rotation = state.rotation
-        return 0.5 * force_scale * rotation[:, 0], torque_scale * np.cross(rotation[:, 2],
-                                                                           vertical)
-
-    def time_dependent(state, time):
-        phase = 2.0 * math.pi * time / duration
-        return (force_scale * math.sin(phase) * np.array([0.3, -0.2, 0.5]),
-                torque_scale * math.cos(phase) * np.array([0.2, 0.1, -0.3]))
-
-    return {'torque_free': None, 'orientation_dependent': orientation_dependent,
-            'time_dependent': time_dependent}[kind]
+    if kind == 'orientation_dependent':
+        return OrientationDependent(0.5 * force_scale, torque_scale)
+    if kind == 'time_dependent':
+        return TimeDependent(force_scale * np.array([0.3, -0.2, 0.5]),
+                             torque_scale * np.array([0.2, 0.1, -0.3]), duration)
+    return None
 
 
 def _error(state, reference):
@@ -84,29 +81,30 @@ def _error(state, reference):
             / np.linalg.norm(reference.angular_momentum))
 
 
-def _run(name, body, state, duration, steps, wrench):
-    dt = duration / steps
-    for k in range(steps):
-        state = INTEGRATORS[name](body, state, k * dt, dt, wrench)
-    return state
+def _run(name, body, state, duration, steps, effect=None):
+    """Return the state after `steps` steps of the kernel over `duration` s."""
+    simulator = Simulator(body, state, integrator=name, effects=() if effect is None
+                          else [effect])
+    return simulator.run(duration, duration / steps)
 
 
-def test_registered_orders_are_the_nominal_ones():
-    for name, (order, _) in METHODS.items():
-        assert INTEGRATORS[name].order == order
+def test_the_splitting_module_registers_a_second_and_a_fourth_order_method():
+    assert sorted(INTEGRATORS[name].order for name in METHODS) == [2, 4]
 
 
 @pytest.mark.parametrize('wrench_kind', ['torque_free', 'orientation_dependent',
                                          'time_dependent'])
 @pytest.mark.parametrize('body_name', ['t_handle', 'tilted_tensor', 'van_zon_schofield'])
-@pytest.mark.parametrize('name', sorted(METHODS))
+@pytest.mark.parametrize('name', METHODS)
 def test_observed_order_matches_nominal_order(name, body_name, wrench_kind):
     body, state, duration = _bodies()[body_name]
-    wrench = _wrench(wrench_kind, body, state, duration)
-    reference = reference_solution(body, state, duration, wrench)
-    order, steps = METHODS[name]
-    coarse = _error(_run(name, body, state, duration, steps, wrench), reference)
-    fine = _error(_run(name, body, state, duration, 2 * steps, wrench), reference)
+    effect = _wrench(wrench_kind, body, state, duration)
+    reference = reference_solution(body, state, duration,
+                                   None if effect is None else effect.reference)
+    order = INTEGRATORS[name].order
+    steps = COARSE_STEPS[order]
+    coarse = _error(_run(name, body, state, duration, steps, effect), reference)
+    fine = _error(_run(name, body, state, duration, 2 * steps, effect), reference)
     assert coarse < ASYMPTOTIC_ERROR and fine > MEASURABLE_ERROR, (coarse, fine)
     assert abs(math.log2(coarse / fine) - order) < ORDER_TOLERANCE, (coarse, fine)
 
@@ -134,13 +132,18 @@ def _bounded(errors):
     return errors[-tenth:].max() <= 1.1 * errors[:tenth].max()
 
 
-@pytest.mark.parametrize('name, dt', [('splitting', 0.01), ('splitting4', 0.05)])
-def test_splitting_keeps_world_l_exactly_and_the_energy_error_bounded_over_1e6_steps(name, dt):
+# The step of the million-step runs by the method's order: an energy error well resolved.
+LONG_RUN_STEP = {2: 0.01, 4: 0.05}
+
+
+@pytest.mark.parametrize('name', METHODS)
+def test_splitting_keeps_world_l_exactly_and_the_energy_error_bounded_over_1e6_steps(name):
     # The T-handle spun about its unstable axis (a flip every ~12 s: ~800 flips here).
     # World L is never touched by the free flows: bit-identical after 1e6 steps.  A
     # symplectic method's energy error oscillates without drift: the last 1e5 steps see no
     # larger error than the first 1e5.  Its size is O((h |omega|)^2) (order 2) or
     # O((h |omega|)^4) (order 4), |omega| = 2 rad/s.
+    dt = LONG_RUN_STEP[INTEGRATORS[name].order]
     initial, final, errors = _energy_errors(name, dt, chunks=1000)
     assert np.array_equal(initial, final)
     assert _bounded(errors)
@@ -155,19 +158,17 @@ def test_the_bounded_energy_criterion_catches_a_drifting_method():
     assert not _bounded(errors)
 
 
-@pytest.mark.parametrize('name', sorted(METHODS))
+@pytest.mark.parametrize('name', METHODS)
 def test_a_constant_torque_changes_l_linearly_and_a_constant_force_gives_the_parabola(name):
     # The kicks add tau h exactly, however the stages are arranged (Suzuki's middle stage runs
     # backwards): L(t) = L0 + tau t and x(t) = x0 + v0 t + F t^2 / (2m), to round-off.
     body, state, _ = _bodies()['tilted_tensor']
     torque, force = np.array([0.3, -0.2, 0.5]), np.array([1.0, 0.5, -2.0])
-
-    def wrench(state, time):
-        return force, torque
-
-    final = _run(name, body, state, 2.0, 50, wrench)
-    # Each of the 2 x 50 x stages kicks rounds once, to an ulp of the running sum.
-    kicks = 2 * 50 * (5 if name == 'splitting4' else 1)
+    simulator = Simulator(body, state, integrator=name)
+    simulator.set_wrench(force=force, torque=torque)
+    final = simulator.run(2.0, 2.0 / 50)
+    # Each of the 50 x (kicks per step) kicks rounds at most once, to an ulp of the sum.
+    kicks = 50 * INTEGRATORS[name].stages
     scale = np.max(np.abs(final.angular_momentum)) + np.max(np.abs(final.position))
     assert np.allclose(final.angular_momentum, state.angular_momentum + 2.0 * torque,
                        rtol=0.0, atol=kicks * EPS * scale)
@@ -175,7 +176,7 @@ def test_a_constant_torque_changes_l_linearly_and_a_constant_force_gives_the_par
                        + 2.0 * force / body.mass, rtol=0.0, atol=kicks * EPS * scale)
 
 
-# -- the fast path, frames ------------------------------------------------------------------
+# -- the kernels against the reference, frames ------------------------------------------------
 
 
 def _random_case(rng):
@@ -190,33 +191,31 @@ def _random_case(rng):
     return body, state
 
 
-@pytest.mark.parametrize('name', sorted(METHODS))
+@pytest.mark.parametrize('name', METHODS)
 @pytest.mark.parametrize('pushed', [False, True])
-def test_fast_path_equals_the_readable_step(name, pushed):
-    # Simulator.run takes the kernel; stepping INTEGRATORS[name] with the simulator's wrench
-    # function is the readable definition.  Same flows, same arithmetic: round-off apart.
+def test_kernel_equals_the_reference_on_random_bodies_and_wrenches(name, pushed):
+    # Simulator.run takes the kernel; test/method_reference.py composes matrix exponentials
+    # of the principal-axis rotations (numpy's principal frame) and the kicks.  Round-off
+    # (test_fast_paths): 10 eps per wrench evaluation per step.
     rng = np.random.default_rng(502)
     for _ in range(10):
         body, state = _random_case(rng)
         simulator = Simulator(body, state, integrator=name)
         assert simulator.path == 'compiled'
+        held = None
         if pushed:
-            simulator.hold_wrench(force_world=rng.normal(size=3),
-                                  torque_world=rng.normal(size=3),
-                                  force_body=rng.normal(size=3), torque_body=rng.normal(size=3))
+            held = {part: rng.normal(size=3) for part in
+                    ('force_world', 'torque_world', 'force_body', 'torque_body')}
+            simulator.hold_wrench(**held)
         simulator.run(25 * 0.04, 0.04)
-        readable = _run(name, body, state, 25 * 0.04, 25, simulator.wrench_function())
-        fast = simulator.state
-        assert rotation_angle_between(fast.rotation, readable.rotation) < 1e-13
-        for a, b in ((fast.angular_momentum, readable.angular_momentum),
-                     (fast.linear_momentum, readable.linear_momentum),
-                     (fast.position, readable.position)):
-            assert np.allclose(a, b, rtol=1e-13, atol=1e-13)
+        reference = reference_run(name, body, state, 0.04, 25, held=held)
+        angle, vectors = motion_error(simulator.state, reference)
+        assert max(angle, vectors) < 10 * EPS * 25 * INTEGRATORS[name].stages
         if not pushed:
-            assert np.array_equal(fast.angular_momentum, state.angular_momentum)
+            assert np.array_equal(simulator.state.angular_momentum, state.angular_momentum)
 
 
-@pytest.mark.parametrize('name', sorted(METHODS))
+@pytest.mark.parametrize('name', METHODS)
 def test_splitting_does_not_depend_on_the_body_frame(name):
     # A body with inertia P D P^T in state R moves like the body D in state R P: the split is
     # made in the principal frame, whatever frame the tensor is given in.
@@ -227,9 +226,8 @@ def test_splitting_does_not_depend_on_the_body_frame(name):
         oblique = RigidBody(1.0, axes @ np.diag(moments) @ axes.T)
         diagonal = RigidBody(1.0, np.diag(moments))
         rotation, momentum = random_rotation(rng), rng.normal(size=3)
-        a = _run(name, oblique, State(rotation, angular_momentum=momentum), 1.0, 10, None)
-        b = _run(name, diagonal, State(rotation @ axes, angular_momentum=momentum), 1.0, 10,
-                 None)
+        a = _run(name, oblique, State(rotation, angular_momentum=momentum), 1.0, 10)
+        b = _run(name, diagonal, State(rotation @ axes, angular_momentum=momentum), 1.0, 10)
         assert rotation_angle_between(a.rotation @ axes, b.rotation) < 1e-13
 
 
@@ -243,8 +241,8 @@ def _kernel_error(method, body, state, duration, steps):
                       np.zeros((4, 3)))
     splitting_module.run(values, model, splitting_module._method(method[:3], method[3:]),
                          duration / steps, steps, 0.0)
-    return rotation_angle_between(State._from_values(values).rotation,
-                                  exact_free_flow(body, state, duration).rotation)
+    exact = Simulator(body, state, integrator='exact').step(duration)
+    return rotation_angle_between(State._from_values(values).rotation, exact.rotation)
 
 
 def test_the_chosen_flow_orderings_are_the_most_accurate_of_the_six():

@@ -16,7 +16,7 @@ resolves.  Two double-precision solutions are compared with it and reported:
   It shares no code with the integrators.  The solve is restarted at every requested time
   so each value is a step end point, never a dense-output interpolant (DOP853's interpolant
   is only 7th order and would add its own error).
-- :func:`exact_reference`: the project's exact torque-free flow, ``INTEGRATORS['exact']``,
+- :func:`exact_reference`: the project's exact torque-free flow, the ``exact`` integrator,
   taken in one step from t = 0 to each requested time (it is exact for any step).
 
 Both are cross-checks only: the exact flow scored against itself would hide its own errors,
@@ -36,6 +36,7 @@ from .extended_reference import reference_quaternions
 from .extended_reference import rotation_matrix_decimal
 from ..physics import INTEGRATORS
 from ..physics import matrix_from_quaternion
+from ..physics import Simulator
 
 __all__ = ['Reference', 'ode_reference', 'exact_reference', 'reference_rotations',
            'rotation_angle', 'MEASUREMENT_FLOOR']
@@ -120,10 +121,9 @@ def ode_reference(body, state, times, rtol=ODE_RTOL):
 
 
 def exact_reference(body, state, times):
-    """Return {time: R(time)} from ``INTEGRATORS['exact']`` in one step from t = 0 (s)."""
-    exact = INTEGRATORS['exact']
-    return {float(t): np.array(exact(body, state, 0.0, float(t), None).rotation)
-            for t in times}
+    """Return {time: R(time)} from the ``exact`` integrator in one step from t = 0 (s)."""
+    return {float(t): np.array(Simulator(body, state, integrator='exact').step(float(t))
+                               .rotation) for t in times}
 
 
 def _double_rotation(quaternion):

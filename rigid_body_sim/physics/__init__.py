@@ -1,8 +1,8 @@
 """
 The physics core: mass properties, world-frame state, integrators and the simulator.
 
-numpy and scipy, with numba for the compiled kernels (:mod:`.kernels`): no ROS, no
-messages, no I/O but numba's cache of compiled kernels.
+numpy, with numba for the compiled kernels (:mod:`.kernels`): no ROS, no messages, no I/O
+but numba's cache of compiled kernels.
 """
 
 from . import kernels  # noqa: F401  (first: drops cached kernels of changed sources)

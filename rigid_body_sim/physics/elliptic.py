@@ -1,22 +1,15 @@
 """
 Jacobi elliptic functions and Carlson's symmetric elliptic integrals.
 
-Two versions of each function, proved equal by the tests:
-
-* readable ones built on scipy (:func:`jacobi_elliptic`, :func:`carlson_rf`,
-  :func:`carlson_rj`), which define what the exact rigid-body flow computes;
-* compiled ones (numba, names ending in ``_compiled``) for the integrator kernels:
-  Carlson's duplication algorithms (B. C. Carlson, "Numerical computation of real or complex
-  elliptic integrals", Numer. Algorithms 10:13-26, 1995) and the descending Landen
-  transformation (Abramowitz & Stegun 16.12) for sn, cn, dn.
+Compiled (numba) for the exact integrator's kernels: Carlson's duplication algorithms
+(B. C. Carlson, "Numerical computation of real or complex elliptic integrals", Numer.
+Algorithms 10:13-26, 1995) and the descending Landen transformation (Abramowitz & Stegun
+16.12) for sn, cn, dn.  The tests hold them to scipy.special (test/elliptic_reference.py).
 
 Parameter convention: m = k^2 (A&S), and the complementary parameter m1 = 1 - m = k'^2 is
 passed alongside m.  Near m = 1 the motion of a rigid body close to its separatrix is governed
 by m1, and 1 - m computed from a rounded m has a relative error eps / m1 (1e-8 at
 m1 = 1e-8): both are given so neither is formed by subtraction.
-
-scipy is imported by the readable functions when they are called, not with the module: the
-integrators run the compiled ones, and a run set-up has no scipy (requirements.txt).
 """
 
 import math
@@ -25,14 +18,7 @@ import numpy as np
 
 from .kernels import outlined as _jit
 
-__all__ = [
-    'jacobi_elliptic',
-    'carlson_rf',
-    'carlson_rj',
-    'jacobi_elliptic_compiled',
-    'carlson_rf_compiled',
-    'carlson_rj_compiled',
-]
+__all__ = ['jacobi_elliptic', 'carlson_rf', 'carlson_rj']
 
 # Below this parameter the first-order expansion in m (A&S 16.13) is exact to ~m^2 < 1e-18
 # relative, so the compiled Landen descent stops there.
@@ -45,82 +31,21 @@ _RF_SCALE = (3.0 * _CARLSON_TOLERANCE) ** (-1.0 / 6.0)
 _RJ_SCALE = (0.25 * _CARLSON_TOLERANCE) ** (-1.0 / 6.0)
 
 
-def _landen_step(parameter, complement):
-    """
-    Return sqrt(mu), mu, 1 - mu and 1 - sqrt(mu) of the descending Landen transformation.
-
-    sqrt(mu) = (1 - k') / (1 + k') = m / (1 + k')^2 and 1 - mu = 4 k' / (1 + k')^2: both are
-    formed without cancellation, from m and m1 = k'^2 separately.
-    """
-    modulus_complement = math.sqrt(complement)
-    root = parameter / (1.0 + modulus_complement) ** 2
-    return (root, root * root, 4.0 * modulus_complement / (1.0 + modulus_complement) ** 2,
-            2.0 * modulus_complement / (1.0 + modulus_complement))
-
-
-def _landen_ascend(sn, cn, dn, root, one_minus_root):
-    """
-    Return sn, cn, dn at (u | m) from those at (u / (1 + sqrt(mu)) | mu) (A&S 16.12).
-
-    dn = (1 - sqrt(mu) sn^2) / (1 + sqrt(mu) sn^2) is evaluated as
-    ((1 - sqrt(mu)) + sqrt(mu) cn^2) / (...), free of cancellation where dn is small.
-    """
-    denominator = 1.0 + root * sn * sn
-    return ((1.0 + root) * sn / denominator, cn * dn / denominator,
-            (one_minus_root + root * cn * cn) / denominator)
-
-
-def jacobi_elliptic(u, parameter, complement):
-    """
-    Return the Jacobi elliptic functions (sn, cn, dn) of (u | m).
-
-    Parameters
-    ----------
-    u : float
-        Argument (for accuracy, reduce it to |u| <= K(m) first).
-    parameter, complement : float
-        m = k^2 in [0, 1] and m1 = 1 - m, each given to full relative precision.
-
-    Notes
-    -----
-    For m <= 1/2 this is scipy.special.ellipj.  Above, descending Landen transformations
-    (A&S 16.12) map m to smaller parameters, computed from m1 without forming 1 - m, until
-    m <= 1/2; m = 1 gives the hyperbolic limit sn = tanh u, cn = dn = sech u.
-
-    """
-    if complement == 0.0:
-        return math.tanh(u), 1.0 / math.cosh(u), 1.0 / math.cosh(u)
-    if parameter <= 0.5:
-        from scipy.special import ellipj
-        sn, cn, dn, _ = ellipj(u, parameter)
-        return float(sn), float(cn), float(dn)
-    root, reduced, reduced_complement, one_minus_root = _landen_step(parameter, complement)
-    sn, cn, dn = jacobi_elliptic(u / (1.0 + root), reduced, reduced_complement)
-    return _landen_ascend(sn, cn, dn, root, one_minus_root)
-
-
-def carlson_rf(x, y, z):
-    """Return Carlson's R_F(x, y, z) = 1/2 int_0^inf dt / sqrt((t+x)(t+y)(t+z)) (scipy)."""
-    from scipy.special import elliprf
-    return float(elliprf(x, y, z))
-
-
-def carlson_rj(x, y, z, p):
-    """Return Carlson's R_J(x, y, z, p) = 3/2 int_0^inf dt / ((t+p) sqrt((t+x)(t+y)(t+z)))."""
-    from scipy.special import elliprj
-    return float(elliprj(x, y, z, p))
-
-
-# -- compiled versions -------------------------------------------------------------------
-
 # Landen levels the compiled descent can hold: each level roughly squares m1 (for m1 near 0)
 # or m (for m near 0), so even m1 = 1e-300 takes 15 levels from m1 to m < 1e-9.
 _MAX_LANDEN_LEVELS = 40
 
 
 @_jit
-def jacobi_elliptic_compiled(u, parameter, complement):
-    """Compiled :func:`jacobi_elliptic`: Landen descent to m < 1e-9, then A&S 16.13."""
+def jacobi_elliptic(u, parameter, complement):
+    """
+    Return the Jacobi elliptic functions (sn, cn, dn) of (u | m).
+
+    u: the argument (for accuracy, reduce it to |u| <= K(m) first); parameter, complement:
+    m = k^2 in [0, 1] and m1 = 1 - m, each to full relative precision.  Descending Landen
+    transformations, computed from m1 without forming 1 - m, down to m < 1e-9, then
+    A&S 16.13; m = 1 gives the hyperbolic limit sn = tanh u, cn = dn = sech u.
+    """
     if complement == 0.0:
         secant = 1.0 / math.cosh(u)
         return math.tanh(u), secant, secant
@@ -151,8 +76,8 @@ def jacobi_elliptic_compiled(u, parameter, complement):
 
 
 @_jit
-def carlson_rf_compiled(x, y, z):
-    """Compiled R_F(x, y, z): x, y, z >= 0, at most one zero (Carlson 1995, section 2)."""
+def carlson_rf(x, y, z):
+    """Return R_F(x, y, z) = 1/2 int_0^inf dt / sqrt((t+x)(t+y)(t+z)), at most one zero."""
     mean0 = (x + y + z) / 3.0
     spread = _RF_SCALE * max(abs(mean0 - x), abs(mean0 - y), abs(mean0 - z))
     x0, y0 = x, y
@@ -185,8 +110,8 @@ def _carlson_rc_one(e):
 
 
 @_jit
-def carlson_rj_compiled(x, y, z, p):
-    """Compiled R_J(x, y, z, p): x, y, z >= 0 (at most one zero), p > 0 (Carlson 1995)."""
+def carlson_rj(x, y, z, p):
+    """Return R_J(x, y, z, p) = 3/2 int_0^inf dt / ((t+p) sqrt((t+x)(t+y)(t+z))), p > 0."""
     mean0 = (x + y + z + 2.0 * p) / 5.0
     delta = (p - x) * (p - y) * (p - z)
     spread = _RJ_SCALE * max(abs(mean0 - x), abs(mean0 - y), abs(mean0 - z), abs(mean0 - p))

@@ -352,8 +352,8 @@ def controlled_ticks(run, state, model, method, tick, ticks, time, control):
     run: an integrator's run kernel (kernels/loop.py's RUN_SIGNATURE); model and method are
     passed on to it.  control: the control array (updated: n, the countdown, the votes, the
     statistics).  Returns the integrator steps taken.  Compiled as :data:`controlled`, where
-    `run` is a first-class function (an indirect call a few times a tick); as Python, the
-    Simulator's readable path drives its readable steps with it.
+    `run` is a first-class function (an indirect call a few times a tick); interpreted
+    (kernels/interpreted.py), it drives the run kernels' source.
     """
     order = control[ORDER]
     taken = 0
@@ -450,6 +450,7 @@ def controlled_ticks(run, state, model, method, tick, ticks, time, control):
 CONTROLLED_SIGNATURE = types.int64(types.FunctionType(RUN_SIGNATURE), types.float64[::1],
                                    MODEL_TYPE, METHOD_TYPE, types.float64, types.int64,
                                    types.float64, types.float64[::1])
-controlled = LazyKernel(CONTROLLED_SIGNATURE, controlled_ticks)
+controlled = LazyKernel(CONTROLLED_SIGNATURE, controlled_ticks, compile_seconds=5.5)
 """The compiled controller: ``controlled(run, state, model, method, tick, ticks, time,
-control)``, one kernel for every integrator (see :func:`controlled_ticks`)."""
+control)``, one kernel for every integrator (see :func:`controlled_ticks`); 5.5 CPU s to
+compile on the 2-core development machine (`rigid-body-sim compile` prints the figure)."""

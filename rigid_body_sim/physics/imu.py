@@ -8,13 +8,13 @@ body) reads, in its own frame:
 - the specific force a_point - g, with a_point = a_COM + alpha x r + omega x (omega x r):
   0 in free fall, g up at rest, omega^2 r toward the axis on a spinning body.
 
-a_COM and alpha are the instantaneous accelerations of the simulated motion
-(:func:`accelerations`): from the total wrench of the held inputs and the effects (gravity,
-drag, ...) by Newton and Euler, and for a body on a pivot from the pivot system (Euler's
-equation about the fixed point with the parallel-axis inertia, then a_COM = alpha x r_c +
-omega x (omega x r_c)), so the pivot's reaction, which is never computed, is in it all the
-same.  Not in it: the internal torque of the `dissipation` effect, which changes omega at
-constant L through the integrator only (its alpha is of the order of damping x omega^2).
+a_COM and alpha are the instantaneous accelerations of the simulated motion: from the total
+wrench of the held inputs and the effects (gravity, drag, ...) by Newton and Euler, and for
+a body on a pivot from the pivot system (Euler's equation about the fixed point with the
+parallel-axis inertia, then a_COM = alpha x r_c + omega x (omega x r_c)), so the pivot's
+reaction, which is never computed, is in it all the same.  Not in it: the internal torque
+of the `dissipation` effect, which changes omega at constant L through the integrator only
+(its alpha is of the order of damping x omega^2).
 
 Noise (off by default): :class:`KalibrNoise` per sensor, the white noise and bias random
 walk of Kalibr's IMU model (units as Kalibr defines them), a turn-on bias, a seed.
@@ -31,39 +31,6 @@ from .kernels.algebra import quaternion_product
 from .kernels.algebra import rotate
 from .kernels.algebra import rotate_back
 from .kernels.layout import inverse_inertia_times
-from .rotations import matrix_from_quaternion
-
-
-def specific_force_body(acceleration_com_world, angular_acceleration_body,
-                        angular_velocity_body, orientation, mount_position_body, gravity_world):
-    """
-    Return the specific force (m/s^2) at the mount point, in the body frame.
-
-    a_point = a_COM + alpha x r + omega x (omega x r) (rigid-body kinematics, r fixed in
-    the body, every vector in the body frame), and an accelerometer reads a_point - g.
-
-    Parameters
-    ----------
-    acceleration_com_world : array_like, shape (3,)
-        COM acceleration in the world frame, m/s^2.
-    angular_acceleration_body, angular_velocity_body : array_like, shape (3,)
-        Body frame, rad/s^2 and rad/s.
-    orientation : array_like, shape (4,)
-        Quaternion (x, y, z, w), body to world.
-    mount_position_body : array_like, shape (3,)
-        Mount point from the COM, body frame, m.
-    gravity_world : array_like, shape (3,)
-        World frame, m/s^2 (e.g. (0, 0, -9.81)).
-
-    """
-    rotation = matrix_from_quaternion(np.asarray(orientation, dtype=float))
-    r = np.asarray(mount_position_body, dtype=float)
-    omega = np.asarray(angular_velocity_body, dtype=float)
-    alpha = np.asarray(angular_acceleration_body, dtype=float)
-    # R^T (a_COM - g): the translational part seen in the body frame.
-    translational = rotation.T @ (np.asarray(acceleration_com_world, dtype=float)
-                                  - np.asarray(gravity_world, dtype=float))
-    return translational + np.cross(alpha, r) + np.cross(omega, np.cross(omega, r))
 
 
 class KalibrNoise:
@@ -127,48 +94,6 @@ class ImuModel:
         return any(getattr(self, key) != 0.0 for key in self.NOISE_KEYS)
 
 
-def accelerations(body, state, force, torque, pivot_offset=None):
-    """
-    Return (a_COM, alpha): the instantaneous COM and angular accelerations, world frame.
-
-    Free body: a = F / m; dL/dt = tau with L = I_w omega gives
-    alpha = I_w^{-1} (tau - omega x L).  On a pivot, the same about the fixed point:
-    tau_p = tau + r_c x F, L_p = L + r_c x p, I_p the parallel-axis inertia, and the COM
-    moves on a sphere about it: a = alpha x r_c + omega x (omega x r_c).
-
-    Parameters
-    ----------
-    body : RigidBody
-        Mass (kg) and inertia about the COM (kg m^2, body frame).
-    state : State
-        The physical state (world frame, L about the COM).
-    force, torque : array_like, shape (3,)
-        Total applied force through the COM (N) and torque about it (N m), world frame;
-        a constraint's reaction excluded.
-    pivot_offset : array_like, shape (3,), optional
-        For a body on a pivot: the COM's offset from the pivot, body frame (m).
-
-    """
-    rotation = state.rotation
-    omega = state.angular_velocity(body)
-    force = np.asarray(force, dtype=float)
-    torque = np.asarray(torque, dtype=float)
-    if pivot_offset is None:
-        inertia_world = rotation @ body.inertia @ rotation.T
-        alpha = np.linalg.solve(inertia_world,
-                                torque - np.cross(omega, state.angular_momentum))
-        return force / body.mass, alpha
-    offset = np.asarray(pivot_offset, dtype=float)
-    r = rotation @ offset
-    pivot_inertia = body.inertia + body.mass * (offset @ offset * np.eye(3)
-                                                - np.outer(offset, offset))
-    inertia_world = rotation @ pivot_inertia @ rotation.T
-    momentum_pivot = state.angular_momentum + np.cross(r, state.linear_momentum)
-    alpha = np.linalg.solve(inertia_world, torque + np.cross(r, force)
-                            - np.cross(omega, momentum_pivot))
-    return np.cross(alpha, r) + np.cross(omega, np.cross(omega, r)), alpha
-
-
 class Imu:
     """
     A simulated IMU on a body: truth at its mount, plus noise advanced once per sample.
@@ -180,7 +105,8 @@ class Imu:
     gravity : array_like, shape (3,)
         The gravitational field, m/s^2, world frame (zeros without gravity).
     pivot_offset : array_like, shape (3,), optional
-        The COM's offset from a pivot, body frame, m (see :func:`accelerations`).
+        The COM's offset from a pivot, body frame, m (the accelerations are then those of
+        the pivot system: see the module docstring).
 
     """
 
@@ -225,9 +151,8 @@ class Imu:
         Return (orientation, angular_velocity, specific_force) without noise.
 
         orientation: the IMU frame in the world, quaternion (x, y, z, w); angular velocity
-        (rad/s) and specific force (m/s^2) in the IMU frame.  The same as
-        :func:`accelerations` and :func:`specific_force_body` (tested to round-off), in one
-        compiled call: simulate computes it every tick.
+        (rad/s) and specific force (m/s^2) in the IMU frame, in one compiled call (simulate
+        computes it every tick); test/imu_reference.py writes the same kinematics in numpy.
         """
         values = _imu_truth(state.quaternion, state.angular_momentum, state.linear_momentum,
                             np.asarray(force, dtype=float), np.asarray(torque, dtype=float),

@@ -1,10 +1,9 @@
 """
 Principal frames of inertia tensors, shared by the splitting and exact integrators.
 
-The compiled kernels receive only the inertia tensor (see :mod:`.registry`), so the principal
-frame is derived from the tensor here, once per tensor (cached), and the readable step
-functions use the same function: both paths split and solve in the very same frame, which
-matters when two moments are equal and the principal axes are not unique.
+The principal frame is derived from the inertia tensor here, once per tensor (cached), and
+packed with the body (kernels/layout.py): every kernel splits and solves in the very same
+frame, which matters when two moments are equal and the principal axes are not unique.
 """
 
 import collections

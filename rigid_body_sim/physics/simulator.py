@@ -44,7 +44,6 @@ _PROGRESS_CHUNK = 20000
 # What takes the steps (Simulator.path).
 COMPILED = 'compiled'  # the integrator's kernel, every effect compiled (kernels/model.py)
 INTERPRETED = 'interpreted'  # the kernels' own source, interpreted (kernels/interpreted.py)
-READABLE = 'readable'  # the readable step functions and the effects' Python faces
 
 
 class DivergedError(ValueError):
@@ -97,10 +96,6 @@ class Simulator:
         simulator advance the constrained system and show its physical state.  Only these
         are evaluated: with none, and no held wrench, the motion is torque-free and no force
         code runs.
-    fast : bool
-        Run the integrator's compiled kernel (default True, the only path the tools use).
-        False runs the readable step functions with the effects' Python faces instead: the
-        reference the tests hold the kernels to, ~1000x slower.
     tolerance : float, optional
         Error control (rad per simulated second): every outer step (``step(dt)``, and each
         ``dt`` of ``run(duration, dt)``) is split into as many equal substeps as keep the
@@ -123,8 +118,7 @@ class Simulator:
 
     """
 
-    def __init__(self, body, state, integrator='buss', effects=(), fast=True, tolerance=None,
-                 substeps=1):
+    def __init__(self, body, state, integrator='buss', effects=(), tolerance=None, substeps=1):
         if not isinstance(state, State):
             raise ValueError(f'state must be a State; got {type(state).__name__}')
         self._body = body
@@ -141,7 +135,6 @@ class Simulator:
         # The integrated state, packed [q, x, p, L].
         self._values = np.zeros(STATE_SIZE)
         self.state = state
-        self._fast = bool(fast)
         self._interpreted = interpreting()
         # The last finite packed state (restored if a step turns the state non-finite), and
         # the configuration whose steps were last checked against the stiff effects.
@@ -205,13 +198,10 @@ class Simulator:
     @property
     def path(self):
         """
-        Get what takes the steps: 'compiled' (the kernels), 'interpreted' or 'readable'.
+        Get what takes the steps: 'compiled' (the kernels) or 'interpreted'.
 
-        'interpreted': the kernels' source run as Python (:attr:`interpreted`), 'readable':
-        the readable step functions (fast=False).
+        'interpreted': the kernels' source run as Python (:attr:`interpreted`).
         """
-        if not self._fast:
-            return READABLE
         return INTERPRETED if self._interpreted else COMPILED
 
     @property
@@ -251,10 +241,13 @@ class Simulator:
         """
         Give the controller the order of the steps as taken.
 
-        The integrator's, at most 2 with a flow (flow(h/2) step(h) flow(h/2) is a Strang
-        composition: second order).
+        The integrator's (its order under a momentum-dependent wrench if an effect is one),
+        at most 2 with a flow (flow(h/2) step(h) flow(h/2) is a Strang composition: second
+        order).
         """
-        order = self._integrator.order
+        integrator = self._integrator
+        order = (integrator.momentum_dependent_order
+                 if self._model_arguments['momentum_dependent'] else integrator.order)
         if self._flows:
             order = min(order, 2)
         error_control.set_order(self._control, order)
@@ -450,8 +443,8 @@ class Simulator:
         Return the total wrench as ``wrench(state, time)``, or None when nothing pushes.
 
         It acts on physical states: the held wrench and the effects' wrenches (force through
-        the COM, torque about it; world frame).  A constraint's reaction is not part of it.
-        The readable steps take it (fast=False).
+        the COM, torque about it; world frame), each effect's compiled term called from
+        Python (Effect.wrench).  A constraint's reaction is not part of it.
         """
         held = bool(np.any(self._held))
         effects = self._pushing_effects
@@ -611,38 +604,26 @@ class Simulator:
         # Called once a tick by the node: no closure, no call more than needed.
         values = self._values
         self._checkpoint[:] = values
-        if self._fast:
-            run = self._run
-            if run is None:
-                run = self._load_kernels()
-            # The kernel tests the state it leaves (kernels/loop.py): -1 if not finite.
-            finite = run(values, self._model, self._integrator.method, dt, steps,
-                         self._time) >= 0
-        else:
-            self._readable_run(values, self._model, None, dt, steps, self._time)
-            finite = _all_finite(values)
+        run = self._run
+        if run is None:
+            run = self._load_kernels()
+        # The kernel tests the state it leaves (kernels/loop.py): -1 if not finite.
+        finite = run(values, self._model, self._integrator.method, dt, steps, self._time) >= 0
         self._advanced(steps * dt if duration is None else duration, finite)
 
     def _controlled(self, tick, ticks):
         """
         Take `ticks` outer steps of `tick` s under error control (error_control.py).
 
-        Compiled: one call of the integrator's controlled kernel takes them all.  Readable:
-        the same controller, as Python, around the readable steps.
+        One call of the controller takes them all, around the integrator's run kernel.
         """
         values = self._values
         self._checkpoint[:] = values
-        integrator = self._integrator
-        finite = True
-        if self._fast:
-            if self._run is None:
-                self._load_kernels()
-            finite = self._controller(self._controlled_run, values, self._model,
-                                      integrator.method, tick, ticks, self._time,
-                                      self._control) >= 0
-        else:
-            error_control.controlled_ticks(self._readable_run, values, self._model, None, tick,
-                                           ticks, self._time, self._control)
+        if self._run is None:
+            self._load_kernels()
+        finite = self._controller(self._controlled_run, values, self._model,
+                                  self._integrator.method, tick, ticks, self._time,
+                                  self._control) >= 0
         self._advanced(ticks * tick, finite and _all_finite(values))
 
     def _load_kernels(self):
@@ -656,28 +637,6 @@ class Simulator:
             self._run = self._controlled_run = self._integrator.run
             self._controller = error_control.controlled.dispatcher
         return self._run
-
-    def _readable_run(self, values, model, method, dt, steps, time):
-        """
-        Take the steps with the readable step function on the packed array `values`.
-
-        Each step is flow(dt/2), step(dt), flow(dt/2) with the effects' Python faces; the
-        same signature as the kernels' run (the controller drives either).
-        """
-        step, wrench = self._integrator.step, self.wrench_function()
-        constraint, flows = self._constraint, self._flows
-        if constraint is not None:
-            wrench = constraint.wrench(wrench)
-        state = State._from_values(values)
-        body, half = self._integrated_body, 0.5 * dt
-        for k in range(steps):
-            for effect in flows:
-                state = effect.flow(body, state, half)
-            state = step(body, state, time + k * dt, dt, wrench)
-            for effect in reversed(flows):
-                state = effect.flow(body, state, half)
-        np.concatenate(state._fields(), out=values)
-        return steps
 
     def _add_time(self, increment):
         # Kahan summation: keeps the clock exact to round-off over millions of ticks, where a

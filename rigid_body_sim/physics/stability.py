@@ -10,10 +10,13 @@ turns non-finite in a few steps (issue 22: `drag: {rotational_linear: 10}` on a 
 The limit of each integrator is measured on its own compiled kernel, not tabled by hand
 (:func:`decay_limit`): a sphere under linear rotational drag, L shrinking by the method's
 amplification factor g(lambda h) per step; the limit is the first lambda h at which |g|
-exceeds 1.  A new integrator gets its limit without an edit here.  Measured: first_order 2.0
-(Euler), rk4 2.78, buss, buss_plain, splitting and exact 3.08 (two kicks of h/2, the second
-started from the first's estimate: kernels/model.py's impulse; 4.0 when each took two
-evaluations), splitting4 6.36 (7.3 before; its kicks are of at most 0.66 h / 2).
+exceeds 1.  A new integrator gets its limit without an edit here.  The theory follows from
+the registration (test/test_stiff_and_divergent.py checks each measured limit against it):
+an explicit method of order p <= 4 with p stages has the truncated exponential as its
+amplification factor (Euler 2, classical RK4 2.785); a kick-drift-kick stage of c h has
+g(c z) = (1 - c z/2)(1 - c z/2 + c^2 z^2/4) (two kicks of c h/2, the second started from the
+first's estimate: kernels/model.py's impulse), 3.087 for one stage, and a composition of
+stages the product of theirs.
 
 Effects say how stiff they are (``damping_rate(body) -> (rate 1/s, what)``, registry.py); the
 Simulator checks each new step against them (:func:`stiffness_problem`).
@@ -23,6 +26,14 @@ import functools
 import math
 
 import numpy as np
+
+from .body import RigidBody
+from .effects import Drag
+from .integrators import get_integrator
+from .kernels import interpreting
+from .kernels.layout import body_values
+from .kernels.layout import STATE_SIZE
+from .kernels.model import new_model
 
 __all__ = ['decay_limit', 'stiffness_problem', 'step_problem', 'LIMIT_MARGIN']
 
@@ -37,24 +48,27 @@ def decay_limit(integrator):
     """
     Return the largest lambda h (dimensionless) at which `integrator` damps y' = -lambda y.
 
-    Measured on the integrator's kernel: a unit sphere (I = 1 kg m^2) turning at 1 rad/s
-    under linear rotational drag k1 = 1 N m s (lambda = 1/s), one step of h from the same
-    state for each h of a scan; the first h at which |L| grows ends the stable range.
+    Measured on the integrator's run kernel (compiled, or its source while interpreting): a
+    unit sphere (I = 1 kg m^2) turning at 1 rad/s under linear rotational drag k1 = 1 N m s
+    (lambda = 1/s), one step of h from the same state for each h of a scan; the first h at
+    which |L| grows ends the stable range.
     """
-    from .body import RigidBody
-    from .effects import Drag
-    from .simulator import Simulator
-    from .state import State
+    method = get_integrator(integrator)
     body = RigidBody(1.0, (1.0, 1.0, 1.0))
-    state = State(angular_momentum=(0.0, 0.0, 1.0))
-    simulator = Simulator(body, state, integrator=integrator,
-                          effects=[Drag(rotational_linear=1.0)])
+    drag = Drag(rotational_linear=1.0)
+    model = new_model(body_values(body.inertia, body.inertia_inverse, body.mass),
+                      np.zeros((4, 3)),
+                      terms=[(drag.compiled_wrench, drag.wrench_parameters(body))],
+                      momentum_dependent=drag.momentum_dependent,
+                      reads_state=drag.reads_state, interpreted=interpreting())
+    # At rest at the origin, unturned (q = (0, 0, 0, 1)), L = (0, 0, 1) kg m^2/s.
+    start = np.zeros(STATE_SIZE)
+    start[3] = start[12] = 1.0
     previous = 0.0
     for h in _SCAN:
-        simulator.reset(state)
-        # One fixed step, past the Simulator's own check (which asks this function).
-        simulator._advance(1, float(h))
-        if not abs(simulator.state.angular_momentum[2]) <= 1.0:
+        values = start.copy()
+        method.run_kernel(values, model, method.method, float(h), 1, 0.0)
+        if not abs(values[12]) <= 1.0:
             return float(previous)
         previous = float(h)
     return float(previous)

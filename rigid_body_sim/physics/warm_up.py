@@ -13,7 +13,8 @@ of :func:`compile_job`, so that the ``compile`` command can take them in paralle
 An integrator is compiled when its jobs are marked compiled in the kernel folder of these
 sources and the folder's sealed files are intact (:mod:`.kernels.cache`).  How long a job
 takes: the CPU seconds it took on this machine, read from its marker (of these sources or of
-earlier ones), else :data:`DEFAULT_SECONDS`.
+earlier ones), else the estimate declared with its kernel (the run kernels' and the
+controller's ``compile_seconds``; :data:`SHARED_SECONDS`).
 """
 
 import time
@@ -33,23 +34,22 @@ from .kernels.derived import derived_quantities
 from .simulator import Simulator
 from .state import State
 
-__all__ = ['SHARED', 'CONTROLLER', 'DEFAULT_SECONDS', 'run_job', 'jobs_of', 'all_jobs',
-           'missing_jobs', 'is_compiled', 'missing', 'job_estimate', 'compile_estimate',
-           'compile_job', 'load_kernels', 'damaged_files', 'WORKER_START']
+__all__ = ['SHARED', 'CONTROLLER', 'SHARED_SECONDS', 'run_job', 'jobs_of', 'all_jobs',
+           'missing_jobs', 'is_compiled', 'missing', 'declared_seconds', 'job_estimate',
+           'compile_estimate', 'compile_job', 'load_kernels', 'damaged_files', 'WORKER_START']
 
 SHARED = 'shared'
 CONTROLLER = 'controller'
 
-DEFAULT_SECONDS = {'shared': 4.0, 'controller': 5.5, 'run-buss': 10.0, 'run-exact': 25.0,
-                   'run-first_order': 3.5, 'run-rk4': 22.0, 'run-splitting': 8.0}
-"""CPU seconds each job took to compile on the 2-core development machine (`rigid-body-sim
-compile` prints each job's figure); the estimate where this machine has not compiled a job
-yet.  A job missing here: 10 s."""
+SHARED_SECONDS = 4.0
+"""CPU seconds the shared job (:func:`_shared`) takes to compile on the 2-core development
+machine (`rigid-body-sim compile` prints each job's figure): its estimate where this machine
+has not compiled it yet."""
 
 
 def run_job(name):
     """Return the job of integrator `name`'s run kernel (``run-<its module>``)."""
-    return 'run-' + get_integrator(name).run_kernel.__module__.rsplit('.', 1)[-1]
+    return get_integrator(name).compile_job
 
 
 def jobs_of(names):
@@ -99,10 +99,23 @@ def missing(names=None):
             if not is_compiled(name)]
 
 
+def declared_seconds():
+    """Return {job: the CPU seconds declared with its kernels} for every job."""
+    declared = {SHARED: SHARED_SECONDS, CONTROLLER: error_control.controlled.compile_seconds}
+    for integrator in INTEGRATORS.values():
+        declared[integrator.compile_job] = integrator.compile_seconds
+    return declared
+
+
 def job_estimate(job):
     """Return the CPU seconds `job` takes to compile here, roughly (see the module)."""
     measured = cache.measured_seconds(job)
-    return measured if measured is not None else DEFAULT_SECONDS.get(job, 10.0)
+    if measured is not None:
+        return measured
+    declared = declared_seconds()
+    if job not in declared:
+        raise ValueError(f'unknown kernel job {job!r}; jobs: {", ".join(all_jobs())}')
+    return declared[job]
 
 
 WORKER_START = 1.5
@@ -158,8 +171,8 @@ def compile_job(job):
     elif job == CONTROLLER:
         error_control.controlled.dispatcher
     else:
-        kernels = {run_job(name): integrator.run_kernel
-                   for name, integrator in INTEGRATORS.items()}
+        kernels = {integrator.compile_job: integrator.run_kernel
+                   for integrator in INTEGRATORS.values()}
         if job not in kernels:
             raise ValueError(f'unknown kernel job {job!r}; jobs: {", ".join(all_jobs())}')
         kernels[job].dispatcher

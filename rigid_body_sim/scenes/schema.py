@@ -187,7 +187,7 @@ class Scene:
         """Return the names of the scene's effects, in order."""
         return [getattr(effect, 'effect_name', type(effect).__name__) for effect in self.effects]
 
-    def simulator(self, body=None, state=None, integrator=None, fast=True, tolerance=None):
+    def simulator(self, body=None, state=None, integrator=None, tolerance=None):
         """
         Return a Simulator of this scene, with its effects.
 
@@ -200,8 +200,6 @@ class Scene:
             Replaces the initial state (projected onto a pivot, if the scene has one).
         integrator : str, optional
             Replaces the scene's integrator.
-        fast : bool
-            Passed to Simulator: use the compiled kernels where they apply.
         tolerance : float, optional
             Replaces the scene's tolerance (rad/s; 0: off).
 
@@ -209,7 +207,7 @@ class Scene:
         return Simulator(self.body if body is None else body,
                          self.state if state is None else state,
                          integrator=self.integrator if integrator is None else integrator,
-                         effects=self.effects, fast=fast,
+                         effects=self.effects,
                          tolerance=self.tolerance if tolerance is None else tolerance)
 
     def with_overrides(self, mass=None, inertia=None, orientation=None,

@@ -183,27 +183,3 @@ class PivotConstraint:
         """Return L_pivot = L_com + r x p of a physical state, kg m^2/s, world frame."""
         r = state.rotation @ self.offset_body
         return state.angular_momentum + cross_product(r, state.linear_momentum)
-
-    def wrench(self, wrench):
-        """
-        Return the pivot system's wrench: (0, tau + r x F) from the physical one.
-
-        `wrench(state, time)` acts on physical states (force through the COM, torque about
-        it); the returned one on pivot-system states (the readable steps' form of the
-        compiled :func:`expand` and :func:`transmit`).
-        """
-        if wrench is None:
-            return None
-        parameters = self.parameters
-
-        def pivot_wrench(state, time):
-            values = np.concatenate(state._fields())
-            physical = np.empty(13)
-            expand(values, parameters, physical)
-            force, torque = wrench(State._from_values(physical), time)
-            transmitted = transmit(values, (*map(float, force), *map(float, torque)),
-                                   parameters)
-            return np.zeros(3), np.array(transmitted[3:])
-
-        pivot_wrench.momentum_dependent = getattr(wrench, 'momentum_dependent', False)
-        return pivot_wrench

@@ -33,8 +33,10 @@ once, as compiled code (kernels/model.py), so that every integrator runs it comp
 - ``example``: a dict of typical parameters (required): the tests run every effect, built
   from it, under every integrator, so a new effect is covered without editing them.
 
-The base class :class:`Effect` gives every effect its Python face from the compiled one:
-``wrench(body, state, time) -> (force, torque)`` and ``flow(body, state, dt) -> State``.
+The base class :class:`Effect` lets Python call the compiled code on a State:
+``wrench(body, state, time) -> (force, torque)`` and ``flow(body, state, dt) -> State`` (what
+the kernels compute, not a second form of it: the tests' independent references of each
+effect are in test/).
 Only what a scene names is computed: an effect that has none of these costs nothing.
 
 Adding an effect: one module with a class decorated by :func:`register_effect`, imported in
@@ -134,7 +136,7 @@ class Effect:
     """
     Base of the effects: the protocol's defaults, Python faces of the compiled code, a repr.
 
-    The faces: :meth:`wrench` and :meth:`flow` call the compiled wrench and flow.
+    :meth:`wrench` and :meth:`flow` call the compiled wrench and flow from Python.
 
     Subclasses keep each constructor argument as an attribute of the same name, so that the
     repr shows the parameters in force.

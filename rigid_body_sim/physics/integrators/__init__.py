@@ -2,8 +2,8 @@
 Integrators, registered by name in :data:`INTEGRATORS` (see :mod:`.registry`).
 
 One module per method, named by it; importing this package imports each, which registers
-itself.  Adding an integrator: its module (a readable step, a compiled step and its two
-kernels, registered with ``register_integrator``) and its import here.
+itself.  Adding an integrator: its module (its compiled step and run kernel, registered with
+``register_integrator``) and its import here.
 """
 
 from . import buss  # noqa: F401  (registers buss, buss_plain)

@@ -14,15 +14,11 @@ rotations about omega and alpha not commuting; ``buss_plain`` drops it.  World L
 touched by the turn, so torque-free motion conserves it exactly.  A wrench enters as half
 kicks of the momenta around the turn (Strang splitting), which keeps second order.
 
-Two forms of one method, side by side: the readable step in the world frame, as the paper
-writes it, and the compiled step, which forms the same turn from body-frame vectors and
-applies it on the right (exp(h [w]x) R = R exp(h [R^T w]x)), never building I_w = R I_b R^T.
+The step forms the paper's world-frame turn from body-frame vectors and applies it on the
+right (exp(h [w]x) R = R exp(h [R^T w]x)), never building I_w = R I_b R^T.
 """
 
-from .readable import free_translation
-from .readable import kick_drift_kick
-from .readable import rotate_by_world_vector
-from .readable import world_inertia_inverse
+from .registry import KICK_STAGE
 from .registry import register_integrator
 from ..kernels import inline
 from ..kernels.algebra import cross
@@ -36,39 +32,8 @@ from ..kernels.loop import run_kernel
 from ..kernels.loop import run_steps
 from ..kernels.model import kick
 from ..kernels.model import NO_ESTIMATE
-from ..rotations import cross as cross_product
-from ..state import State
 
-__all__ = ['buss', 'buss_plain', 'buss_free_step']
-
-
-# -- readable form (world frame)
-
-
-def buss_free_step(body, state, dt, augmented=True):
-    """
-    Return Buss's torque-free step (the drift); world L and p are unchanged.
-
-    alpha = I_w^{-1} (-omega x L) and w = omega + (h/2) alpha + (h^2/12) (alpha x omega);
-    augmented=False drops the last term (the plain method).
-    """
-    inertia_inverse_world = world_inertia_inverse(body, state.rotation)
-    angular_momentum = state.angular_momentum
-    omega = inertia_inverse_world @ angular_momentum
-    alpha = inertia_inverse_world @ (-cross_product(omega, angular_momentum))
-    effective = omega + (0.5 * dt) * alpha
-    if augmented:
-        effective = effective + (dt * dt / 12.0) * cross_product(alpha, omega)
-    quaternion = rotate_by_world_vector(state.quaternion, dt * effective)
-    return State._from_arrays(quaternion, free_translation(state, dt, body.mass),
-                              state.linear_momentum, angular_momentum)
-
-
-def _buss_plain_free_step(body, state, dt):
-    return buss_free_step(body, state, dt, augmented=False)
-
-
-# -- compiled form (body frame, packed arrays)
+__all__ = ['buss', 'buss_plain']
 
 
 @inline
@@ -103,24 +68,17 @@ def step(state, forcing, method, dt, time, pushed, translates):
         kick(state, time + dt, half, forcing, estimate, True)
 
 
-@run_kernel
+@run_kernel(compile_seconds=10.0)
 def run(state, model, method, dt, steps, time):
     """Take `steps` Buss steps of dt s from `time` (kernels/loop.py)."""
     return run_steps(step, state, model, method, dt, steps, time)
 
 
-@register_integrator('buss', order=2, run=run, method=(1.0,))
-def buss(body, state, time, dt, wrench):
-    """
-    Buss's augmented second-order method (J. Comput. Phys. 164:377, 2000).
-
-    Torque-free it is exactly Buss's step (see :func:`buss_free_step`); a wrench enters as
-    half kicks of the momenta around it (Strang splitting), which keeps second order.
-    """
-    return kick_drift_kick(body, state, time, dt, wrench, buss_free_step)
-
-
-@register_integrator('buss_plain', order=2, run=run, method=(0.0,))
-def buss_plain(body, state, time, dt, wrench):
-    """Buss's plain second-order method: :func:`buss` without the h^2/12 term."""
-    return kick_drift_kick(body, state, time, dt, wrench, _buss_plain_free_step)
+buss = register_integrator(
+    'buss', order=2, run=run, method=(1.0,), kicks=KICK_STAGE,
+    conserves=('angular_momentum',),
+    summary="Buss's augmented second-order method (the default)")
+buss_plain = register_integrator(
+    'buss_plain', order=2, run=run, method=(0.0,), kicks=KICK_STAGE,
+    conserves=('angular_momentum',),
+    summary="Buss's plain second-order method: buss without the h^2/12 term")

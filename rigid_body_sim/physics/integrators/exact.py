@@ -88,20 +88,17 @@ construction: 7.1e-12 / 4.3e-11 / 4.0e-10); the T-handle 1.5e-14 / 1.1e-14 / 2.2
 alone: a floor no computed step reaches).
 
 Everything is world frame except m (principal or circulation frame); SI units.  One
-construction, compiled (scalars); the readable step calls it on a State
-(:func:`exact_free_flow`) and composes it with the readable kicks.
+construction, compiled (scalars): :func:`free_rotation`, composed with the kicks by
+:func:`step`.
 """
 
 import math
 
-import numpy as np
-
-from .readable import free_translation
-from .readable import kick_drift_kick
+from .registry import KICK_STAGE
 from .registry import register_integrator
-from ..elliptic import carlson_rf_compiled
-from ..elliptic import carlson_rj_compiled
-from ..elliptic import jacobi_elliptic_compiled
+from ..elliptic import carlson_rf
+from ..elliptic import carlson_rj
+from ..elliptic import jacobi_elliptic
 from ..kernels import helper
 from ..kernels import inline
 from ..kernels import outlined
@@ -119,12 +116,10 @@ from ..kernels.model import kick
 from ..kernels.model import NO_ESTIMATE
 from ..principal_frame import ASYMMETRIC
 from ..principal_frame import OBLATE
-from ..principal_frame import principal_frame
 from ..principal_frame import PROLATE
 from ..principal_frame import SPHERICAL
-from ..state import State
 
-__all__ = ['exact_free_flow', 'exact_free_rotation', 'free_rotation', 'exact']
+__all__ = ['free_rotation', 'exact']
 
 _QUARTER_PERIOD_FLOOR = 0.5 * math.pi
 _SHORT_STEP_SN = 0.75
@@ -201,7 +196,8 @@ def _twice_energy(qx, qy, qz, qw, lx, ly, lz, axes, moments):
     """
     Return (2T, |q|^2) as double-doubles for the orientation q/|q|, q given as double-doubles.
 
-    The readable _twice_energy_exactly: 2T = 2T_h(q) / |q|^4 with the homogeneous R_h(q).
+    2T = 2T_h(q) / |q|^4 with the homogeneous R_h(q), quadratic in q (the test suite's
+    test/exact_rounding_reference.py forms the same value exactly).
     """
     xx, yy, zz, ww = _dd_mul(qx, qx), _dd_mul(qy, qy), _dd_mul(qz, qz), _dd_mul(qw, qw)
     xy, xz, yz = _dd_mul(qx, qy), _dd_mul(qx, qz), _dd_mul(qy, qz)
@@ -265,12 +261,18 @@ def _symmetric_increment(mx, my, mz, momentum_norm, moments, axes, kind, duratio
 
 @helper
 def _third_kind_part(sn, cn, dn, b_over_a):
-    return sn ** 3 * carlson_rj_compiled(cn * cn, dn * dn, 1.0, 1.0 + b_over_a * sn * sn)
+    return sn ** 3 * carlson_rj(cn * cn, dn * dn, 1.0, 1.0 + b_over_a * sn * sn)
 
 
 @helper
 def _increments_by_addition(s0, c0, d0, sh, ch, dh, parameter, b_over_a):
-    """Compute the readable increments by addition; ok is False where it returns None."""
+    """
+    Return (ok, dsn, dcn, ddn, dTheta, dP) over a step of h from u0, by addition theorems.
+
+    s0, c0, d0: sn, cn, dn at u0; sh, ch, dh: at the (reduced) h (the module docstring,
+    step 2).  ok is False where the addition theorems are ill-conditioned (a long step next
+    to a quarter period), and the values at both ends are subtracted instead.
+    """
     sum_form = c0 * c0 + s0 * s0 * dh * dh
     if sum_form < _WELL_CONDITIONED:
         return False, 0.0, 0.0, 0.0, 0.0, 0.0
@@ -311,22 +313,22 @@ def _increments_by_addition(s0, c0, d0, sh, ch, dh, parameter, b_over_a):
 
 @helper
 def _increments_from_the_ends(s0, c0, d0, reduced, parameter, complement, b_over_a):
-    """Compute the readable _increments_from_the_ends."""
-    u0 = s0 * carlson_rf_compiled(c0 * c0, d0 * d0, 1.0)
+    """Return (dsn, dcn, ddn, dTheta, dP) from the values at both ends of the step (u0, u0 + h)."""
+    u0 = s0 * carlson_rf(c0 * c0, d0 * d0, 1.0)
     end = u0 + reduced
     turns = 0
     if complement > 0.0:
-        half_period = 2.0 * carlson_rf_compiled(0.0, complement, 1.0)
+        half_period = 2.0 * carlson_rf(0.0, complement, 1.0)
         turns = int(round(end / half_period))
         end -= half_period * turns
-    s1, c1, d1 = jacobi_elliptic_compiled(end, parameter, complement)
+    s1, c1, d1 = jacobi_elliptic(end, parameter, complement)
     theta = (turns * math.pi + math.atan2(math.sqrt(1.0 + b_over_a) * s1, c1)
              - math.atan2(math.sqrt(1.0 + b_over_a) * s0, c0))
     third = 0.0
     if b_over_a != 0.0:
         third = _third_kind_part(s1, c1, d1, b_over_a) - _third_kind_part(s0, c0, d0, b_over_a)
         if turns != 0:
-            third += 2.0 * turns * carlson_rj_compiled(0.0, complement, 1.0, 1.0 + b_over_a)
+            third += 2.0 * turns * carlson_rj(0.0, complement, 1.0, 1.0 + b_over_a)
     if turns % 2 != 0:
         s1, c1 = -s1, -c1
     return s1 - s0, c1 - c0, d1 - d0, theta, third
@@ -334,7 +336,7 @@ def _increments_from_the_ends(s0, c0, d0, reduced, parameter, complement, b_over
 
 @helper
 def _turn_about_momentum_increment(nx, ny, nz, dx, dy, dz, angle):
-    """Compute the readable turn-about-momentum increment (body frame)."""
+    """Return D - 1 = R_n(angle) S(n + d -> n) - 1 as a quaternion increment (body frame)."""
     tx, ty, tz = dy * nz - dz * ny, dz * nx - dx * nz, dx * ny - dy * nx
     tilt_squared = tx * tx + ty * ty + tz * tz
     alignment = 1.0 + (nx * nx + ny * ny + nz * nz) + (nx * dx + ny * dy + nz * dz)
@@ -412,11 +414,11 @@ def _asymmetric_increment(bx, by, bz, momentum_norm, moments, axes, duration):
     step = rate * duration
     turns, reduced = 0, step
     if complement > 0.0 and abs(step) > _QUARTER_PERIOD_FLOOR:
-        half_period = 2.0 * carlson_rf_compiled(0.0, complement, 1.0)
+        half_period = 2.0 * carlson_rf(0.0, complement, 1.0)
         turns = int(round(step / half_period))
         reduced = step - half_period * turns
     b_over_a = c_squared * parameter / a
-    sh, ch, dh = jacobi_elliptic_compiled(reduced, parameter, complement)
+    sh, ch, dh = jacobi_elliptic(reduced, parameter, complement)
     ok, d_sn, d_cn, d_dn, theta, third_kind = _increments_by_addition(
         s0, c0, d0, sh, ch, dh, parameter, b_over_a)
     if not ok:
@@ -424,7 +426,7 @@ def _asymmetric_increment(bx, by, bz, momentum_norm, moments, axes, duration):
             s0, c0, d0, reduced, parameter, complement, b_over_a)
     theta += turns * math.pi
     if turns != 0 and b_over_a != 0.0:
-        third_kind += 2.0 * turns * carlson_rj_compiled(0.0, complement, 1.0, 1.0 + b_over_a)
+        third_kind += 2.0 * turns * carlson_rj(0.0, complement, 1.0, 1.0 + b_over_a)
     third_kind *= momentum_norm * momentum_norm * amplitude_c * parameter / (3.0 * a * a)
     alpha = math.sqrt(1.0 + b_over_a)
     integral = -amplitude_c / a * step + momentum_norm / (a * alpha) * theta + third_kind
@@ -460,7 +462,7 @@ def _to_body(vx, vy, vz, f1, f2, f3, column1, column2, column3, axes):
 
 @helper
 def _rounded_step(q, increment, lx, ly, lz, moments, axes, kind):
-    """Round q + q (D - 1) once, normalised, with the energy of q (readable _rounded_step)."""
+    """Round q + q (D - 1) once, normalised, with the energy of q (the module docstring)."""
     x, y, z, w = q
     vx, vy, vz, s = increment
     # q (D - 1)
@@ -498,6 +500,16 @@ def _rounded_step(q, increment, lx, ly, lz, moments, axes, kind):
 
 @outlined
 def free_rotation(q, lx, ly, lz, moments, axes, kind, duration):
+    """
+    Return the unit quaternion after `duration` s of torque-free rotation, exactly.
+
+    q: the orientation (x, y, z, w), body to world, a unit 4-tuple; L = (lx, ly, lz): the
+    world angular momentum about the COM (kg m^2/s), constant in the motion; moments, axes,
+    kind: the body's principal frame (principal_frame.py); duration: any sign, any size.
+    Exact up to round-off for every body (asymmetric, symmetric, spherical) and every state
+    (near the separatrix and on it, steady spins), rounded once; its kinetic energy is that
+    of q before that rounding (see the module docstring for the construction).
+    """
     if (lx == 0.0 and ly == 0.0 and lz == 0.0) or duration == 0.0:
         return q
     largest = max(abs(lx), abs(ly), abs(lz))
@@ -550,67 +562,16 @@ def step(state, forcing, method, dt, time, pushed, translates):
         kick(state, time + dt, half, forcing, estimate, True)
 
 
-@run_kernel
+@run_kernel(compile_seconds=25.0)
 def run(state, model, method, dt, steps, time):
     """Take `steps` exact steps of dt s from `time` (kernels/loop.py)."""
     return run_steps(step, state, model, method, dt, steps, time)
 
 
-# -- readable form
-
-
-def exact_free_rotation(body, quaternion, angular_momentum, duration):
-    """
-    Return the orientation after `duration` s of torque-free rotation, exactly.
-
-    Parameters
-    ----------
-    body : RigidBody
-        Mass properties (any inertia tensor; solved in its principal frame).
-    quaternion : array_like, shape (4,)
-        Initial orientation (x, y, z, w), body to world.
-    angular_momentum : array_like, shape (3,)
-        World angular momentum about the COM (kg m^2/s), constant in the motion.
-    duration : float
-        Time span in s (any sign, any size).
-
-    Returns
-    -------
-    numpy.ndarray, shape (4,)
-        The unit quaternion (x, y, z, w) at the end: exact up to round-off, for every body
-        (asymmetric, symmetric, spherical) and every state (near the separatrix and on it,
-        steady spins), rounded once; its kinetic energy is that of the start before that
-        rounding.  See the module docstring for the construction.
-
-    """
-    q = tuple(float(c) for c in quaternion)
-    norm_squared = sum(c * c for c in q)
-    if abs(norm_squared - 1.0) > 1e-12:
-        q = normalised(q)
-    frame = principal_frame(body.inertia)
-    lx, ly, lz = (float(c) for c in angular_momentum)
-    return np.array(free_rotation(q, lx, ly, lz, frame.moments, frame.axes, frame.kind,
-                                  float(duration)))
-
-
-def exact_free_flow(body, state, duration):
-    """
-    Return the State after `duration` s of force- and torque-free motion, exactly.
-
-    World L and p are constant, the COM moves uniformly and the orientation is
-    :func:`exact_free_rotation`.  Usable as a reference solution at any time.
-    """
-    quaternion = exact_free_rotation(body, state.quaternion, state.angular_momentum, duration)
-    return State._from_arrays(quaternion, free_translation(state, duration, body.mass),
-                              state.linear_momentum, state.angular_momentum)
-
-
-@register_integrator('exact', order=2, run=run)
-def exact(body, state, time, dt, wrench):
-    """
-    Exact torque-free flow; a wrench enters as half kicks around it (Strang splitting).
-
-    Torque-free the step is exact at any dt (error: round-off only).  With a wrench it is
-    second order in dt, with error constants set by the wrench alone: the registered order.
-    """
-    return kick_drift_kick(body, state, time, dt, wrench, exact_free_flow)
+# Torque-free the step is exact at any dt (error: round-off only); with a wrench it is second
+# order in dt, with error constants set by the wrench alone: the registered order.
+exact = register_integrator(
+    'exact', order=2, run=run, kicks=KICK_STAGE,
+    conserves=('angular_momentum', 'rotational_energy'), exact_torque_free=True,
+    summary='the torque-free flow in Jacobi elliptic functions (round-off at any step), '
+            'kicked by a wrench')

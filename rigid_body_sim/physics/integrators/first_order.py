@@ -7,15 +7,11 @@ x <- x + h p/m + h^2 F/(2m) (the exact motion under the held force, so a constan
 gives the exact parabola and a constant torque the exact L(t)).  World L is not touched by
 the turn, so torque-free motion conserves it exactly.
 
-The readable step in the world frame and the compiled step (the same turn formed in the
-body frame, applied on the right), side by side.
+The step forms the turn in the body frame and applies it on the right:
+exp(h [omega]x) R = R exp(h [Omega]x), Omega = R^T omega = I_b^{-1} R^T L, never building
+I_w = R I_b R^T.
 """
 
-import numpy as np
-
-from .readable import free_translation
-from .readable import rotate_by_world_vector
-from .readable import world_inertia_inverse
 from .registry import register_integrator
 from ..kernels import inline
 from ..kernels.algebra import rotate_back
@@ -27,7 +23,6 @@ from ..kernels.layout import quaternion_of
 from ..kernels.loop import run_kernel
 from ..kernels.loop import run_steps_specialised
 from ..kernels.model import integrated_wrench
-from ..state import State
 
 __all__ = ['first_order']
 
@@ -53,26 +48,12 @@ def step(state, forcing, method, dt, time, pushed, translates):
         dt * omega_body[0], dt * omega_body[1], dt * omega_body[2]))
 
 
-@run_kernel
+@run_kernel(compile_seconds=3.5)
 def run(state, model, method, dt, steps, time):
     """Take `steps` first-order steps of dt s from `time` (kernels/loop.py)."""
     return run_steps_specialised(step, state, model, method, dt, steps, time)
 
 
-@register_integrator('first_order', order=1, run=run)
-def first_order(body, state, time, dt, wrench):
-    """Seed's simple first-order method (see the module docstring)."""
-    omega = world_inertia_inverse(body, state.rotation) @ state.angular_momentum
-    quaternion = rotate_by_world_vector(state.quaternion, dt * omega)
-    position = free_translation(state, dt, body.mass)
-    if wrench is None:
-        return State._from_arrays(quaternion, position, state.linear_momentum,
-                                  state.angular_momentum)
-    force, torque = wrench(state, time)
-    linear_momentum = state.linear_momentum
-    if np.any(force):
-        # Only a force moves the COM from rest (a torque alone leaves it where it is).
-        position = position + 0.5 * dt * dt * force / body.mass
-        linear_momentum = linear_momentum + dt * force
-    return State._from_arrays(quaternion, position, linear_momentum,
-                              state.angular_momentum + dt * torque)
+first_order = register_integrator(
+    'first_order', order=1, run=run, summary="the seed's simple first-order method",
+    wrench_samples=((0.0, 1.0),), conserves=('angular_momentum',))

@@ -22,12 +22,7 @@ rotation matrix inside the stages and was 10^2-10^5 x less accurate near the sep
 A baseline, not a geometric method: it conserves neither |q| (restored after each step)
 nor the energy, nor, torque-free, the world angular momentum (L = R m drifts at the
 method's order, ~h^4); it is fourth order.
-
-The readable step (numpy, as a textbook writes it) and the compiled step (scalars) side by
-side; both end the step with :func:`world_momentum_change`, written once.
 """
-
-import numpy as np
 
 from .registry import register_integrator
 from ..kernels import helper
@@ -46,8 +41,6 @@ from ..kernels.layout import quaternion_of
 from ..kernels.loop import run_kernel
 from ..kernels.loop import run_steps_specialised
 from ..kernels.model import integrated_wrench
-from ..rotations import matrix_from_quaternion
-from ..state import State
 
 __all__ = ['rk4', 'world_momentum_change']
 
@@ -79,55 +72,6 @@ def world_momentum_change(quaternion, quaternion_change, momentum_body, momentum
             momentum_change[2] + scale * (scalar * turned[2] + twice[2]))
 
 
-# -- readable form (numpy)
-
-
-def _derivative(body, quaternion, position, linear_momentum, momentum_body, time, wrench):
-    """Return d/dt of (q, x, p, m): (1/2 q * (Omega, 0), p / m, F, m x Omega + R^T tau)."""
-    omega_body = body.inertia_inverse @ momentum_body
-    # q * (Omega, 0): the body angular velocity acts on the right.
-    quaternion_rate = 0.5 * np.array(quaternion_product(quaternion, (*omega_body, 0.0)))
-    momentum_rate = np.array(cross(momentum_body, omega_body))
-    force = np.zeros(3)
-    if wrench is not None:
-        unit = quaternion / np.sqrt(quaternion @ quaternion)
-        rotation = matrix_from_quaternion(unit)
-        force, torque = wrench(State._from_arrays(unit, position, linear_momentum,
-                                                  rotation @ momentum_body), time)
-        momentum_rate = momentum_rate + rotation.T @ torque
-    return quaternion_rate, linear_momentum / body.mass, force, momentum_rate
-
-
-def rk4(body, state, time, dt, wrench):
-    """Classical RK4 step of (q, x, p, m = R^T L); the wrench is sampled at all 4 stages."""
-    y0 = (state.quaternion, state.position, state.linear_momentum,
-          state.rotation.T @ state.angular_momentum)
-
-    def f(y, t):
-        return _derivative(body, *y, t, wrench)
-
-    def add(y, k, h):
-        return tuple(a + h * b for a, b in zip(y, k))
-
-    k1 = f(y0, time)
-    k2 = f(add(y0, k1, 0.5 * dt), time + 0.5 * dt)
-    k3 = f(add(y0, k2, 0.5 * dt), time + 0.5 * dt)
-    k4 = f(add(y0, k3, dt), time + dt)
-    quaternion_change, position_change, linear_momentum_change, momentum_change = (
-        dt / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4) for b1, b2, b3, b4 in zip(k1, k2, k3, k4))
-    quaternion = state.quaternion + quaternion_change
-    quaternion = quaternion / np.sqrt(quaternion @ quaternion)
-    angular_momentum = state.angular_momentum + state.rotation @ np.array(
-        world_momentum_change(state.quaternion, quaternion_change,
-                              y0[3] + momentum_change, momentum_change))
-    return State._from_arrays(quaternion, state.position + position_change,
-                              state.linear_momentum + linear_momentum_change,
-                              angular_momentum)
-
-
-# -- compiled form (scalars)
-
-
 @helper
 def _stage4(y, k, h):
     """Return the 4-tuple y + h k."""
@@ -147,7 +91,7 @@ def _derivatives(q, momentum_body, position, linear_momentum, time, forcing, pus
 
     dq = 1/2 q * (Omega, 0), dm = m x Omega + R^T tau (body frame), F (world), with
     Omega = I_b^{-1} m and the wrench taken at the stage's state (the normalised q, the
-    stage's position and momenta) and time, as the readable step samples it.
+    stage's position and momenta) and time.
     """
     omega = inverse_inertia_times(forcing.body, momentum_body)
     product = quaternion_product(q, (omega[0], omega[1], omega[2], 0.0))
@@ -213,10 +157,13 @@ def step(state, forcing, method, dt, time, pushed, translates):
             state[7 + i] = p0[i] + sixth * (f1[i] + 2.0 * f2[i] + 2.0 * f3[i] + f4[i])
 
 
-@run_kernel
+@run_kernel(compile_seconds=22.0)
 def run(state, model, method, dt, steps, time):
     """Take `steps` RK4 steps of dt s from `time` (kernels/loop.py)."""
     return run_steps_specialised(step, state, model, method, dt, steps, time)
 
 
-register_integrator('rk4', order=4, run=run)(rk4)
+rk4 = register_integrator(
+    'rk4', order=4, run=run,
+    summary='classical Runge-Kutta on the body-frame Euler equations and the quaternion',
+    wrench_samples=((0.0, 1.0 / 6.0), (0.5, 1.0 / 3.0), (0.5, 1.0 / 3.0), (1.0, 1.0 / 6.0)))

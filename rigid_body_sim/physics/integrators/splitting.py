@@ -29,19 +29,17 @@ in the middle, 1(h/2) 3(h/2) 2(h) 3(h/2) 1(h/2): measured best for the compositi
 
 Wrenches enter as kicks: kick(h/2) free flow(h) kick(h/2), so `splitting` is second order
 with any wrench; `splitting4` composes that whole symmetric step and is fourth order for
-wrenches that depend on the configuration and time (for a momentum-dependent wrench the
-kick is second order, and so is the composition).
+wrenches that depend on the configuration and time.  For a momentum-dependent wrench the
+kicks take the explicit midpoint rule, second order and not symmetric: the composition still
+cancels the stage's h^3 term (its coefficients' cubes sum to zero), not the h^4 one, so
+`splitting4` is then third order.
 
-One free flow, compiled (:func:`free_flow`); the readable steps call it on a State and
-compose it with the readable kicks.
+One free flow (:func:`free_flow`), composed with the kicks by :func:`step`.
 """
 
 import math
 
-import numpy as np
-
-from .readable import free_translation
-from .readable import kick_drift_kick
+from .registry import KICK_STAGE
 from .registry import register_integrator
 from ..kernels import helper
 from ..kernels import inline
@@ -57,11 +55,9 @@ from ..kernels.loop import run_kernel
 from ..kernels.loop import run_steps_specialised
 from ..kernels.model import impulse
 from ..kernels.model import NO_ESTIMATE
-from ..principal_frame import principal_frame
-from ..state import State
 
-__all__ = ['STRANG_AXES', 'SUZUKI_AXES', 'SUZUKI_COEFFICIENTS', 'free_flow',
-           'splitting_free_flow', 'splitting', 'splitting4']
+__all__ = ['STRANG_AXES', 'SUZUKI_AXES', 'SUZUKI_COEFFICIENTS', 'free_flow', 'splitting',
+           'splitting4']
 
 # Principal axes (0, 1, 2 by ascending moment) of the Strang step's outer, inner and central
 # flows.
@@ -119,31 +115,6 @@ def free_flow(q, lx, ly, lz, moments, frame, axes, dt):
             x, y, z, w = (x * half_cosine + y * half_sine, y * half_cosine - x * half_sine,
                           w * half_sine + z * half_cosine, w * half_cosine - z * half_sine)
     return normalised(quaternion_product((x, y, z, w), conjugate(frame)))
-
-
-# -- readable form
-
-
-def splitting_free_flow(body, state, dt, axes=STRANG_AXES):
-    """
-    Return the torque-free Strang splitting step of dt s (world L and p unchanged).
-
-    body : RigidBody (split in the principal frame of its inertia tensor); state : State at
-    the start; dt : s; axes : the principal axes (0, 1, 2 by ascending moment) of the outer,
-    inner and central flows.
-    """
-    frame = principal_frame(body.inertia)
-    quaternion = free_flow(tuple(state.quaternion), *state.angular_momentum, frame.moments,
-                           tuple(frame.quaternion), axes, float(dt))
-    return State._from_arrays(np.array(quaternion), free_translation(state, dt, body.mass),
-                              state.linear_momentum, state.angular_momentum)
-
-
-def _suzuki_free_flow(body, state, dt):
-    return splitting_free_flow(body, state, dt, SUZUKI_AXES)
-
-
-# -- compiled form
 
 
 @helper
@@ -224,7 +195,7 @@ def step(state, forcing, method, dt, time, pushed, translates):
     state[0], state[1], state[2], state[3] = q
 
 
-@run_kernel
+@run_kernel(compile_seconds=8.0)
 def run(state, model, method, dt, steps, time):
     """Take `steps` splitting steps of dt s from `time` (kernels/loop.py)."""
     return run_steps_specialised(step, state, model, method, dt, steps, time)
@@ -236,24 +207,12 @@ def _method(axes, coefficients):
     return tuple(float(value) for value in constants) + (0.0,) * (_METHOD_SIZE - len(constants))
 
 
-@register_integrator('splitting', order=2, run=run,
-                     method=_method(STRANG_AXES, (1.0,)))
-def splitting(body, state, time, dt, wrench):
-    """Strang splitting 1(h/2) 2(h/2) 3(h) 2(h/2) 1(h/2) of the free body; kicks for wrenches."""
-    return kick_drift_kick(body, state, time, dt, wrench, splitting_free_flow)
-
-
-@register_integrator('splitting4', order=4, run=run,
-                     method=_method(SUZUKI_AXES, SUZUKI_COEFFICIENTS))
-def splitting4(body, state, time, dt, wrench):
-    """
-    Suzuki's fourth-order composition of the kicked symmetric splitting step.
-
-    Five stages of kick(c h/2) free flow(c h) kick(c h/2), c in SUZUKI_COEFFICIENTS (the
-    middle one negative); the time runs with the stages.
-    """
-    for coefficient in SUZUKI_COEFFICIENTS:
-        stage = coefficient * dt
-        state = kick_drift_kick(body, state, time, stage, wrench, _suzuki_free_flow)
-        time += stage
-    return state
+splitting = register_integrator(
+    'splitting', order=2, run=run, method=_method(STRANG_AXES, KICK_STAGE), kicks=KICK_STAGE,
+    conserves=('angular_momentum',),
+    summary='symplectic Strang splitting of the free body into exact rotations about the '
+            'principal axes, 1(h/2) 2(h/2) 3(h) 2(h/2) 1(h/2)')
+splitting4 = register_integrator(
+    'splitting4', order=4, run=run, method=_method(SUZUKI_AXES, SUZUKI_COEFFICIENTS),
+    kicks=SUZUKI_COEFFICIENTS, conserves=('angular_momentum',), momentum_dependent_order=3,
+    summary="Suzuki's fourth-order five-stage composition of the kicked Strang step")

@@ -116,13 +116,16 @@ class LazyKernel:
         Its source as a Python function (without compiling).
     cached : bool
         Whether its compiled code is cached (not for a function with no source file).
+    compile_seconds : float or None
+        The CPU seconds it takes to compile, as declared (an estimate), or None.
 
     """
 
-    def __init__(self, signature, function, cached=True):
+    def __init__(self, signature, function, cached=True, compile_seconds=None):
         self.signature = signature
         self.py_func = function
         self.cached = cached
+        self.compile_seconds = compile_seconds
         self.__name__ = function.__name__
         self.__qualname__ = function.__qualname__
         self.__module__ = function.__module__

@@ -12,9 +12,9 @@ that is not zero), `translates` that the position moves (pushed, or p is not zer
 ``forcing.carry`` holds what a step hands to the next (zero at the start of each call).
 The step and everything it calls on the forcing are inlined (kernels.inline): one function,
 in which the compiler keeps the forcing in registers.  Its kernel is then two lines (see
-integrators/buss.py):
+integrators/buss.py), declared with the CPU seconds it takes to compile:
 
-    @run_kernel
+    @run_kernel(compile_seconds=10.0)
     def run(state, model, method, dt, steps, time):
         return run_steps(step, ...)
 
@@ -51,9 +51,17 @@ RUN_SIGNATURE = types.int64(types.float64[::1], MODEL_TYPE, METHOD_TYPE, types.f
 """run(state, model, method, dt, steps, time) -> steps taken, or -1 (see run_steps)."""
 
 
-def run_kernel(function):
-    """Declare an integrator's run kernel: compiled for :data:`RUN_SIGNATURE` on first use."""
-    return LazyKernel(RUN_SIGNATURE, function)
+def run_kernel(compile_seconds):
+    """
+    Declare an integrator's run kernel: compiled for :data:`RUN_SIGNATURE` on first use.
+
+    compile_seconds: the CPU seconds it takes to compile on the 2-core development machine
+    (``rigid-body-sim compile`` prints each job's figure), the estimate where this machine
+    has not compiled it yet (physics/warm_up.py).
+    """
+    def declare(function):
+        return LazyKernel(RUN_SIGNATURE, function, compile_seconds=compile_seconds)
+    return declare
 
 
 def method_constants(values=()):
