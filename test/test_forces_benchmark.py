@@ -11,14 +11,14 @@ import math
 import numpy as np
 import pytest
 from rigid_body_sim import cli
-from rigid_body_sim.benchmark.forces import forced_cases
-from rigid_body_sim.benchmark.forces import forced_reference
-from rigid_body_sim.benchmark.forces import forces_goal_table
-from rigid_body_sim.benchmark.forces import FORCES_QUICK
-from rigid_body_sim.benchmark.forces_report import forces_goal_counts
-from rigid_body_sim.benchmark.peer_mujoco import mujoco_available
-from rigid_body_sim.benchmark.reference import rotation_angle
 from rigid_body_sim.scenes import parse_scene
+from rigid_body_sim.work_precision.forces import forced_cases
+from rigid_body_sim.work_precision.forces import forced_reference
+from rigid_body_sim.work_precision.forces import forces_goal_table
+from rigid_body_sim.work_precision.forces import FORCES_QUICK
+from rigid_body_sim.work_precision.forces_report import forces_goal_counts
+from rigid_body_sim.work_precision.peer_mujoco import mujoco_available
+from rigid_body_sim.work_precision.reference import rotation_angle
 
 HORIZON = 1.0
 
@@ -51,7 +51,7 @@ def test_mujocos_rk4_twin_built_from_the_scene_converges_to_the_reference_at_fou
     # The twin (ball joint with the COM offset, fullinertia, gravity, qfrc_applied for the
     # body torque) is the scene's body only if RK4 converges to OUR reference at its order:
     # halving dt divides the error by 2^4 = 16 (asymptotically; 10..22 accepted).
-    from rigid_body_sim.benchmark.forces import _Mujoco
+    from rigid_body_sim.work_precision.forces import _Mujoco
     (case,) = forced_cases([name])
     dt = 4e-3 if name != 'bike_wheel' else 2e-3
     steps = round(HORIZON / dt)

@@ -44,7 +44,7 @@ def _markdown(result, rows):
         '',
         f'Orientation error (rad) at {config["horizon"]:g} s against a DOP853 solve at rtol '
         '1e-13; CPU seconds per simulated second (median of fresh timed runs). Method, '
-        'reference and MuJoCo twins: rigid_body_sim/benchmark/forces.py.',
+        'reference and MuJoCo twins: rigid_body_sim/work_precision/forces.py.',
         '',
         "## The goal: our best at most half of MuJoCo's best CPU, per error level",
         '',
