@@ -32,6 +32,13 @@ def _cpu(record):
     return '-' if record is None else f'{record["cpu_per_sim_second"]:.3g}'
 
 
+def _reference_words(result):
+    """Return how the references were solved, solver, formulations (forces.py)."""
+    reference = next(iter(result['references'].values()))
+    return (f'{reference["solver"]}, {reference["formulation"]}; second solution: '
+            f'{reference["check"]}')
+
+
 def _markdown(result, rows):
     config = result['config']
     lines = [
@@ -42,9 +49,12 @@ def _markdown(result, rows):
         f'{", ".join(f"{v:.2f}" for v in result["machine"]["load_average_end"])}). '
         f'MuJoCo peer: {result["mujoco"]}.',
         '',
-        f'Orientation error (rad) at {config["horizon"]:g} s against a DOP853 solve at rtol '
-        '1e-13; CPU seconds per simulated second (median of fresh timed runs). Method, '
-        'reference and MuJoCo twins: rigid_body_sim/work_precision/forces.py.',
+        f'Orientation error (rad) at {config["horizon"]:g} s against a reference solve '
+        f'({_reference_words(result)}); CPU seconds per simulated second (median of fresh '
+        "timed runs). The reference's uncertainty is the largest angle between it and a "
+        "second solution of another formulation of the same equations over the runs' times; "
+        'error levels below it are not judged. Method, reference and MuJoCo twins: '
+        'rigid_body_sim/work_precision/forces.py.',
         '',
         "## The goal: our best at most half of MuJoCo's best CPU, per error level",
         '',
