@@ -16,8 +16,10 @@ references, written as forces.md/.json/.csv and forces_work_precision.png.
 --quick: two bodies, three steps and horizons of 2 s and 10 s, a 2 s sweep of two scenes and
 two forced bodies over 0.5 s, for CI (seconds, not minutes); it refuses to write into a
 directory that holds a full run's results.  --tolerance-sweep: the sweep alone; --forces: the
-forced benchmark alone.  The full run took 21.6 min on the 2-core reference machine (1.0 min
-work-precision, 13.0 min sweep, 7.6 min forced: the wall_seconds of docs/benchmark/*.json).
+forced benchmark alone.  How long a run takes: its progress bar counts the runs and the time
+left, and each part's results file records its last run's wall time (``wall_seconds`` of
+results.json, tolerance_sweep.json and forces.json, also near the top of the .md files;
+the committed run's are in docs/benchmark/).  The tolerance sweep is the longest part.
 """
 
 import os
@@ -43,11 +45,13 @@ def add_arguments(parser):
     sweep = parser.add_mutually_exclusive_group()
     sweep.add_argument('--forces', action='store_true',
                        help='run only the forced benchmark (torques, gravity, a pivot; '
-                            'MuJoCo beside; 7.6 min on 2 cores; with --quick: seconds)')
+                            'MuJoCo beside; minutes: forces.json of the last run says how '
+                            'long it took, as wall_seconds; with --quick: seconds)')
     sweep.add_argument('--tolerance-sweep', action='store_true',
                        help='run only the tolerance sweep (error-controlled buss against '
-                            'fixed steps on the built-in scenes, 13 min on 2 cores; with --quick: '
-                            'seconds)')
+                            'fixed steps on the built-in scenes; the longest part: '
+                            'tolerance_sweep.json of the last run says how long it took, as '
+                            'wall_seconds; with --quick: seconds)')
     sweep.add_argument('--no-tolerance-sweep', action='store_true',
                        help='skip the tolerance sweep that follows the work-precision runs')
     parser.add_argument('--scenes', nargs='+', metavar='SCENE', default=None,
