@@ -213,7 +213,7 @@ def test_colcon_install_ships_the_committed_benchmark_references(colcon_install)
     """The benchmark's reference values (package data) load from the installed copy."""
     site = colcon_install / PACKAGE_NAME / 'lib'
     data = sorted(path.name for path in
-                  (PACKAGE_ROOT / PACKAGE_NAME / 'benchmark' / 'data').glob('*.json'))
+                  (PACKAGE_ROOT / PACKAGE_NAME / 'work_precision' / 'data').glob('*.json'))
     installed = sorted(path.name for path in site.rglob('work_precision/data/*.json'))
     assert data and installed == data, (installed, data)
     ran = _in_sourced_workspace(
