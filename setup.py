@@ -12,7 +12,7 @@ setup(
     version='0.1.0',
     packages=find_packages(exclude=['test']),
     # The benchmark's committed reference values (benchmarks/regenerate_references.py).
-    package_data={package_name + '.benchmark': ['data/*.json']},
+    package_data={package_name + '.work_precision': ['data/*.json']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),

@@ -33,9 +33,9 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / 'test'))
 
-from rigid_body_sim.benchmark.bodies import benchmark_cases  # noqa: E402
 from rigid_body_sim.physics import Simulator  # noqa: E402
 from rigid_body_sim.physics import State  # noqa: E402
+from rigid_body_sim.work_precision.bodies import benchmark_cases  # noqa: E402
 from taylor_reference import angle_to_reference  # noqa: E402
 from taylor_reference import reference_orientations  # noqa: E402
 from taylor_reference import rounded_flow_steps  # noqa: E402

@@ -2,17 +2,17 @@
 """
 Recompute the committed extended-precision references, the benchmark's package data.
 
-Two sets, each a JSON file in rigid_body_sim/benchmark/data/ that the benchmark reads
+Two sets, each a JSON file in rigid_body_sim/work_precision/data/ that the benchmark reads
 (``extended_reference.committed_references``):
 
-- bodies, reference_values.json: every benchmark body (benchmark/bodies.py) after each N
+- bodies, reference_values.json: every benchmark body (work_precision/bodies.py) after each N
   steps of dt that the full and the quick sweep of ``rigid-body-sim bench`` score
-  (benchmark/measure.py), quaternions in all 42 digits;
+  (work_precision/measure.py), quaternions in all 42 digits;
 - scenes, scene_reference_values.json: every torque-free built-in scene every 0.5 s over
-  60 s at its tick (the tolerance sweep, benchmark/tolerance_sweep.py), quaternions rounded
+  60 s at its tick (the tolerance sweep, work_precision/tolerance_sweep.py), quaternions rounded
   to 24 significant digits (they resolve 1e-24 rad, far below any double).
 
-Each value is the Taylor solve in decimal arithmetic of benchmark/extended_reference.py
+Each value is the Taylor solve in decimal arithmetic of work_precision/extended_reference.py
 (42 digits, checked against a 34-digit solve: their angle is the stored uncertainty), from
 the exact doubles of the body and its initial state, at exactly N x dt s.  A problem is
 keyed by those doubles, so a changed body or scene finds no committed value (the benchmark
@@ -35,22 +35,22 @@ import time
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from rigid_body_sim.benchmark.bodies import benchmark_cases  # noqa: E402
-from rigid_body_sim.benchmark.bodies import CASE_NAMES  # noqa: E402
-from rigid_body_sim.benchmark.extended_reference import exact_time  # noqa: E402
-from rigid_body_sim.benchmark.extended_reference import extended_reference  # noqa: E402
-from rigid_body_sim.benchmark.extended_reference import key_string  # noqa: E402
-from rigid_body_sim.benchmark.extended_reference import problem_fingerprint  # noqa: E402
-from rigid_body_sim.benchmark.extended_reference import REFERENCE_SETS  # noqa: E402
-from rigid_body_sim.benchmark.measure import FULL  # noqa: E402
-from rigid_body_sim.benchmark.measure import QUICK  # noqa: E402
-from rigid_body_sim.benchmark.measure import reference_keys  # noqa: E402
-from rigid_body_sim.benchmark.tolerance_sweep import case_reference_keys  # noqa: E402
-from rigid_body_sim.benchmark.tolerance_sweep import is_torque_free  # noqa: E402
-from rigid_body_sim.benchmark.tolerance_sweep import scene_cases  # noqa: E402
-from rigid_body_sim.benchmark.tolerance_sweep import SWEEP_SPAN  # noqa: E402
+from rigid_body_sim.work_precision.bodies import benchmark_cases  # noqa: E402
+from rigid_body_sim.work_precision.bodies import CASE_NAMES  # noqa: E402
+from rigid_body_sim.work_precision.extended_reference import exact_time  # noqa: E402
+from rigid_body_sim.work_precision.extended_reference import extended_reference  # noqa: E402
+from rigid_body_sim.work_precision.extended_reference import key_string  # noqa: E402
+from rigid_body_sim.work_precision.extended_reference import problem_fingerprint  # noqa: E402
+from rigid_body_sim.work_precision.extended_reference import REFERENCE_SETS  # noqa: E402
+from rigid_body_sim.work_precision.measure import FULL  # noqa: E402
+from rigid_body_sim.work_precision.measure import QUICK  # noqa: E402
+from rigid_body_sim.work_precision.measure import reference_keys  # noqa: E402
+from rigid_body_sim.work_precision.tolerance_sweep import case_reference_keys  # noqa: E402
+from rigid_body_sim.work_precision.tolerance_sweep import is_torque_free  # noqa: E402
+from rigid_body_sim.work_precision.tolerance_sweep import scene_cases  # noqa: E402
+from rigid_body_sim.work_precision.tolerance_sweep import SWEEP_SPAN  # noqa: E402
 
-DATA_DIRECTORY = Path(__file__).resolve().parent.parent / 'rigid_body_sim/benchmark/data'
+DATA_DIRECTORY = Path(__file__).resolve().parent.parent / 'rigid_body_sim/work_precision/data'
 ABOUT = {
     'bodies': 'Extended-precision reference orientations of the benchmark bodies at every '
               '(N, dt) of the full and the quick sweep.',
@@ -169,7 +169,7 @@ def main(argv=None):
                                          for which, names in known.items()))
     parser.add_argument('--output-dir', type=Path, default=DATA_DIRECTORY, metavar='DIR',
                         help='where to write the JSON files (default: the package data, '
-                             'rigid_body_sim/benchmark/data)')
+                             'rigid_body_sim/work_precision/data)')
     args = parser.parse_args(argv)
     sets = list(PROBLEMS) if args.set == 'all' else [args.set]
     if args.only is not None:

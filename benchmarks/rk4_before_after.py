@@ -55,10 +55,10 @@ def main():
     """Print the table; return 0."""
     import numpy as np
     sys.path.insert(0, str(ROOT))
-    from rigid_body_sim.benchmark.peer_mujoco import MujocoPeer
-    from rigid_body_sim.benchmark.reference import rotation_angle
-    from rigid_body_sim.benchmark.tolerance_sweep import case_reference
-    from rigid_body_sim.benchmark.tolerance_sweep import scene_cases
+    from rigid_body_sim.work_precision.peer_mujoco import MujocoPeer
+    from rigid_body_sim.work_precision.reference import rotation_angle
+    from rigid_body_sim.work_precision.tolerance_sweep import case_reference
+    from rigid_body_sim.work_precision.tolerance_sweep import scene_cases
     from rigid_body_sim.scenes import load_scene
 
     print('| scene | dt (s) | rk4 before | rk4 now | MuJoCo RK4 |')

@@ -3,7 +3,7 @@
 Each built-in scene at its default tolerance: substeps, error over 60 s, CPU per tick.
 
 For every built-in scene, error-controlled ``buss`` at the scene's own tolerance and rate
-runs 60 s (the tolerance sweep's case and reference: benchmark/tolerance_sweep.py, the
+runs 60 s (the tolerance sweep's case and reference: work_precision/tolerance_sweep.py, the
 extended-precision solve for torque-free scenes, a converged rk4 run otherwise), beside
 fixed-step ``buss`` at one substep per tick.  Printed as a markdown table: tolerance,
 substeps (least-most), steps per tick, the largest orientation error over 60 s (rad),
@@ -19,10 +19,10 @@ import sys
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from rigid_body_sim.benchmark.tolerance_sweep import case_reference  # noqa: E402
-from rigid_body_sim.benchmark.tolerance_sweep import measure_case_run  # noqa: E402
-from rigid_body_sim.benchmark.tolerance_sweep import scene_cases  # noqa: E402
-from rigid_body_sim.benchmark.tolerance_sweep import SWEEP_SPAN  # noqa: E402
+from rigid_body_sim.work_precision.tolerance_sweep import case_reference  # noqa: E402
+from rigid_body_sim.work_precision.tolerance_sweep import measure_case_run  # noqa: E402
+from rigid_body_sim.work_precision.tolerance_sweep import scene_cases  # noqa: E402
+from rigid_body_sim.work_precision.tolerance_sweep import SWEEP_SPAN  # noqa: E402
 
 
 def main(argv=None):

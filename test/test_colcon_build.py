@@ -213,12 +213,12 @@ def test_colcon_install_ships_the_committed_benchmark_references(colcon_install)
     """The benchmark's reference values (package data) load from the installed copy."""
     site = colcon_install / PACKAGE_NAME / 'lib'
     data = sorted(path.name for path in
-                  (PACKAGE_ROOT / PACKAGE_NAME / 'benchmark' / 'data').glob('*.json'))
-    installed = sorted(path.name for path in site.rglob('benchmark/data/*.json'))
+                  (PACKAGE_ROOT / PACKAGE_NAME / 'work_precision' / 'data').glob('*.json'))
+    installed = sorted(path.name for path in site.rglob('work_precision/data/*.json'))
     assert data and installed == data, (installed, data)
     ran = _in_sourced_workspace(
         colcon_install,
-        '"{0}" -c "from rigid_body_sim.benchmark import extended_reference as e; '
+        '"{0}" -c "from rigid_body_sim.work_precision import extended_reference as e; '
         'print(e.__file__); print(sum(len(e.committed_references(n)) '
         'for n in e.REFERENCE_SETS))"'.format(sys.executable))
 

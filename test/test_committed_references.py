@@ -3,7 +3,7 @@ The committed extended-precision references are package data the benchmark finds
 
 The script, benchmarks/regenerate_references.py, regenerates them.
 
-- Each set (rigid_body_sim/benchmark/data/*.json) keeps its quaternions as decimal strings
+- Each set (rigid_body_sim/work_precision/data/*.json) keeps its quaternions as decimal strings
   (unit norm to their digits) under the 'N x dt' keys the benchmark looks up.
 - Every benchmark body at every (N, dt) of both sweeps, and every torque-free built-in scene
   at every sample of the tolerance sweep, finds its reference committed: nothing is solved.
@@ -20,22 +20,22 @@ import subprocess
 import sys
 
 import pytest
-from rigid_body_sim.benchmark import extended_reference
-from rigid_body_sim.benchmark.bodies import benchmark_cases
-from rigid_body_sim.benchmark.bodies import CASE_NAMES
-from rigid_body_sim.benchmark.extended_reference import committed_references
-from rigid_body_sim.benchmark.extended_reference import key_string
-from rigid_body_sim.benchmark.extended_reference import problem_fingerprint
-from rigid_body_sim.benchmark.extended_reference import quaternion_angle
-from rigid_body_sim.benchmark.extended_reference import reference_quaternions
-from rigid_body_sim.benchmark.extended_reference import REFERENCE_SETS
-from rigid_body_sim.benchmark.measure import FULL
-from rigid_body_sim.benchmark.measure import QUICK
-from rigid_body_sim.benchmark.measure import reference_keys
-from rigid_body_sim.benchmark.tolerance_sweep import case_reference_keys
-from rigid_body_sim.benchmark.tolerance_sweep import is_torque_free
-from rigid_body_sim.benchmark.tolerance_sweep import scene_cases
-from rigid_body_sim.benchmark.tolerance_sweep import SWEEP_SPAN
+from rigid_body_sim.work_precision import extended_reference
+from rigid_body_sim.work_precision.bodies import benchmark_cases
+from rigid_body_sim.work_precision.bodies import CASE_NAMES
+from rigid_body_sim.work_precision.extended_reference import committed_references
+from rigid_body_sim.work_precision.extended_reference import key_string
+from rigid_body_sim.work_precision.extended_reference import problem_fingerprint
+from rigid_body_sim.work_precision.extended_reference import quaternion_angle
+from rigid_body_sim.work_precision.extended_reference import reference_quaternions
+from rigid_body_sim.work_precision.extended_reference import REFERENCE_SETS
+from rigid_body_sim.work_precision.measure import FULL
+from rigid_body_sim.work_precision.measure import QUICK
+from rigid_body_sim.work_precision.measure import reference_keys
+from rigid_body_sim.work_precision.tolerance_sweep import case_reference_keys
+from rigid_body_sim.work_precision.tolerance_sweep import is_torque_free
+from rigid_body_sim.work_precision.tolerance_sweep import scene_cases
+from rigid_body_sim.work_precision.tolerance_sweep import SWEEP_SPAN
 
 SCRIPT = Path(__file__).resolve().parent.parent / 'benchmarks' / 'regenerate_references.py'
 

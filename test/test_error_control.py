@@ -8,7 +8,7 @@ the exact torque-free flow, a DOP853 solve (test/reference.py) or a converged fi
 of the same held wrench.
 
 The evidence: each built-in scene at 1e-3, 1e-5 and 1e-7 rad/s against its reference
-(benchmark.tolerance_sweep: the extended-precision Taylor solve for torque-free rotation,
+(work_precision.tolerance_sweep: the extended-precision Taylor solve for torque-free rotation,
 else rk4 at 128 substeps per tick, converged to 1e-8 rad or better) over its natural span;
 the largest error over samples every 0.5 s must be within margin x tolerance x span.
 """
@@ -19,8 +19,6 @@ from method_reference import REFERENCE_EFFECTS
 import numpy as np
 import pytest
 from reference import reference_solution
-from rigid_body_sim.benchmark import tolerance_sweep
-from rigid_body_sim.benchmark.reference import rotation_angle
 from rigid_body_sim.physics import error_control
 from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import RigidBody
@@ -31,6 +29,8 @@ from rigid_body_sim.physics.effects import Drag
 from rigid_body_sim.physics.kernels.layout import body_values
 from rigid_body_sim.scenes import load_scene
 from rigid_body_sim.scenes import scene_names
+from rigid_body_sim.work_precision import tolerance_sweep
+from rigid_body_sim.work_precision.reference import rotation_angle
 
 # -- the estimate against the true local error
 

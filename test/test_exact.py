@@ -33,7 +33,6 @@ import pytest
 from reference import random_rotation
 from reference import reference_solution
 from reference import rotation_angle_between
-from rigid_body_sim.benchmark.bodies import benchmark_cases
 from rigid_body_sim.physics import INTEGRATORS
 from rigid_body_sim.physics import RigidBody
 from rigid_body_sim.physics import Simulator
@@ -53,6 +52,7 @@ from rigid_body_sim.physics.principal_frame import principal_frame
 from rigid_body_sim.physics.principal_frame import SPHERICAL
 from rigid_body_sim.physics.rotations import quaternion_from_rotation_vector
 from rigid_body_sim.physics.rotations import quaternion_multiply
+from rigid_body_sim.work_precision.bodies import benchmark_cases
 from scipy.special import ellipj
 import taylor_reference
 from taylor_reference import angle_to_reference

@@ -1,7 +1,7 @@
 """
 package.xml names every package the code imports (what rosdep installs), run time apart.
 
-Run time is the installed package less the benchmark (rigid_body_sim/benchmark/ and
+Run time is the installed package less the benchmark (rigid_body_sim/work_precision/ and
 rigid_body_sim/tools/bench.py, which only `rigid-body-sim bench` imports): its imports are
 package.xml's exec_depends and requirements.txt's pins.  What only the benchmark and the
 tests import or run is a test_depend, pinned in requirements-test.txt.
@@ -66,7 +66,7 @@ def _imports(paths):
 
 def _is_bench(path):
     relative = path.relative_to(ROOT / 'rigid_body_sim').as_posix()
-    return relative.startswith('benchmark/') or relative == 'tools/bench.py'
+    return relative.startswith('work_precision/') or relative == 'tools/bench.py'
 
 
 def run_time_modules():

@@ -9,10 +9,10 @@ import json
 import math
 
 from rigid_body_sim import cli
-from rigid_body_sim.benchmark import tolerance_sweep
-from rigid_body_sim.benchmark.tolerance_report import control_goal_table
-from rigid_body_sim.benchmark.tolerance_report import CONTROL_LEVELS
-from rigid_body_sim.benchmark.tolerance_report import GOAL_RATIO
+from rigid_body_sim.work_precision import tolerance_sweep
+from rigid_body_sim.work_precision.tolerance_report import control_goal_table
+from rigid_body_sim.work_precision.tolerance_report import CONTROL_LEVELS
+from rigid_body_sim.work_precision.tolerance_report import GOAL_RATIO
 
 
 def _record(method, error, cost, tolerance=None, substeps=1):

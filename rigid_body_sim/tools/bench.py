@@ -6,18 +6,20 @@ installed) on five torque-free benchmark bodies at dt = 10 .. 0.001 s, measures 
 orientation error at 10 s and 100 s against an extended-precision reference, the energy and
 |L| drift, and the CPU time per step, and writes results.md (tables), results.json,
 results.csv and work_precision.png / work_precision_100s.png (error against CPU per simulated
-second) to --out.  Then the tolerance sweep (benchmark/tolerance_sweep.py): every built-in
+second) to --out.  Then the tolerance sweep (work_precision/tolerance_sweep.py): every built-in
 scene at its own rate over 60 s, error-controlled buss at tolerances 3e-2 .. 1e-10 rad/s
 beside fixed-step buss, splitting and rk4, written as tolerance_sweep.md/.json/.csv/.png.
-Then the forced benchmark (benchmark/forces.py): heavy_top, bike_wheel, a non-diagonal body
+Then the forced benchmark (work_precision/forces.py): heavy_top, bike_wheel, a non-diagonal body
 on an off-axis pivot, van Zon's body under an oscillating world torque and a box under a
 body-fixed torque, every integrator and error-controlled buss beside MuJoCo, against DOP853
 references, written as forces.md/.json/.csv and forces_work_precision.png.
 --quick: two bodies, three steps and horizons of 2 s and 10 s, a 2 s sweep of two scenes and
 two forced bodies over 0.5 s, for CI (seconds, not minutes); it refuses to write into a
 directory that holds a full run's results.  --tolerance-sweep: the sweep alone; --forces: the
-forced benchmark alone.  The full run took 21.6 min on the 2-core reference machine (1.0 min
-work-precision, 13.0 min sweep, 7.6 min forced: the wall_seconds of docs/benchmark/*.json).
+forced benchmark alone.  How long a run takes: its progress bar counts the runs and the time
+left, and each part's results file records its last run's wall time (``wall_seconds`` of
+results.json, tolerance_sweep.json and forces.json, also near the top of the .md files;
+the committed run's are in docs/benchmark/).  The tolerance sweep is the longest part.
 """
 
 import os
@@ -43,11 +45,13 @@ def add_arguments(parser):
     sweep = parser.add_mutually_exclusive_group()
     sweep.add_argument('--forces', action='store_true',
                        help='run only the forced benchmark (torques, gravity, a pivot; '
-                            'MuJoCo beside; 7.6 min on 2 cores; with --quick: seconds)')
+                            'MuJoCo beside; minutes: forces.json of the last run says how '
+                            'long it took, as wall_seconds; with --quick: seconds)')
     sweep.add_argument('--tolerance-sweep', action='store_true',
                        help='run only the tolerance sweep (error-controlled buss against '
-                            'fixed steps on the built-in scenes, 13 min on 2 cores; with --quick: '
-                            'seconds)')
+                            'fixed steps on the built-in scenes; the longest part: '
+                            'tolerance_sweep.json of the last run says how long it took, as '
+                            'wall_seconds; with --quick: seconds)')
     sweep.add_argument('--no-tolerance-sweep', action='store_true',
                        help='skip the tolerance sweep that follows the work-precision runs')
     parser.add_argument('--scenes', nargs='+', metavar='SCENE', default=None,
@@ -95,16 +99,16 @@ def _command(args):
 
 def run_tolerance_sweep(args):
     """Run the tolerance sweep, write tolerance_sweep.*, print the goal's count; return paths."""
-    from ..benchmark.report import machine_info
-    from ..benchmark.tolerance_report import control_goal_table
-    from ..benchmark.tolerance_report import write_sweep_outputs
-    from ..benchmark.tolerance_sweep import FIXED_SUBSTEPS
-    from ..benchmark.tolerance_sweep import SAMPLE_INTERVAL
-    from ..benchmark.tolerance_sweep import scene_cases
-    from ..benchmark.tolerance_sweep import sweep_units
-    from ..benchmark.tolerance_sweep import SWEEP_SPAN
-    from ..benchmark.tolerance_sweep import tolerance_sweep
-    from ..benchmark.tolerance_sweep import TOLERANCES
+    from ..work_precision.report import machine_info
+    from ..work_precision.tolerance_report import control_goal_table
+    from ..work_precision.tolerance_report import write_sweep_outputs
+    from ..work_precision.tolerance_sweep import FIXED_SUBSTEPS
+    from ..work_precision.tolerance_sweep import SAMPLE_INTERVAL
+    from ..work_precision.tolerance_sweep import scene_cases
+    from ..work_precision.tolerance_sweep import sweep_units
+    from ..work_precision.tolerance_sweep import SWEEP_SPAN
+    from ..work_precision.tolerance_sweep import tolerance_sweep
+    from ..work_precision.tolerance_sweep import TOLERANCES
     from ..scenes import scene_names
 
     if args.quick:
@@ -147,14 +151,14 @@ def run_tolerance_sweep(args):
 
 def run_forces_benchmark(args):
     """Run the forced benchmark, write forces.*, print the goal's count; return paths."""
-    from ..benchmark.forces import FORCES_FULL
-    from ..benchmark.forces import FORCES_QUICK
-    from ..benchmark.forces import forces_goal_table
-    from ..benchmark.forces import forces_units
-    from ..benchmark.forces import run_forces
-    from ..benchmark.forces_report import forces_goal_counts
-    from ..benchmark.forces_report import write_forces_outputs
-    from ..benchmark.report import machine_info
+    from ..work_precision.forces import FORCES_FULL
+    from ..work_precision.forces import FORCES_QUICK
+    from ..work_precision.forces import forces_goal_table
+    from ..work_precision.forces import forces_units
+    from ..work_precision.forces import run_forces
+    from ..work_precision.forces_report import forces_goal_counts
+    from ..work_precision.forces_report import write_forces_outputs
+    from ..work_precision.report import machine_info
 
     config = FORCES_QUICK if args.quick else FORCES_FULL
     if args.repeats is not None:
@@ -228,8 +232,8 @@ def missing_mujoco_line(args):
     None when mujoco imports, when --no-mujoco leaves the peer out, or for the tolerance
     sweep alone (no peer there).  mujoco is in the test set, not the run-time set.
     """
-    from ..benchmark.peer_mujoco import INSTALL_HINT
-    from ..benchmark.peer_mujoco import mujoco_available
+    from ..work_precision.peer_mujoco import INSTALL_HINT
+    from ..work_precision.peer_mujoco import mujoco_available
 
     if args.no_mujoco or args.tolerance_sweep or mujoco_available():
         return None
@@ -251,15 +255,15 @@ def main(args):
         for path in run_tolerance_sweep(args).values():
             print(f'bench: wrote {path}')
         return 0
-    from ..benchmark.bodies import benchmark_cases
-    from ..benchmark.measure import FULL
-    from ..benchmark.measure import QUICK
-    from ..benchmark.measure import run_benchmark
-    from ..benchmark.measure import work_units
-    from ..benchmark.report import goal_summary
-    from ..benchmark.report import goal_table
-    from ..benchmark.report import machine_info
-    from ..benchmark.report import write_outputs
+    from ..work_precision.bodies import benchmark_cases
+    from ..work_precision.measure import FULL
+    from ..work_precision.measure import QUICK
+    from ..work_precision.measure import run_benchmark
+    from ..work_precision.measure import work_units
+    from ..work_precision.report import goal_summary
+    from ..work_precision.report import goal_table
+    from ..work_precision.report import machine_info
+    from ..work_precision.report import write_outputs
 
     config = QUICK if args.quick else FULL
     if args.repeats is not None:

@@ -541,7 +541,7 @@ def _markdown(result, goal_rows, long_rows, augmentation_rows, issue_rows=()):
         'equations for the body angular momentum with the orientation quaternion, integrated '
         'by a Taylor series method (orders 40 and 49, Jorba-Zou step control) in decimal '
         'arithmetic at 34 and at 42 digits, from the exact double values of the initial '
-        'state and inertia tensor, at exactly N x dt (`rigid_body_sim/benchmark/'
+        'state and inertia tensor, at exactly N x dt (`rigid_body_sim/work_precision/'
         'extended_reference.py`; its values for these bodies are committed in '
         '`data/reference_values.json`, and `benchmarks/regenerate_references.py --set bodies` '
         'recomputes them in about half a CPU minute).  Its uncertainty is the angle between '

@@ -1,7 +1,7 @@
 """
 The benchmark's modules import one another without a circle, and none is also a script.
 
-The modules are those of rigid_body_sim/benchmark/ as they are on disk, each import read with
+The modules are those of rigid_body_sim/work_precision/ as they are on disk, each import read with
 :mod:`ast`: at module level or inside a function (a deferred import only moves a circle to
 the moment of the call), absolute or relative.  The committed reference values are data the
 package reads; what recomputes them, benchmarks/regenerate_references.py, is outside it.
@@ -10,10 +10,10 @@ package reads; what recomputes them, benchmarks/regenerate_references.py, is out
 import ast
 from pathlib import Path
 
-import rigid_body_sim.benchmark
+import rigid_body_sim.work_precision
 
-PACKAGE = rigid_body_sim.benchmark.__name__
-DIRECTORY = Path(rigid_body_sim.benchmark.__file__).parent
+PACKAGE = rigid_body_sim.work_precision.__name__
+DIRECTORY = Path(rigid_body_sim.work_precision.__file__).parent
 
 
 def package_modules(directory, package):
