@@ -17,7 +17,7 @@ LAYERS = (
     ('text', 'paths'),
     ('physics',),
     ('scenes',),
-    ('messages', 'benchmark'),
+    ('messages', 'work_precision'),
     ('node', 'drawing'),
     ('recording', 'watch'),
     ('tools', 'cli'),
