@@ -60,11 +60,13 @@ from rclpy.clock import ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
+from rclpy.time import Time
 from rosgraph_msgs.msg import Clock as ClockMessage
 from sensor_msgs.msg import Imu as ImuMessage
 from std_srvs.srv import SetBool
 from std_srvs.srv import Trigger
 
+from .clock_guard import ClockGuard
 from .conversions import fill_imu_message
 from .conversions import imu_message
 from .conversions import marker_geometry_from_drawing
@@ -256,6 +258,7 @@ class RigidBodyNode(Node):
                                                + 'iI')
         self._system_time = False
         self._last_stamp = 0  # ns: the stamp of the last state published
+        self._clock_guard = self._guard_ros_clock()
         tf_status = self._start_tf(imu_frame)
 
         self._inputs = dict.fromkeys(_INPUT_TOPICS)  # topic -> (WrenchInput, held from ns)
@@ -412,10 +415,13 @@ class RigidBodyNode(Node):
         # The node's clock; while it runs on system time (no /clock), time.time_ns() reads
         # the same clock for a tenth of the cost of Clock.now().
         now = time.time_ns() if self._system_time else self.get_clock().now().nanoseconds
-        if self._input_timeout_ns > 0 and self._expire_inputs(now):
+        # Inputs expire on the steady clock: a ROS clock that stands still or runs back
+        # (use_sim_time) must not hold an input forever.
+        steady = time.monotonic_ns()
+        if self._input_timeout_ns > 0 and self._expire_inputs(steady):
             self._inputs_changed = True
         if self._inputs_changed:
-            self._hold_inputs(now)
+            self._hold_inputs(steady)
         simulator = self._simulator
         stepped = time.perf_counter()
         if self._diverged is not None:
@@ -501,6 +507,34 @@ class RigidBodyNode(Node):
         self._system_time = clock.clock_type == ClockType.SYSTEM_TIME or (
             clock.clock_type == ClockType.ROS_TIME and not clock.ros_time_is_active)
 
+    def _guard_ros_clock(self):
+        """
+        Follow /clock here rather than through rclpy's TimeSource (ros/clock_guard.py).
+
+        Returns the ClockGuard, or None when the node runs on the system clock.  rclpy
+        subscribed to /clock when use_sim_time was given at start; that subscription is
+        replaced by one whose callback refuses what is not a time instead of raising.
+        """
+        if not self.get_parameter('use_sim_time').value:
+            return None
+        clock_topic = self.resolve_topic_name(_CLOCK_TOPIC)  # as remapped, if it is
+        for subscription in list(self.subscriptions):
+            if subscription.topic_name == clock_topic:
+                self.destroy_subscription(subscription)
+        self.create_subscription(ClockMessage, _CLOCK_TOPIC, self._clock_callback,
+                                 CLOCK_QOS)
+        return ClockGuard()
+
+    def _clock_callback(self, message):
+        stamp = self._clock_guard.receive(message.clock.sec, message.clock.nanosec)
+        if stamp is None:
+            self._warn_throttled('clock', f'refused a /clock message '
+                                 f'({self._clock_guard.last_rejected}); the ROS clock stays '
+                                 'where it was')
+            return
+        self.get_clock().set_ros_time_override(
+            Time(nanoseconds=stamp, clock_type=ClockType.ROS_TIME))
+
     def _expire_inputs(self, now):
         expired = False
         for topic, held in self._inputs.items():
@@ -566,6 +600,12 @@ class RigidBodyNode(Node):
 
     def _from_stamp(self):
         seconds, nanoseconds = divmod(self._last_stamp, 1_000_000_000)
+        guard = self._clock_guard
+        if not self._publish_clock and guard is not None and not guard.stamps_ordered():
+            # Stamped with a /clock that stands still or never came: a stamp cannot tell
+            # the messages before this from those after it.
+            return (f'the stamps follow /clock, which stands at {seconds}.{nanoseconds:09d} s: '
+                    'they do not tell messages before this from those after it')
         return f'every message stamped after {seconds}.{nanoseconds:09d} s shows it'
 
     def _reset_callback(self, request, response):
@@ -597,6 +637,12 @@ class RigidBodyNode(Node):
         proposed = {'integrator': simulator.integrator, 'substeps': self._substeps,
                     'tolerance': simulator.tolerance or 0.0}
         for parameter in parameters:
+            if parameter.name == 'use_sim_time':
+                # rclpy would follow /clock again through its own subscription, which a
+                # peer's malformed /clock message turns into an exception (clock_guard.py).
+                return SetParametersResult(
+                    successful=False, reason='use_sim_time is set at start-up only '
+                    '(--ros-args -p use_sim_time:=true); restart the node to change it')
             if parameter.name == 'integrator':
                 reason = check_integrator(shortened(parameter.value))
                 if reason is not None:
@@ -813,6 +859,17 @@ class RigidBodyNode(Node):
                 'interpreted until then' if self._simulator.interpreted else 'until then')
         elif self._simulator.interpreted:
             message += '; interpreted: the kernels are not compiled'
+        if self._clock_guard is not None:
+            problems, clock_values = self._clock_guard.status()
+            values = list(values) + clock_values
+            # What the stamps mean matters only where they come from /clock.
+            problems = [(text, kind) for text, kind in problems
+                        if kind == 'peer' or not self._publish_clock]
+            if problems:
+                if level == DiagnosticStatus.OK:
+                    level = DiagnosticStatus.WARN
+                message += '; ROS clock (use_sim_time): ' + '; '.join(
+                    text for text, _ in problems)
         stamp = self._simulated_nanoseconds() if self._publish_clock \
             else self.get_clock().now().nanoseconds
         self._diagnostics_publisher.publish(diagnostic_array(
