@@ -59,6 +59,7 @@ from rclpy.clock import Clock
 from rclpy.clock import ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.serialization import deserialize_message
 from rclpy.serialization import serialize_message
 from rclpy.time import Time
 from rosgraph_msgs.msg import Clock as ClockMessage
@@ -263,6 +264,11 @@ class RigidBodyNode(Node):
 
         self._inputs = dict.fromkeys(_INPUT_TOPICS)  # topic -> (WrenchInput, held from ns)
         self._inputs_changed = False
+        # topic -> the latest message received since the last tick, serialised: the tick
+        # reads it (one per topic and tick), so a flood of inputs costs the callbacks only
+        # a store each, and cannot take the tick's time.
+        self._received = {}
+        self._input_types = {}
         self._paused = False
         # Why the simulation stopped (a state that turned non-finite), until a reset.
         self._diverged = None
@@ -279,10 +285,11 @@ class RigidBodyNode(Node):
             from geometry_msgs.msg import WrenchStamped
             for topic, message_type in (('torque', Vector3Stamped),
                                         ('wrench', WrenchStamped)):
+                self._input_types[topic] = message_type
                 self.create_subscription(
                     message_type, topic,
-                    lambda message, topic=topic: self._input_callback(topic, message),
-                    INPUT_QOS)
+                    lambda data, topic=topic: self._input_callback(topic, data),
+                    INPUT_QOS, raw=True)
         self.create_service(Trigger, 'reset', self._reset_callback, qos_profile=SERVICE_QOS)
         self.create_service(SetBool, 'pause', self._pause_callback, qos_profile=SERVICE_QOS)
         self.add_on_set_parameters_callback(self._validate_parameters_callback)
@@ -418,6 +425,8 @@ class RigidBodyNode(Node):
         # Inputs expire on the steady clock: a ROS clock that stands still or runs back
         # (use_sim_time) must not hold an input forever.
         steady = time.monotonic_ns()
+        if self._received:
+            self._take_received_inputs()
         if self._input_timeout_ns > 0 and self._expire_inputs(steady):
             self._inputs_changed = True
         if self._inputs_changed:
@@ -571,11 +580,26 @@ class RigidBodyNode(Node):
 
     # -- callbacks: inputs, services and parameters, applied as they come (between ticks)
 
-    def _input_callback(self, topic, message):
-        wrench = self._accepted_input(topic, message)
-        if wrench is not None:
-            self._inputs[topic] = (wrench, None)  # held from the tick that applies it
-            self._inputs_changed = True
+    def _input_callback(self, topic, data):
+        # Kept, not read: the next tick takes the latest (see _received).
+        self._received[topic] = data
+
+    def _take_received_inputs(self):
+        """Read the latest input of each topic received since the last tick, and hold it."""
+        received, self._received = self._received, {}
+        for topic, data in received.items():
+            try:
+                message = deserialize_message(data, self._input_types[topic])
+            except Exception as error:  # noqa: B902 (a peer's bytes: any failure is a refusal)
+                self._rejected += 1
+                self._warn_throttled((topic, 'bytes'), f'rejected a {topic} input that does '
+                                     f'not deserialise ({shortened(str(error))}), state '
+                                     'unchanged')
+                continue
+            wrench = self._accepted_input(topic, message)
+            if wrench is not None:
+                self._inputs[topic] = (wrench, None)  # held from the tick that applies it
+                self._inputs_changed = True
 
     def _accepted_input(self, topic, message):
         """Return the WrenchInput of a torque or wrench message, or None if rejected."""
@@ -616,6 +640,7 @@ class RigidBodyNode(Node):
             # node's backlog) belonged to the run it ended, and are not run after it.
             self._restart_schedule(time.monotonic())
         self._inputs = dict.fromkeys(_INPUT_TOPICS)
+        self._received = {}
         self._hold_inputs(None)
         response.success = True
         response.message = (
