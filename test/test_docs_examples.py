@@ -246,3 +246,10 @@ def test_simulate_overwrite_removes_only_what_the_bags_metadata_names(tmp_path, 
     assert (bag / 'IMG_0002.jpg').exists()
     (bag / 'IMG_0002.jpg').unlink()
     assert main(arguments) == 0 and (bag / 'metadata.yaml').is_file()
+
+
+def test_an_empty_bag_path_is_one_line_saying_so(capsys):
+    from rigid_body_sim.cli import main
+    assert main(['simulate', '--duration', '0.05', '--quiet', '--bag', '']) == 2
+    error = capsys.readouterr().err
+    assert error.count('\n') == 1 and '--bag is empty' in error, error

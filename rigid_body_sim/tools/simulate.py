@@ -182,10 +182,12 @@ def main(args):
     bag = args.bag
     if bag is None:
         bag = f'{scene.name}_{datetime.now().strftime("%Y_%m_%d-%H_%M_%S")}'
+    if not bag.strip():
+        raise ValueError('--bag is empty: give the directory to write the bag to (a new one)')
     if Path(bag).exists():
         if not args.overwrite:
-            raise ValueError(f'{bag} exists already; give a new --bag directory, or '
-                             '--overwrite to replace it')
+            raise ValueError(f'{one_line(bag, 200)} exists already; give a new --bag '
+                             'directory, or --overwrite to replace it')
         remove_bag(Path(bag))
     start_time = start_time_nanoseconds(args.start_time)
     if not (math.isfinite(args.flush_period) and args.flush_period >= 0.0):
