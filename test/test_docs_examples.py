@@ -236,3 +236,45 @@ def test_scenes_prints_round_off_as_zero(capsys):
     out = capsys.readouterr().out
     omega = next(line for line in out.splitlines() if 'omega body' in line)
     assert 'e-' not in omega and '150' in omega, omega
+
+
+@pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
+def test_simulate_overwrite_removes_only_what_the_bags_metadata_names(tmp_path, capsys,
+                                                                      storage):
+    """
+    A folder with a metadata.yaml that is not a bag's keeps every file; a bag goes whole.
+
+    Before: any folder with a metadata.yaml and plain files counted as a bag, so a photo
+    album's metadata.yaml got its IMG_0001.jpg and notes.txt deleted.
+    """
+    from rigid_body_sim.cli import main
+    album = tmp_path / 'album'
+    album.mkdir()
+    (album / 'metadata.yaml').write_text('title: my photo album\n')
+    (album / 'IMG_0001.jpg').write_bytes(b'\xff\xd8 a photo')
+    (album / 'notes.txt').write_text('mine')
+    arguments = ['simulate', '--duration', '0.05', '--quiet', '--storage', storage,
+                 '--bag', str(album), '--overwrite']
+    assert main(arguments) == 2
+    error = capsys.readouterr().err
+    assert error.count('\n') == 1 and 'not that of a rosbag2 bag' in error, error
+    assert sorted(path.name for path in album.iterdir()) == [
+        'IMG_0001.jpg', 'metadata.yaml', 'notes.txt']
+    # A real bag with a stray file of the user's beside it: kept, and named.
+    bag = tmp_path / 'bag'
+    arguments[-2] = str(bag)
+    assert main(arguments[:-1]) == 0
+    (bag / 'IMG_0002.jpg').write_bytes(b'another photo')
+    assert main(arguments) == 2
+    error = capsys.readouterr().err
+    assert error.count('\n') == 1 and 'IMG_0002.jpg' in error, error
+    assert (bag / 'IMG_0002.jpg').exists()
+    (bag / 'IMG_0002.jpg').unlink()
+    assert main(arguments) == 0 and (bag / 'metadata.yaml').is_file()
+
+
+def test_an_empty_bag_path_is_one_line_saying_so(capsys):
+    from rigid_body_sim.cli import main
+    assert main(['simulate', '--duration', '0.05', '--quiet', '--bag', '']) == 2
+    error = capsys.readouterr().err
+    assert error.count('\n') == 1 and '--bag is empty' in error, error

@@ -36,6 +36,7 @@ from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.exceptions import ParameterNotDeclaredException
 from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
 from rigid_body_sim.node.parameters import PARAMETERS
 from rigid_body_sim.node.rigid_body_node import RigidBodyNode
 from rigid_body_sim.physics import INTEGRATORS
@@ -213,8 +214,10 @@ def test_an_input_message_is_rejected_without_a_trace_or_held_and_the_ticks_stay
         rejected_before = node._rejected
         with warnings.catch_warnings():
             warnings.simplefilter('error')
-            # What the subscription does with a message it receives.
-            node._input_callback(topic, message)
+            # What the subscription does with a message it receives (it keeps its bytes),
+            # and the next tick (it reads them).
+            node._input_callback(topic, serialize_message(message))
+            node._take_received_inputs()
         if node._rejected == rejected_before + 1:
             assert node._inputs == held_before
             for before, after in zip(state_before, _state_arrays(node)):

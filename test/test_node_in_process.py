@@ -15,6 +15,7 @@ import pytest
 from rcl_interfaces.srv import DescribeParameters
 import rclpy
 from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
 from rigid_body_sim.node.parameter_services import ParameterServices
 from rigid_body_sim.node.rigid_body_node import RigidBodyNode
 from std_srvs.srv import Trigger
@@ -80,7 +81,7 @@ def test_the_imu_reads_the_compiled_wrench_and_no_effect_runs_in_python_per_tick
             torque = Vector3Stamped()
             torque.header.frame_id = 'body'
             torque.vector.x, torque.vector.y, torque.vector.z = 0.2, -0.1, 0.3
-            node._input_callback('torque', torque)
+            node._input_callback('torque', serialize_message(torque))
         node._imu_subscribed = True  # as with a subscriber on imu
         published = []
         monkeypatch.setattr(node._imu_publisher, 'publish', published.append)

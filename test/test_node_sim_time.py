@@ -8,6 +8,7 @@ subscription): concurrent test nodes never hear each other's clock.
 
 import time
 
+from diagnostic_msgs.msg import DiagnosticStatus
 from node_harness import Client
 from node_harness import isolate_ros_environment
 from node_harness import NODE_NAME
@@ -16,6 +17,8 @@ from node_harness import STATE_TYPES
 from node_harness import unique_namespace
 import pytest
 from rigid_body_sim.messages.qos import CLOCK_QOS
+from rigid_body_sim.node.clock_guard import ClockGuard
+from rigid_body_sim.node.clock_guard import STALL_SECONDS
 from rosgraph_msgs.msg import Clock
 
 pytestmark = pytest.mark.xdist_group('node')
@@ -178,3 +181,115 @@ def test_a_change_of_pace_or_a_parameter_applies_at_once_not_after_the_old_deadl
         raise AssertionError(f'{error}\nnode output:\n{node.output()}') from None
     finally:
         stop(node, client)
+
+
+def publish_clock_messages(client, namespace, times):
+    """Publish /clock messages of (sec, nanosec) into the node's remapped clock topic."""
+    publisher = client.node.create_publisher(Clock, f'{namespace}/clock', CLOCK_QOS)
+    client.wait_for(lambda: publisher.get_subscription_count() > 0, 30.0,
+                    'the node subscribed to /clock')
+    for sec, nanosec in times:
+        message = Clock()
+        message.clock.sec = sec
+        message.clock.nanosec = nanosec
+        publisher.publish(message)
+    return publisher
+
+
+def latest_status(client, since):
+    """Return (level, message, values) of the node's first /diagnostics report after `since`."""
+    message = client.wait_for_messages('/diagnostics', 1, since=since)[-1]
+    status = next(s for s in message.status if s.hardware_id.endswith(NODE_NAME))
+    return status.level, status.message, {kv.key: kv.value for kv in status.values}
+
+
+def test_a_clock_message_that_is_not_a_time_is_refused_and_the_node_lives_on(tmp_path):
+    """
+    /clock {sec: -5} once ended the node (rclpy's TimeSource raised in the executor).
+
+    Now it is refused in one log line, /diagnostics says so (WARN), and a valid /clock
+    after it still sets the clock the stamps come from.
+    """
+    node, client = start(tmp_path, {'use_sim_time': True, 'rate': 100.0})
+    try:
+        publish_clock_messages(client, client.namespace, [(-5, 0), (3, 2_000_000_000)])
+        client.wait_for(lambda: 'refused a /clock message' in node.output(), 30.0,
+                        'the refusal')
+        assert node.alive(), node.output()
+        refusals = [line for line in node.output().splitlines() if 'refused a /clock' in line]
+        assert len(refusals) == 1, refusals
+        since = time.monotonic()
+        level, message, values = latest_status(client, since)
+        assert values['/clock refused'] == '2', values
+        assert level == DiagnosticStatus.WARN and 'no /clock received yet' in message, message
+        publish_clock_messages(client, client.namespace, [(42, 5)])
+        client.wait_for(lambda: any(nanoseconds(m.header.stamp) == 42_000_000_005
+                                    for m in client.messages('pose', since)),
+                        30.0, 'a pose stamped with the valid /clock')
+    finally:
+        stop(node, client)
+
+
+def test_an_input_expires_on_the_steady_clock_when_the_ros_clock_stands_still(tmp_path):
+    """
+    use_sim_time with a /clock that never advances: a torque still ends after input_timeout.
+
+    Before: one /torque {z: 0.5} drove the body forever (L_z rising by 0.5 a second).  The
+    node runs at 100 Hz, input_timeout 0.5 s: the torque acts for 0.5 s of ticks (within a
+    tick or two of the time the tick that applies it comes), so L_z changes by 0.25 N m s.
+    """
+    namespace = unique_namespace()
+    node = NodeProcess(tmp_path / 'node.log', namespace=namespace,
+                       parameters={'scene': 'default', 'use_sim_time': True, 'rate': 100.0,
+                                   'input_timeout': 0.5},
+                       extra_arguments=['-r', f'/clock:={namespace}/clock'])
+    client = Client(namespace, extra_topics={'clock': (Clock, CLOCK_QOS)})
+    try:
+        client.wait_until_connected()
+        publish_clock_messages(client, namespace, [(7, 0)])
+        before = client.wait_for_messages('angular_momentum', 1, since=time.monotonic())[-1]
+        client.publish_torque((0.0, 0.0, 0.5))
+        # 100 ticks (1 s at 100 Hz: twice the timeout), then 50 more: the torque must have
+        # ended in between; torque-free, buss keeps world L exactly.
+        held = client.wait_for_messages('angular_momentum', 100, since=time.monotonic())[-1]
+        later = client.wait_for_messages('angular_momentum', 50, since=time.monotonic())[-1]
+        assert later.vector.z == held.vector.z, (held.vector.z, later.vector.z)
+        # At most 0.5 s of torque: 0.25 N m s, and a tick of 0.005 more for the tick that
+        # applies it.
+        change = held.vector.z - before.vector.z
+        assert 0.0 < change <= 0.25 + 0.005 + 1e-9, change
+        level, message, _ = latest_status(client, time.monotonic())
+        assert level == DiagnosticStatus.WARN and '/clock has not advanced' in message, message
+    finally:
+        client.close()
+        assert node.stop() == 0, node.output()
+
+
+def test_use_sim_time_is_refused_at_run_time_with_a_reason(tmp_path):
+    node, client = start(tmp_path, {})
+    try:
+        result = client.set_parameter('use_sim_time', True)
+        assert not result.successful and 'set at start-up only' in result.reason
+    finally:
+        stop(node, client)
+
+
+def test_the_clock_guard_refuses_what_is_not_a_time_and_says_what_the_stamps_mean():
+    guard = ClockGuard()
+    assert guard.receive(-5, 0, now=0.0) is None
+    assert guard.receive(0, 1_000_000_000, now=0.0) is None
+    assert guard.time is None and guard.rejected == 2
+    problems, _ = guard.status(now=0.0)
+    assert [kind for _, kind in problems] == ['stamps', 'peer']
+    assert guard.receive(2**31 - 1, 999_999_999, now=1.0) == (2**31 - 1) * 10**9 + 999_999_999
+    assert guard.receive(48, 0, now=1.5) == 48 * 10**9 and guard.went_back == 1
+    assert guard.stamps_ordered(now=1.5)
+    # Standing still: the stamps no longer tell before from after.
+    assert guard.receive(48, 0, now=1.5 + 2 * STALL_SECONDS) == 48 * 10**9
+    assert not guard.stamps_ordered(now=1.5 + 2 * STALL_SECONDS)
+    problems, values = guard.status(now=1.5 + 2 * STALL_SECONDS)
+    assert dict(values)['/clock went back'] == '1'
+    assert any('has not advanced' in text for text, _ in problems)
+    # Each period reports what happened in it: nothing new refused or gone back.
+    problems, _ = guard.status(now=1.5 + 2 * STALL_SECONDS)
+    assert [kind for _, kind in problems] == ['stamps']

@@ -18,6 +18,7 @@ import signal
 import subprocess
 import sys
 import time
+import types
 import warnings
 
 from mcap.data_stream import ReadDataStream
@@ -534,3 +535,33 @@ def test_a_message_dispatched_after_later_ones_were_written_keeps_the_bag_in_tim
     recorder.buffer = [(20, None, b'late', 20, 3), (50, None, b'c', 50, 4)]
     recorder.write_buffered()
     assert recorder.writer.written == [(10, b'a'), (30, b'b'), (30, b'late'), (50, b'c')]
+
+
+def _clock_bytes(seconds, nanoseconds):
+    """Return a rosgraph_msgs/Clock in CDR, little endian (what the recorder receives)."""
+    return (b'\x00\x01\x00\x00' + seconds.to_bytes(4, 'little', signed=True)
+            + nanoseconds.to_bytes(4, 'little'))
+
+
+def test_a_clock_that_is_not_a_time_moves_no_bag_time_under_use_sim_time():
+    """
+    A /clock that is not a time is refused, said once, and counted.
+
+    A peer's /clock {sec: -5} once set a negative bag time: the messages after it were
+    logged as received before the first /clock.
+    """
+    recorder = _Recorder.__new__(_Recorder)
+    recorder.use_sim_time = True
+    recorder.sim_time = recorder.first_sim_time = None
+    recorder.refused_clocks = 0
+    said = []
+    recorder.log = said.append
+    clock = types.SimpleNamespace(name='/clock', recorded=False)
+    recorder._keep(clock, _clock_bytes(-5, 0), {})
+    assert recorder.sim_time is None and recorder.refused_clocks == 1
+    recorder._keep(clock, _clock_bytes(12, 500), {})
+    assert recorder.sim_time == recorder.first_sim_time == 12_000_000_500
+    recorder._keep(clock, _clock_bytes(3, 1_000_000_000), {})
+    recorder._keep(clock, _clock_bytes(-1, 0), {})
+    assert recorder.sim_time == 12_000_000_500 and recorder.refused_clocks == 3
+    assert len(said) == 1 and 'refused a /clock message' in said[0], said

@@ -60,7 +60,9 @@ from rclpy.clock import Clock
 from rclpy.clock import ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.serialization import deserialize_message
 from rclpy.serialization import serialize_message
+from rclpy.time import Time
 from rosgraph_msgs.msg import Clock as ClockMessage
 from sensor_msgs.msg import Imu as ImuMessage
 from std_srvs.srv import SetBool
@@ -68,6 +70,7 @@ from std_srvs.srv import Trigger
 
 from .background_compile import BackgroundCompilation
 from .background_compile import kernels_compiled
+from .clock_guard import ClockGuard
 from .parameter_services import ParameterServices
 from .parameters import check_integrator
 from .parameters import declare_parameters
@@ -257,10 +260,16 @@ class RigidBodyNode(Node):
                                                + 'iI')
         self._system_time = False
         self._last_stamp = 0  # ns: the stamp of the last state published
+        self._clock_guard = self._guard_ros_clock()
         tf_status = self._start_tf(imu_frame)
 
         self._inputs = dict.fromkeys(_INPUT_TOPICS)  # topic -> (WrenchInput, held from ns)
         self._inputs_changed = False
+        # topic -> the latest message received since the last tick, serialised: the tick
+        # reads it (one per topic and tick), so a flood of inputs costs the callbacks only
+        # a store each, and cannot take the tick's time.
+        self._received = {}
+        self._input_types = {}
         self._paused = False
         # Why the simulation stopped (a state that turned non-finite), until a reset.
         self._diverged = None
@@ -277,10 +286,11 @@ class RigidBodyNode(Node):
             from geometry_msgs.msg import WrenchStamped
             for topic, message_type in (('torque', Vector3Stamped),
                                         ('wrench', WrenchStamped)):
+                self._input_types[topic] = message_type
                 self.create_subscription(
                     message_type, topic,
-                    lambda message, topic=topic: self._input_callback(topic, message),
-                    INPUT_QOS)
+                    lambda data, topic=topic: self._input_callback(topic, data),
+                    INPUT_QOS, raw=True)
         self.create_service(Trigger, 'reset', self._reset_callback, qos_profile=SERVICE_QOS)
         self.create_service(SetBool, 'pause', self._pause_callback, qos_profile=SERVICE_QOS)
         self.add_on_set_parameters_callback(self._validate_parameters_callback)
@@ -413,10 +423,15 @@ class RigidBodyNode(Node):
         # The node's clock; while it runs on system time (no /clock), time.time_ns() reads
         # the same clock for a tenth of the cost of Clock.now().
         now = time.time_ns() if self._system_time else self.get_clock().now().nanoseconds
-        if self._input_timeout_ns > 0 and self._expire_inputs(now):
+        # Inputs expire on the steady clock: a ROS clock that stands still or runs back
+        # (use_sim_time) must not hold an input forever.
+        steady = time.monotonic_ns()
+        if self._received:
+            self._take_received_inputs()
+        if self._input_timeout_ns > 0 and self._expire_inputs(steady):
             self._inputs_changed = True
         if self._inputs_changed:
-            self._hold_inputs(now)
+            self._hold_inputs(steady)
         simulator = self._simulator
         stepped = time.perf_counter()
         if self._diverged is not None:
@@ -502,6 +517,34 @@ class RigidBodyNode(Node):
         self._system_time = clock.clock_type == ClockType.SYSTEM_TIME or (
             clock.clock_type == ClockType.ROS_TIME and not clock.ros_time_is_active)
 
+    def _guard_ros_clock(self):
+        """
+        Follow /clock here rather than through rclpy's TimeSource (ros/clock_guard.py).
+
+        Returns the ClockGuard, or None when the node runs on the system clock.  rclpy
+        subscribed to /clock when use_sim_time was given at start; that subscription is
+        replaced by one whose callback refuses what is not a time instead of raising.
+        """
+        if not self.get_parameter('use_sim_time').value:
+            return None
+        clock_topic = self.resolve_topic_name(_CLOCK_TOPIC)  # as remapped, if it is
+        for subscription in list(self.subscriptions):
+            if subscription.topic_name == clock_topic:
+                self.destroy_subscription(subscription)
+        self.create_subscription(ClockMessage, _CLOCK_TOPIC, self._clock_callback,
+                                 CLOCK_QOS)
+        return ClockGuard()
+
+    def _clock_callback(self, message):
+        stamp = self._clock_guard.receive(message.clock.sec, message.clock.nanosec)
+        if stamp is None:
+            self._warn_throttled('clock', f'refused a /clock message '
+                                 f'({self._clock_guard.last_rejected}); the ROS clock stays '
+                                 'where it was')
+            return
+        self.get_clock().set_ros_time_override(
+            Time(nanoseconds=stamp, clock_type=ClockType.ROS_TIME))
+
     def _expire_inputs(self, now):
         expired = False
         for topic, held in self._inputs.items():
@@ -538,11 +581,26 @@ class RigidBodyNode(Node):
 
     # -- callbacks: inputs, services and parameters, applied as they come (between ticks)
 
-    def _input_callback(self, topic, message):
-        wrench = self._accepted_input(topic, message)
-        if wrench is not None:
-            self._inputs[topic] = (wrench, None)  # held from the tick that applies it
-            self._inputs_changed = True
+    def _input_callback(self, topic, data):
+        # Kept, not read: the next tick takes the latest (see _received).
+        self._received[topic] = data
+
+    def _take_received_inputs(self):
+        """Read the latest input of each topic received since the last tick, and hold it."""
+        received, self._received = self._received, {}
+        for topic, data in received.items():
+            try:
+                message = deserialize_message(data, self._input_types[topic])
+            except Exception as error:  # noqa: B902 (a peer's bytes: any failure is a refusal)
+                self._rejected += 1
+                self._warn_throttled((topic, 'bytes'), f'rejected a {topic} input that does '
+                                     f'not deserialise ({shortened(str(error))}), state '
+                                     'unchanged')
+                continue
+            wrench = self._accepted_input(topic, message)
+            if wrench is not None:
+                self._inputs[topic] = (wrench, None)  # held from the tick that applies it
+                self._inputs_changed = True
 
     def _accepted_input(self, topic, message):
         """Return the WrenchInput of a torque or wrench message, or None if rejected."""
@@ -567,6 +625,12 @@ class RigidBodyNode(Node):
 
     def _from_stamp(self):
         seconds, nanoseconds = divmod(self._last_stamp, 1_000_000_000)
+        guard = self._clock_guard
+        if not self._publish_clock and guard is not None and not guard.stamps_ordered():
+            # Stamped with a /clock that stands still or never came: a stamp cannot tell
+            # the messages before this from those after it.
+            return (f'the stamps follow /clock, which stands at {seconds}.{nanoseconds:09d} s: '
+                    'they do not tell messages before this from those after it')
         return f'every message stamped after {seconds}.{nanoseconds:09d} s shows it'
 
     def _reset_callback(self, request, response):
@@ -577,6 +641,7 @@ class RigidBodyNode(Node):
             # node's backlog) belonged to the run it ended, and are not run after it.
             self._restart_schedule(time.monotonic())
         self._inputs = dict.fromkeys(_INPUT_TOPICS)
+        self._received = {}
         self._hold_inputs(None)
         response.success = True
         response.message = (
@@ -598,6 +663,12 @@ class RigidBodyNode(Node):
         proposed = {'integrator': simulator.integrator, 'substeps': self._substeps,
                     'tolerance': simulator.tolerance or 0.0}
         for parameter in parameters:
+            if parameter.name == 'use_sim_time':
+                # rclpy would follow /clock again through its own subscription, which a
+                # peer's malformed /clock message turns into an exception (clock_guard.py).
+                return SetParametersResult(
+                    successful=False, reason='use_sim_time is set at start-up only '
+                    '(--ros-args -p use_sim_time:=true); restart the node to change it')
             if parameter.name == 'integrator':
                 reason = check_integrator(shortened(parameter.value))
                 if reason is not None:
@@ -814,6 +885,17 @@ class RigidBodyNode(Node):
                 'interpreted until then' if self._simulator.interpreted else 'until then')
         elif self._simulator.interpreted:
             message += '; interpreted: the kernels are not compiled'
+        if self._clock_guard is not None:
+            problems, clock_values = self._clock_guard.status()
+            values = list(values) + clock_values
+            # What the stamps mean matters only where they come from /clock.
+            problems = [(text, kind) for text, kind in problems
+                        if kind == 'peer' or not self._publish_clock]
+            if problems:
+                if level == DiagnosticStatus.OK:
+                    level = DiagnosticStatus.WARN
+                message += '; ROS clock (use_sim_time): ' + '; '.join(
+                    text for text, _ in problems)
         stamp = self._simulated_nanoseconds() if self._publish_clock \
             else self.get_clock().now().nanoseconds
         self._diagnostics_publisher.publish(diagnostic_array(

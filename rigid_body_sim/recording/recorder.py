@@ -232,6 +232,7 @@ class _Recorder:
         self.written_until = -math.inf  # ns: the latest log time written
         self.sim_time = None  # ns, from /clock (use_sim_time): None before the first one
         self.first_sim_time = None  # ns, the first /clock's: the time of earlier messages
+        self.refused_clocks = 0  # /clock messages that were not a time
         # The node's topics (in its namespace) are subscribed at once, with known types.
         known = default_topics(namespace)
         for name in topics:
@@ -328,11 +329,23 @@ class _Recorder:
 
     def _keep(self, topic, data, info):
         if topic.name == CLOCK_TOPIC and self.use_sim_time:
-            # rosgraph_msgs/Clock in CDR: 4-byte encapsulation, int32 sec, uint32 nanosec.
-            seconds = int.from_bytes(data[4:8], 'little', signed=True)
-            self.sim_time = seconds * 1_000_000_000 + int.from_bytes(data[8:12], 'little')
-            if self.first_sim_time is None:
-                self.first_sim_time = self.sim_time
+            # rosgraph_msgs/Clock in CDR: 4-byte encapsulation (its second byte 1: little
+            # endian), int32 sec, uint32 nanosec.
+            order = 'little' if len(data) > 1 and data[1] == 1 else 'big'
+            seconds = int.from_bytes(data[4:8], order, signed=True)
+            nanoseconds = int.from_bytes(data[8:12], order)
+            if len(data) < 12 or seconds < 0 or nanoseconds >= 1_000_000_000:
+                # Not a time (a peer's negative /clock): the bag time stays where it was,
+                # and no message is taken for one received before the first /clock.
+                self.refused_clocks += 1
+                if self.refused_clocks == 1:
+                    self.log(f'refused a /clock message that is not a time (sec {seconds}, '
+                             f'nanosec {nanoseconds}): bag times stay at the last valid one; '
+                             'the end says how many were refused')
+            else:
+                self.sim_time = seconds * 1_000_000_000 + nanoseconds
+                if self.first_sim_time is None:
+                    self.first_sim_time = self.sim_time
         if not topic.recorded:
             return
         if self.use_sim_time:
@@ -479,6 +492,9 @@ def record(bag, topics=None, storage='mcap', namespace='', depth=30000, flush_pe
         if context.ok():
             _dispatch(executor, 1e-9 * _ORDER_MARGIN)
         recorder.write_buffered()
+        if recorder.refused_clocks:
+            recorder.log(f'{recorder.refused_clocks} /clock message(s) refused in all: not a '
+                         'time (bag times did not follow them)')
         counts, lost = recorder.summary_counts()
         missing = [name for name in names if name not in counts]
     finally:

@@ -27,6 +27,7 @@ from .run_limits import check_duration
 from .run_limits import check_rate
 from .run_limits import check_substeps
 from .run_limits import check_tolerance
+from ..text import one_line
 from ..physics import INTEGRATORS
 from ..physics import unresolved_rotation
 from ..recording.bag_writer import STORAGES
@@ -99,26 +100,64 @@ def start_time_nanoseconds(text):
     return round(seconds * 1e9)
 
 
+# Beside a storage file its metadata.yaml names, what SQLite and this package's writer may
+# leave: SQLite's journals, and the sqlite3 writer's second file while it writes
+# (recording/bag_writer.py: <bag>_alternate.db3).
+_COMPANIONS = ('-journal', '-wal', '-shm')
+
+
+def _named_by_metadata(path):
+    """Return the names metadata.yaml of the bag directory `path` lists, or raise ValueError."""
+    import yaml
+
+    metadata = path / 'metadata.yaml'
+    if not metadata.is_file() or metadata.is_symlink():
+        raise ValueError(f'{path} exists and is not a bag (it holds no metadata.yaml); not '
+                         'replaced: give a new --bag directory')
+    try:
+        information = yaml.safe_load(metadata.read_text())['rosbag2_bagfile_information']
+        named = [str(name) for name in information['relative_file_paths']]
+    except (OSError, UnicodeDecodeError, yaml.YAMLError, KeyError, TypeError) as error:
+        reason = type(error).__name__ if isinstance(error, (KeyError, TypeError)) else error
+        raise ValueError(f'{path} exists and its metadata.yaml is not that of a rosbag2 bag '
+                         f'({one_line(str(reason), 120)}); not replaced: give a new --bag '
+                         'directory') from None
+    if any(Path(name).name != name or name in ('', '.', '..') for name in named):
+        raise ValueError(f'{path} exists and its metadata.yaml names files outside it; not '
+                         'replaced')
+    return named
+
+
 def remove_bag(path):
     """
     Remove the bag directory `path` (for --overwrite).
 
-    Only a bag goes: a directory holding metadata.yaml, or only storage files (a killed
-    writer's); anything else is an error, so a mistyped --bag never deletes other files.
+    Only a bag goes, and only what it is made of: its metadata.yaml (rosbag2's, naming its
+    storage files in ``relative_file_paths``), those files, their SQLite journals and this
+    package's sqlite3 writer's second file.  A directory holding anything else, or no
+    metadata.yaml, is an error naming what it found, so a mistyped --bag never deletes
+    other files.
     """
-    import shutil
-
-    storage = ('.mcap', '.db3', '.db3-journal', '.db3-wal', '.db3-shm')
-    if not path.is_dir():
+    if path.is_symlink() or not path.is_dir():
         raise ValueError(f'{path} exists and is not a bag directory; not replaced')
-    files = list(path.iterdir())
-    is_bag = (path / 'metadata.yaml').is_file() and all(
-        entry.is_file() for entry in files) or (files and all(
-            entry.is_file() and entry.name.endswith(storage) for entry in files))
-    if not is_bag:
-        raise ValueError(f'{path} exists and is not a bag (no metadata.yaml, or other '
-                         'files in it); not replaced: give a new --bag directory')
-    shutil.rmtree(path)
+    named = _named_by_metadata(path)
+    allowed = {'metadata.yaml'}
+    for name in named:
+        stem = name[:-len('.db3')] if name.endswith('.db3') else None
+        for file in [name] + ([f'{stem}_alternate.db3'] if stem else []):
+            allowed.update([file] + [file + suffix for suffix in _COMPANIONS])
+    found = sorted(entry.name for entry in path.iterdir())
+    foreign = [name for name in found
+               if name not in allowed or not (path / name).is_file()
+               or (path / name).is_symlink()]
+    if foreign:
+        shown = ', '.join(one_line(name, 60) for name in foreign[:3])
+        more = f' and {len(foreign) - 3} more' if len(foreign) > 3 else ''
+        raise ValueError(f'{path} holds what its metadata.yaml does not name ({shown}{more}); '
+                         'not replaced: give a new --bag directory')
+    for name in found:
+        (path / name).unlink()
+    path.rmdir()
 
 
 def main(args):
@@ -143,10 +182,12 @@ def main(args):
     bag = args.bag
     if bag is None:
         bag = f'{scene.name}_{datetime.now().strftime("%Y_%m_%d-%H_%M_%S")}'
+    if not bag.strip():
+        raise ValueError('--bag is empty: give the directory to write the bag to (a new one)')
     if Path(bag).exists():
         if not args.overwrite:
-            raise ValueError(f'{bag} exists already; give a new --bag directory, or '
-                             '--overwrite to replace it')
+            raise ValueError(f'{one_line(bag, 200)} exists already; give a new --bag '
+                             'directory, or --overwrite to replace it')
         remove_bag(Path(bag))
     start_time = start_time_nanoseconds(args.start_time)
     if not (math.isfinite(args.flush_period) and args.flush_period >= 0.0):
