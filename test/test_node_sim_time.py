@@ -183,17 +183,30 @@ def test_a_change_of_pace_or_a_parameter_applies_at_once_not_after_the_old_deadl
         stop(node, client)
 
 
-def publish_clock_messages(client, namespace, times):
-    """Publish /clock messages of (sec, nanosec) into the node's remapped clock topic."""
+def publish_clock_messages(client, namespace, times, until, what, timeout=30.0):
+    """
+    Publish /clock messages of (sec, nanosec) into the node's remapped clock topic.
+
+    Again every half second until `until()` holds: that this side sees the node's
+    subscription does not mean the node's side has matched this publisher yet, and a message
+    sent before that is lost.
+    """
     publisher = client.node.create_publisher(Clock, f'{namespace}/clock', CLOCK_QOS)
-    client.wait_for(lambda: publisher.get_subscription_count() > 0, 30.0,
+    client.wait_for(lambda: publisher.get_subscription_count() > 0, timeout,
                     'the node subscribed to /clock')
-    for sec, nanosec in times:
-        message = Clock()
-        message.clock.sec = sec
-        message.clock.nanosec = nanosec
-        publisher.publish(message)
-    return publisher
+    deadline = time.monotonic() + timeout
+    while True:
+        for sec, nanosec in times:
+            message = Clock()
+            message.clock.sec = sec
+            message.clock.nanosec = nanosec
+            publisher.publish(message)
+        try:
+            client.wait_for(until, 0.5, what)
+            return publisher
+        except AssertionError:
+            if time.monotonic() > deadline:
+                raise AssertionError(f'timed out after {timeout:g} s waiting for {what}')
 
 
 def latest_status(client, since):
@@ -212,20 +225,22 @@ def test_a_clock_message_that_is_not_a_time_is_refused_and_the_node_lives_on(tmp
     """
     node, client = start(tmp_path, {'use_sim_time': True, 'rate': 100.0})
     try:
-        publish_clock_messages(client, client.namespace, [(-5, 0), (3, 2_000_000_000)])
-        client.wait_for(lambda: 'refused a /clock message' in node.output(), 30.0,
-                        'the refusal')
+        publish_clock_messages(client, client.namespace, [(-5, 0), (3, 2_000_000_000)],
+                               lambda: 'refused a /clock message' in node.output(),
+                               'the refusal')
         assert node.alive(), node.output()
         refusals = [line for line in node.output().splitlines() if 'refused a /clock' in line]
         assert len(refusals) == 1, refusals
         since = time.monotonic()
         level, message, values = latest_status(client, since)
-        assert values['/clock refused'] == '2', values
+        # Every /clock message that came was refused (each of the two is not a time).
+        assert int(values['/clock refused']) >= 1, values
+        assert values['/clock refused'] == values['/clock received'], values
         assert level == DiagnosticStatus.WARN and 'no /clock received yet' in message, message
-        publish_clock_messages(client, client.namespace, [(42, 5)])
-        client.wait_for(lambda: any(nanoseconds(m.header.stamp) == 42_000_000_005
-                                    for m in client.messages('pose', since)),
-                        30.0, 'a pose stamped with the valid /clock')
+        publish_clock_messages(client, client.namespace, [(42, 5)],
+                               lambda: any(nanoseconds(m.header.stamp) == 42_000_000_005
+                                           for m in client.messages('pose', since)),
+                               'a pose stamped with the valid /clock')
     finally:
         stop(node, client)
 
@@ -246,7 +261,10 @@ def test_an_input_expires_on_the_steady_clock_when_the_ros_clock_stands_still(tm
     client = Client(namespace, extra_topics={'clock': (Clock, CLOCK_QOS)})
     try:
         client.wait_until_connected()
-        publish_clock_messages(client, namespace, [(7, 0)])
+        publish_clock_messages(client, namespace, [(7, 0)],
+                               lambda: any(nanoseconds(m.header.stamp) == 7_000_000_000
+                                           for m in client.messages('angular_momentum')),
+                               'a state stamped with /clock')
         before = client.wait_for_messages('angular_momentum', 1, since=time.monotonic())[-1]
         client.publish_torque((0.0, 0.0, 0.5))
         # 100 ticks (1 s at 100 Hz: twice the timeout), then 50 more: the torque must have

@@ -27,12 +27,12 @@ from .run_limits import check_duration
 from .run_limits import check_rate
 from .run_limits import check_substeps
 from .run_limits import check_tolerance
-from ..text import one_line
 from ..physics import INTEGRATORS
 from ..physics import unresolved_rotation
 from ..recording.bag_writer import STORAGES
 from ..scenes import DEFAULT_SCENE
 from ..scenes import load_scene
+from ..text import one_line
 
 
 def add_arguments(parser):
