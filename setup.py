@@ -18,6 +18,10 @@ setup(
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', glob('config/*.yaml')),
         ('share/' + package_name + '/config/scenes', glob('config/scenes/*.yaml')),
+        # `ros2 launch rigid_body_sim sim.launch.py` looks in share/<package>/launch; the
+        # launch file finds the RViz config beside it, in ../rviz.
+        ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
+        ('share/' + package_name + '/rviz', glob('rviz/*.rviz')),
     ],
     install_requires=['setuptools'],
     # The run-time dependencies come as package.xml's exec_depends (rosdep) or from the
@@ -51,6 +55,8 @@ setup(
             # The ROS 2 node (rigid_body_sim/node/rigid_body_node.py), through a light entry
             # point that keeps signals during the slow imports quiet.
             'rigid_body_node = rigid_body_sim.node.entry_point:main',
+            # Draws the node's angular momentum as an arrow marker for RViz (sim.launch.py).
+            'angular_momentum_arrow = rigid_body_sim.node.momentum_arrow:main',
         ],
     },
 )

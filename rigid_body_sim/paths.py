@@ -1,8 +1,8 @@
 """
 Locate the installed configuration of rigid_body_sim.
 
-The configuration (``config/*.yaml`` and ``config/scenes/*.yaml``) is found
-in the first of these places that exists:
+The configuration (``config/*.yaml`` and ``config/scenes/*.yaml``, and the RViz config
+``rviz/rigid_body_sim.rviz``) is found in the first of these places that exists:
 
 1. the package's share directory from the ament index, as in a colcon
    install whose prefix is on ``AMENT_PREFIX_PATH`` (``source install/setup.bash``);
@@ -80,3 +80,12 @@ def scenes_dir():
     :returns: ``config_dir() / 'scenes'``, holding ``*.yaml`` scenes.
     """
     return config_dir() / 'scenes'
+
+
+def rviz_config():
+    """
+    Return the package's RViz config, for ``rviz2 -d`` (sim.launch.py starts RViz with it).
+
+    :returns: ``share_dir() / 'rviz' / 'rigid_body_sim.rviz'``.
+    """
+    return share_dir() / 'rviz' / 'rigid_body_sim.rviz'

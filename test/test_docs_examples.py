@@ -11,6 +11,9 @@ says why and is checked as far as it can be:
 - ``ros2``, ``rviz2``: skipped with a reason where the ros2 CLI is absent (the pip-only
   venv has none), run where it is (only their ``--help`` side is safe: they talk to a node);
 - ``make run`` / ``make test``: the node until Ctrl-C, and this very suite: not run;
+- ``rigid_body_node``, ``angular_momentum_arrow`` (but their ``--help``): they run until
+  Ctrl-C: not run (test_launch.py starts both, and runs the pages' ``ros2 launch`` lines
+  in a scratch ROS 2 launch environment);
 - a ROS 2 workspace (``colcon build`` in ~/ros2_ws): test_colcon_build.py builds it;
 - ``rigid-body-sim bench`` without ``--quick`` (tens of minutes), ``record`` and ``watch`` (until
   Ctrl-C, with a node): their arguments are parsed by the real parser (an option that no
@@ -74,12 +77,17 @@ def _reason_not_run(command):
     if not words:
         return None, False
     program = words[0]
+    if program == 'ros2' and words[1:2] == ['launch']:
+        return ('test_launch.py runs every ros2 launch line of the pages as written, in a '
+                'scratch ROS 2 launch environment'), False
     if program in ('ros2', 'rviz2'):
         if shutil.which('ros2') is None:
             return 'the ros2 CLI is not installed here (the pip-only venv has none)', False
         return 'talks to a running node (the ros2 CLI is here, no node is)', False
     if program == 'make':
         return 'make run starts the node until Ctrl-C; make test is this suite', False
+    if program in ('rigid_body_node', 'angular_momentum_arrow') and '--help' not in words:
+        return 'runs until Ctrl-C (test_launch.py starts it)', False
     if program in ('mkdir', 'cd', 'colcon', 'source', 'git') or '~/ros2_ws' in command:
         return 'sets up a ROS 2 workspace (test_colcon_build.py builds the package)', False
     if program.endswith('rigid-body-sim') and len(words) > 1:

@@ -9,7 +9,7 @@ import pytest
 PACKAGE_ROOT = Path(__file__).resolve().parent.parent
 
 # Only the package's own sources: never .venv/, build/, install/ or log/.
-LINTED_PATHS = ['rigid_body_sim', 'test', 'benchmarks', 'setup.py']
+LINTED_PATHS = ['rigid_body_sim', 'test', 'benchmarks', 'launch', 'setup.py']
 
 
 @pytest.mark.flake8

@@ -2,8 +2,9 @@
 package.xml names every package the code imports (what rosdep installs), run time apart.
 
 Run time is the installed package less the benchmark (rigid_body_sim/work_precision/ and
-rigid_body_sim/tools/bench.py, which only `rigid-body-sim bench` imports): its imports are
-package.xml's exec_depends and requirements.txt's pins.  What only the benchmark and the
+rigid_body_sim/tools/bench.py, which only `rigid-body-sim bench` imports), and the launch
+files (launch/*.py, which `ros2 launch` runs): its imports are package.xml's exec_depends
+and requirements.txt's pins.  What only the benchmark and the
 tests import or run is a test_depend, pinned in requirements-test.txt.
 """
 
@@ -42,8 +43,10 @@ DISTRIBUTIONS = {
     'python3-colcon-common-extensions': 'colcon-common-extensions',
     'python3-pytest-xdist': 'pytest-xdist',
 }
-# Built into the venv from interfaces/tf2_msgs (no wheel): never pinned.
-BUILT = {'tf2_msgs'}
+# Built into the venv from interfaces/tf2_msgs (no wheel): never pinned.  launch and
+# launch_ros, which the launch files import, have no wheel either: a ROS 2 installation has
+# them (test/launch_env.py builds them from their sources for the tests, outside the venv).
+BUILT = {'tf2_msgs', 'launch', 'launch_ros'}
 # Test_depends that the run-time set brings anyway (geometry_msgs needs std_msgs).
 PULLED_AT_RUN_TIME = {'std_msgs'}
 
@@ -71,8 +74,8 @@ def _is_bench(path):
 
 def run_time_modules():
     """Return the top-level modules the installed package imports, the benchmark aside."""
-    return _imports((path for path in (ROOT / 'rigid_body_sim').rglob('*.py')
-                     if not _is_bench(path)))
+    sources = [path for path in (ROOT / 'rigid_body_sim').rglob('*.py') if not _is_bench(path)]
+    return _imports(sources + sorted((ROOT / 'launch').glob('*.py')))
 
 
 def bench_and_test_modules():
