@@ -18,6 +18,8 @@ setup(
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', glob('config/*.yaml')),
         ('share/' + package_name + '/config/scenes', glob('config/scenes/*.yaml')),
+        # The example sweep specs (rigid-body-sim sweep small).
+        ('share/' + package_name + '/config/sweeps', glob('config/sweeps/*.yaml')),
     ],
     install_requires=['setuptools'],
     # The run-time dependencies come as package.xml's exec_depends (rosdep) or from the
