@@ -130,6 +130,14 @@ def test_the_help_teaches_every_key_of_the_spec_with_an_example():
     assert 'random:' in text and 'draw:' in text and 'rigid-body-sim sweep small' in text
 
 
+def test_a_dry_run_lists_the_runs_and_runs_none(tmp_path, capsys):
+    assert main(['sweep', 'small', '--out', str(tmp_path / 'out'), '--dry-run']) == 0
+    out = capsys.readouterr().out
+    assert out.count('\n') == 7 and '18 runs (0 in' in out and '... 13 more' in out
+    assert 'buss, exact, rk4, splitting4' in out, 'the reference integrator is loaded too'
+    assert not (tmp_path / 'out').exists()
+
+
 # -- one run, in this process
 
 
