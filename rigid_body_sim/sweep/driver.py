@@ -156,9 +156,10 @@ def run_sweep(spec, out, scheduler=None, workers=None, stop=None, on_row=None,
             owned = engine is None
             if on_starting is not None:
                 on_starting(result)
+            integrators = needed_integrators(spec)
             if owned:
                 count = None if scheduler else min(workers or local_workers(), todo)
-                engine = Engine(scheduler, count, needed_integrators(spec), verbose).__enter__()
+                engine = Engine(scheduler, count, integrators, verbose).__enter__()
             try:
                 result.engine_seconds = engine.start_seconds or 0.0
                 result.machines = engine.machines()
@@ -167,7 +168,7 @@ def run_sweep(spec, out, scheduler=None, workers=None, stop=None, on_row=None,
                 started = time.perf_counter()
                 for outcome in engine.run_each(
                         execute_runs, _pending(spec, finished), key=lambda run: run.run_id,
-                        arguments=(str(out), engine.integrators), total=todo, stop=stop,
+                        arguments=(str(out), integrators), total=todo, stop=stop,
                         items_per_task=items_per_task):
                     if outcome.error is not None:
                         result.not_done.append((outcome.item.run_id, _one_line(outcome.error)))

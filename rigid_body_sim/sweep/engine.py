@@ -237,13 +237,22 @@ class Engine:
         """
         done = queue.Queue()
         out = self._out = {}
-        source = iter(items)
+        try:
+            yield from self._outcomes(function, iter(items), key, arguments, total, stop,
+                                      items_per_task, target_seconds, max_items_per_task,
+                                      done, out)
+        finally:
+            # Stopped, or the caller left the loop: nothing of this call stays on the cluster.
+            if out and self.client is not None:
+                self.client.cancel([future for future, _ in out.values()])
+
+    def _outcomes(self, function, source, key, arguments, total, stop, items_per_task,
+                  target_seconds, max_items_per_task, done, out):
         costs = deque(maxlen=64)
         submitted = 0
         exhausted = False
         while out or not exhausted:
             if stop is not None and stop.is_set():
-                self.client.cancel([future for future, _ in out.values()])
                 return
             threads = max(1, self.threads())
             while not exhausted and len(out) < 2 * threads:
@@ -270,14 +279,14 @@ class Engine:
             if future.status == 'finished':
                 value = future.result()
                 costs.append(value['seconds'] / len(batch))
-                for item, result in zip(batch, value['results']):
-                    yield Outcome(item, result, value['where'], value['seconds'])
+                outcomes = [Outcome(item, result, value['where'], value['seconds'])
+                            for item, result in zip(batch, value['results'])]
             else:
                 error = future.exception() if future.status == 'error' else RuntimeError(
                     f'task {future.key} {future.status}')
-                for item in batch:
-                    yield Outcome(item, None, {}, 0.0, error)
+                outcomes = [Outcome(item, None, {}, 0.0, error) for item in batch]
             future.release()
+            yield from outcomes
 
 
 def _task_size(costs, target_seconds, largest, remaining, threads):
