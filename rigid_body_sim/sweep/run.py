@@ -243,6 +243,9 @@ def _relative(change, scale):
 
 def _reference_errors(scene, simulator):
     """Return the orientation and position errors against the exact flow (same ticks)."""
+    # Loaded at the worker's start when the spec's scenes have a reference; a grid that
+    # changes the effects may give one only here: then loaded (or compiled) once, now.
+    ready([REFERENCE_INTEGRATOR])
     reference = scene.simulator(integrator=REFERENCE_INTEGRATOR, tolerance=0.0)
     reference.run(simulator.time, 1.0 / scene.rate)
     q, q_reference = simulator.state.quaternion, reference.state.quaternion
