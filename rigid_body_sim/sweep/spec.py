@@ -166,9 +166,10 @@ def _put(data, path, value):
     mapping[key] = _plain(value)
 
 
+@dataclass(frozen=True)
 class Spec:
     """
-    A validated sweep spec; :meth:`runs` expands it.
+    A validated sweep spec (:func:`parse_spec` makes one); :meth:`runs` expands it.
 
     Attributes
     ----------
@@ -193,20 +194,17 @@ class Spec:
 
     """
 
-    def __init__(self, source, description, scenes, axes, bags, storage, fixed, grid, count,
-                 seed, draws):
-        """Keep the validated parts (:func:`parse_spec` makes a Spec)."""
-        self.source = source
-        self.description = description
-        self.scenes = scenes
-        self.axes = axes
-        self.bags = bags
-        self.storage = storage
-        self.fixed = fixed
-        self.grid = grid
-        self.count = count
-        self.seed = seed
-        self.draws = draws
+    source: str
+    description: str
+    scenes: list
+    axes: dict
+    bags: bool
+    storage: str
+    fixed: dict
+    grid: dict
+    count: int
+    seed: object
+    draws: dict
 
     @property
     def run_count(self):
