@@ -9,11 +9,14 @@ the machine-wide compile lock: the other workers of that machine wait for it and
 what it cached); no run ever compiles.
 """
 
+import os
+import subprocess
+import sys
 import threading
 import time
 
 from ..physics import warm_up
-from ..tools.compile import ensure_compiled
+from ..physics.kernels import cache
 
 __all__ = ['loaded', 'ready']
 
@@ -34,7 +37,7 @@ def ready(integrators):
             return 0.0
         started = time.perf_counter()
         if warm_up.missing(todo):
-            ensure_compiled('sweep', todo, quiet=True)
+            _compile(todo)
         for name in todo:
             warm_up.load_kernels(name)
             _loaded.add(name)
@@ -45,3 +48,21 @@ def loaded():
     """Return the integrators whose kernels this process has loaded."""
     with _lock:
         return sorted(_loaded)
+
+
+def _compile(integrators):
+    """Compile what `integrators` lack with the compile command, in a process of its own."""
+    if cache.PROBLEM is not None:
+        # No cache to share: numba compiles in this process what it runs, once.
+        return
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') else 1
+    print(f'rigid-body-sim sweep: compiling the {", ".join(integrators)} kernels for their '
+          'first use on this machine (about '
+          f'{warm_up.compile_estimate(integrators, cores):.0f} s, once)', file=sys.stderr,
+          flush=True)
+    # The command, not its function: a damaged cache file that aborts LLVM takes down the
+    # compile process, not this worker; it holds the machine's compile lock, so the other
+    # workers here wait for it and then load what it cached.
+    subprocess.run([sys.executable, '-m', 'rigid_body_sim.cli', 'compile', *integrators,
+                    '--quiet'], stdout=sys.stderr, check=False)
+    warm_up.forget_verification()
