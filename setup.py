@@ -22,6 +22,8 @@ setup(
         # launch file finds the RViz config beside it, in ../rviz.
         ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
         ('share/' + package_name + '/rviz', glob('rviz/*.rviz')),
+        # The example sweep specs (rigid-body-sim sweep small).
+        ('share/' + package_name + '/config/sweeps', glob('config/sweeps/*.yaml')),
     ],
     install_requires=['setuptools'],
     # The run-time dependencies come as package.xml's exec_depends (rosdep) or from the

@@ -25,6 +25,7 @@ TOOLS = {
     'plot': 'plot',
     'animate': 'animate',
     'compile': 'compile',
+    'sweep': 'sweep',
 }
 
 _EPILOG = """\

@@ -191,8 +191,9 @@ def test_colcon_install_ships_the_config_and_paths_find_it(colcon_install):
     share = colcon_install / PACKAGE_NAME / 'share' / PACKAGE_NAME
     assert (share / 'config' / 'rigid_body_sim.yaml').is_file()
     assert not (share / 'config' / 'scenes' / '.gitkeep').exists()
-    # Every YAML of config/ and config/scenes/ is installed (setup.py data_files), no more.
-    for folder in ('config', 'config/scenes'):
+    # Every YAML of config/, config/scenes/ and config/sweeps/ is installed (setup.py
+    # data_files), no more.
+    for folder in ('config', 'config/scenes', 'config/sweeps'):
         source = sorted(path.name for path in (PACKAGE_ROOT / folder).glob('*.yaml'))
         installed = sorted(path.name for path in (share / folder).glob('*.yaml'))
         assert source, 'no YAML in ' + folder

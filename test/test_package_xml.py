@@ -26,6 +26,8 @@ KEYS = {
     'ruamel': 'python3-ruamel.yaml', 'PIL': 'python3-pil',
     'pytest': 'python3-pytest', 'hypothesis': 'python3-hypothesis',
     'mujoco': 'python3-mujoco-pip', 'mcap_ros2': 'mcap-ros2-support',
+    'dask': 'python3-dask-pip', 'distributed': 'python3-distributed-pip',
+    'pyarrow': 'python3-pyarrow-pip',
 }
 # Run by the tests as programs, not imported: colcon (test_colcon_build.py) and pytest-xdist
 # (make test's `pytest -n 2`).
@@ -42,6 +44,8 @@ DISTRIBUTIONS = {
     'python3-mujoco-pip': 'mujoco', 'mcap-ros2-support': 'mcap-ros2-support',
     'python3-colcon-common-extensions': 'colcon-common-extensions',
     'python3-pytest-xdist': 'pytest-xdist',
+    'python3-dask-pip': 'dask', 'python3-distributed-pip': 'distributed',
+    'python3-pyarrow-pip': 'pyarrow',
 }
 # Built into the venv from interfaces/tf2_msgs (no wheel): never pinned.  launch and
 # launch_ros, which the launch files import, have no wheel either: a ROS 2 installation has

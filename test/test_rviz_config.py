@@ -11,9 +11,9 @@ import math
 from pathlib import Path
 
 from geometry_msgs.msg import Vector3Stamped
+from rigid_body_sim.node.help_text import help_text
 from rigid_body_sim.node.momentum_arrow import arrow_markers
 from rigid_body_sim.node.momentum_arrow import label
-from rigid_body_sim.node.help_text import help_text
 from rigid_body_sim.node.parameters import PARAMETERS
 from visualization_msgs.msg import Marker
 import yaml
