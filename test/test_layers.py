@@ -20,6 +20,7 @@ LAYERS = (
     ('messages', 'work_precision'),
     ('node', 'drawing'),
     ('recording', 'watch'),
+    ('sweep',),
     ('tools', 'cli'),
 )
 LAYER = {part: level for level, parts in enumerate(LAYERS) for part in parts}
