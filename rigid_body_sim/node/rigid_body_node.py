@@ -206,8 +206,8 @@ class RigidBodyNode(Node):
         self._wall_period = self._period / self._real_time_factor
         kernels_ready = kernels_compiled(scene.integrator)
         if kernels_ready:
-            # The integrator's compiled kernels loaded (~0.5 s) now rather than in the
-            # first tick.
+            # The integrator's compiled kernels loaded now, so that loading them from the cache
+            # does not make the first tick late.
             load_kernels(scene.integrator)
         else:
             # Not compiled on this machine: the kernels' source runs interpreted, nothing

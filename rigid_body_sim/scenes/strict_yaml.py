@@ -104,8 +104,9 @@ class _SceneYamlLoader(yaml.SafeLoader):
 
     The composer counts the depth and the values as it builds nodes, and stops at
     MAX_SCENE_DEPTH or MAX_SCENE_VALUES: PyYAML's composer and constructor recurse once per
-    level (3,000 levels were a RecursionError), and each value costs ~30 us and ~1 KB (a
-    list of a million took 35 s and 850 MB: benchmarks/scene_input_cost.py).
+    level (a deep file is a RecursionError), and each value costs time and memory, so a file
+    of many values could hold the loader for long (docs/scenes.md has the figures, from
+    benchmarks/scene_input_cost.py).
     """
 
     def __init__(self, stream):
