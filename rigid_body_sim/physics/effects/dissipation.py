@@ -57,7 +57,8 @@ def relax(state, parameters, duration):
     dm/dt = m x u as R turns.  Explicit midpoint, second order: the midpoint's m is predicted
     by m + (h/2) m x u(m), and R <- R exp(h u(m_half)) turns on SO(3) exactly (R stays a
     rotation to round-off, L is not touched).  One turn per flow: the flow costs about what a
-    Buss step does (two turns, the midpoint's as a rotation too, cost 1.4x as much).
+    Buss step does (two turns, the midpoint's as a rotation too, would cost more for nothing
+    the order needs).
     """
     lx, ly, lz = state[10], state[11], state[12]
     momentum_norm = math.sqrt(lx * lx + ly * ly + lz * lz)

@@ -41,8 +41,8 @@ def step(state, forcing, method, dt, time, pushed, translates):
     """
     Take Buss's step on a packed state in place (method[0]: 1 augmented, 0 plain).
 
-    Scalars and tuples only between the kicks: numba keeps them in registers (0.05 us per
-    torque-free step: benchmarks/step_cost.py).
+    Scalars and tuples only between the kicks: numba keeps them in registers (the cost per
+    step: benchmarks/step_cost.py).
     """
     half = 0.5 * dt
     estimate = NO_ESTIMATE

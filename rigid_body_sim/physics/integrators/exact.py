@@ -70,22 +70,19 @@ normalised to first order in |q|^2 - 1 and turned about the body axis m x omega 
 that gives it the kinetic energy of q(0) exactly (the flow conserves it).  An exact version
 of this rounding (integers over a power of two: every double is a dyadic rational) is the
 test suite's oracle (test/exact_rounding_reference.py): the same bits but in the rarest
-ties.  That turn removes round-off, ~0.01-4 ulp; it is skipped above 16 ulp (not round-off:
+ties.  That turn removes round-off, a few ulp; it is skipped above 16 ulp (not round-off:
 a long step's error, or an energy rounded into k'^2 next to the unstable axis, where
 m x omega -> 0).  So a short step rounds the state once, like an ideal stepper that
 evaluates the exact flow in extended precision and stores (q, L) in double, and the energy
 error is that rounding's random walk, not a drift.  What remains above that ideal: the
 constants of the motion (nu, k^2, A, B, C) are rounded each step from the rounded state, the
-same way each step, a phase bias of ~0.04 ulp of L per step at dt = 0.01 s on van Zon &
-Schofield's body.
+same way each step: a small phase bias of L per step.
 
-Measured against an independent 30-digit Taylor integration (test/taylor_reference.py) at
-10 s, median over eight starts 1 ulp apart (benchmarks/exact_roundoff_floor.py, which also
-runs that ideal stepper, the floor): van Zon & Schofield's body 2.0e-13 / 2.4e-12 / 9.1e-12
-rad at dt = 0.1 / 0.01 / 0.001 s, floor 3.0e-13 / 2.3e-12 / 6.5e-12 (before this
-construction: 7.1e-12 / 4.3e-11 / 4.0e-10); the T-handle 1.5e-14 / 1.1e-14 / 2.2e-14, floor
-4e-16 / 2e-15 / 1.2e-14 (its start spins about a world axis, whose rounding turns it about L
-alone: a floor no computed step reaches).
+Measured against an independent 30-digit Taylor integration (test/taylor_reference.py),
+over eight starts 1 ulp apart, the error stays close to that ideal stepper's, the floor
+(benchmarks/exact_roundoff_floor.py runs both; the figures, and those of the construction
+before this one, are in docs/physics_api.md): on the T-handle above it, as its start spins
+about a world axis, whose rounding turns it about L alone, a floor no computed step reaches.
 
 Everything is world frame except m (principal or circulation frame); SI units.  One
 construction, compiled (scalars): :func:`free_rotation`, composed with the kicks by

@@ -15,9 +15,9 @@ quaternion).  After the step q is normalised and the world angular momentum is L
 Why the body frame: in it the fast part of the motion, the spin, is only the linear
 kinematics of q, and Euler's equations carry the slow tumble of m.  The former formulation
 (world L and q, with omega = R I_b^{-1} R^T L recomputed at each stage) differentiated the
-rotation matrix inside the stages and was 10^2-10^5 x less accurate near the separatrix
-(T-handle, dt 0.01 s, 30 s: 1.7e-4 rad; tennis racket: 1.15 rad; MuJoCo's RK4 2.7e-9 and
-3.7e-5 rad).
+rotation matrix inside the stages and was orders of magnitude less accurate near the
+separatrix than this form and than MuJoCo's RK4 (docs/benchmark.md, "rk4 as users know it",
+has the figures: benchmarks/rk4_before_after.py).
 
 A baseline, not a geometric method: it conserves neither |q| (restored after each step)
 nor the energy, nor, torque-free, the world angular momentum (L = R m drifts at the
@@ -52,8 +52,8 @@ def world_momentum_change(quaternion, quaternion_change, momentum_body, momentum
 
     The step ends at L1 = R(q1) m1 with q1 = (q0 + dq) / |q0 + dq| and m1 = m0 + dm.  Formed
     as R(q1) m1 in double, L1 would carry the rounding of the round trip m0 = R0^T L0, ~1 ulp
-    of |L| per step; that random walk of L is amplified near the separatrix (T-handle,
-    dt 0.001 s: 1.2e-6 rad after 100 s, 70x MuJoCo's RK4).  Written as
+    of |L| per step; that random walk of L is amplified near the separatrix (on the T-handle
+    at small steps it left rk4 far behind MuJoCo's RK4 over 100 s).  Written as
     L1 = L0 + R0 (dm + (R(d) - 1) m1), d = q0^* q1 ~ (q0^* dq) + (0, 0, 0, 1), every term
     is an increment known to its relative precision, so L changes only by the step's own
     change (torque-free, ~h^5: below half an ulp, L then stays bit-identical).

@@ -14,18 +14,17 @@ L and |L| exactly (to round-off), and, being symplectic, keeps the energy error 
 
 `splitting` is the Strang composition 1(h/2) 2(h/2) 3(h) 2(h/2) 1(h/2), axes numbered by
 ascending moment: the largest moment in the middle, the smallest outside.  Of the six
-orderings this one had the smallest orientation error on the benchmark bodies and on 30
-random bodies (median 1.0x the best ordering per case, worst 3x; the axis of middle moment
-outside is worst, median 3.2x, up to 27x).
+orderings this one had the smallest orientation error on the benchmark bodies and on random
+bodies (the axis of middle moment outside was the worst).
 
 `splitting4` is Suzuki's five-stage fractal composition (Phys. Lett. A 146:319, 1990):
 S(p h) S(p h) S((1 - 4p) h) S(p h) S(p h), p = 1 / (4 - 4^(1/3)), of the symmetric
 second-order step S.  Yoshida's three-stage triple jump costs 3 instead of 5 stages, but its
-large negative middle stage (-1.70 h) gives error constants ~50-100x larger at equal step,
-so at equal cost (equal number of stages) Suzuki's is still ~10x more accurate on each of
-the five benchmark bodies (measured 8-11x; tested).  Its base step puts the middle moment
-in the middle, 1(h/2) 3(h/2) 2(h) 3(h/2) 1(h/2): measured best for the composition (median
-1.0x, worst 5.6x; the `splitting` ordering: median 2.0x, worst 28x).
+large negative middle stage (-1.70 h) gives error constants far larger at equal step, so
+at equal cost (equal number of stages) Suzuki's is still the more accurate on each of the
+five benchmark bodies (test/test_splitting.py holds it to that).  Its base step puts the
+middle moment in the middle, 1(h/2) 3(h/2) 2(h) 3(h/2) 1(h/2): the ordering that was best for
+the composition (the `splitting` ordering was worse there).
 
 Wrenches enter as kicks: kick(h/2) free flow(h) kick(h/2), so `splitting` is second order
 with any wrench; `splitting4` composes that whole symmetric step and is fourth order for
@@ -138,8 +137,8 @@ def step(state, forcing, method, dt, time, pushed, translates):
     displacement are summed apart, small, and each added to its momentum or position once
     per step, with Kahan's compensation carried across the steps of a run (forcing.carry).
     Added stage by stage, each add rounded at |p| or |x| and a held force made the COM
-    drift in proportion to the step count (splitting4: 3.2e-7 m after 2e5 steps of 1 N on
-    1 kg, 9x rk4's; now 0 m, and the momentum 3.9e-9 -> 7.1e-15).
+    drift in proportion to the step count, beyond rk4's (docs/benchmark.md, "Round-off under
+    a held force", has the figures: benchmarks/splitting4_round_off.py).
     """
     body = forcing.body
     mass = body[BODY_MASS]

@@ -67,7 +67,7 @@ def helper(function):
     Decorate a compiled helper called from other compiled code (also callable from Python).
 
     Inlined into its callers at numba's IR level: left to LLVM, calls of the algebra's small
-    tuple functions cost 5 of a Buss step's 48 ns (numba's calling convention around each); a
+    tuple functions were a visible part of a Buss step (numba's calling convention around each); a
     Python caller gets the helper compiled on its own, cached.
     """
     return _njit(inline='always')(function)
@@ -77,9 +77,9 @@ def outlined(function):
     """
     Decorate a compiled helper too large to inline: compiled once and called.
 
-    The call costs a few ns, nothing beside the work of a helper such as the exact torque-free
-    flow (~500 ns); inlined at the IR level into each copy of each loop, that one made the
-    exact integrator's kernels take 288 s to compile (25 s called).
+    The call costs nothing beside the work of a helper such as the exact torque-free flow;
+    inlined at the IR level into each copy of each loop, that one made the exact integrator's
+    kernels many times slower to compile.
     """
     return _njit()(function)
 

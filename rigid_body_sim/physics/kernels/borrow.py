@@ -2,7 +2,7 @@
 Borrowed array views: the kernels' hot loops without reference counting.
 
 numba counts references to every array it passes or stores (an atomic increment and
-decrement, ~5 ns a pair here), and the kernels pass the Model's arrays down through their
+decrement a pair), and the kernels pass the Model's arrays down through their
 steps, kicks and wrench terms several times a step.  A borrowed view is the same array
 without its reference (numba's own views of foreign memory, numba.carray, are made the same
 way): counting it is a no-op.  It is valid while the array it borrows from is alive, which

@@ -30,7 +30,7 @@ every process (minutes) and :data:`PROBLEM` says, in one line, what to set.
 Trust: a compile (the ``compile`` command, tools/compile.py) writes the folder under an
 exclusive lock, then seals it: ``manifest.json`` records each file's size and SHA-256, and
 a marker per job (``compiled/<job>``) says what is complete.  :func:`verify` re-hashes the
-sealed files (4 ms for the 3 MB of kernels); a file that differs is damaged (a truncated
+sealed files (cheap beside loading them); a file that differs is damaged (a truncated
 copy, a disk error), is dropped with the markers, and compiled again by a compile in another
 process: a damaged object file would abort the process that loads it (LLVM reads it
 unchecked).  Folders of other sources are removed once unused for :data:`KEEP_DAYS` days.

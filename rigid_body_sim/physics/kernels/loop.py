@@ -44,8 +44,8 @@ METHOD_SIZE = 10
 the fourth-order splitting's (3 axes, its stage count and 5 coefficients)."""
 METHOD_TYPE = types.UniTuple(types.float64, METHOD_SIZE)
 """numba's type of the method constants: a tuple, passed by value, so that the compiler knows
-them constant over the loop and hoists what it computes from them (measured: 3.5 ns of a
-48 ns Buss step, against an array it must read again after each store to the state)."""
+them constant over the loop and hoists what it computes from them (an array it must read
+again after each store to the state)."""
 RUN_SIGNATURE = types.int64(types.float64[::1], MODEL_TYPE, METHOD_TYPE, types.float64,
                             types.int64, types.float64)
 """run(state, model, method, dt, steps, time) -> steps taken, or -1 (see run_steps)."""
@@ -100,7 +100,7 @@ def run_steps_specialised(step, state, model, method, dt, steps, time):
 
     numba compiles the step twice (it does not drop the torque-free copy's kick code before
     LLVM does), for the methods whose torque-free step LLVM does not separate from the
-    wrench in one loop (first_order, rk4: 7 % and 11 % slower torque-free in one loop).
+    wrench in one loop (first_order, rk4: slower torque-free in one loop).
     """
     forcing, state, pushed, translates = _start(state, model)
     if pushed:

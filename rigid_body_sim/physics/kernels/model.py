@@ -22,9 +22,9 @@ scene pays only for the terms it has (a loop over ``term_count`` entries).  Effe
 their functions with the decorators here (:func:`wrench_term`, :func:`flow_function`, ...),
 which compile them for the one signature each kind has.
 
-Numbers, per call of a kernel: unboxing a Model costs ~0.3 us (its function pointers were
-unboxed once, when it was built: ~50 us each); an indirect call ~2.5 ns more than an inlined
-one (benchmarks/effect_cost.py measures what each effect adds to a step).
+Per call of a kernel the Model is unboxed, cheaply: its function pointers, the dear part,
+were unboxed once, when it was built; an effect's term is an indirect call, a little dearer
+than an inlined one (benchmarks/effect_cost.py measures what each effect adds to a step).
 """
 
 import collections
@@ -182,7 +182,7 @@ Forcing = collections.namedtuple('Forcing', _NAMES + ('holding',))
 Forcing.__doc__ = """A Model's fields as one tuple of local values, unpacked once per kernel call.
 
 Reading a field of the Model in the hot loop costs a load through its reference each time
-(and a function pointer's ~10 ns); the kernels pass this tuple down instead (all inlined)."""
+(and a function pointer's unboxing); the kernels pass this tuple down instead (all inlined)."""
 
 
 def _model_of(body, held, terms, term_count, term_parameters, term_offsets,
@@ -375,11 +375,11 @@ def impulse(state, time, duration, forcing, estimate, estimated):
     the kick's end, 2 W_mid - W_0: a Strang step's closing kick starts from its opening
     kick's, which is within O(h) of the wrench at its state (the drift turned the body) and
     within O(h^2) in the momenta, so it keeps its order with one evaluation instead of two:
-    three a step, not four.  Against two evaluations a kick: the same error to +-2 % (its
-    z^3 term, for the test equation y' = -lambda y, is -z^3/8 in both), 3.0x -> 2.5x the
-    torque-free Buss step under drag (benchmarks/effect_cost.py), and a stiff linear decay's
-    stability limit lambda h 4.0 -> 3.09 (physics/stability.py measures it and the
-    Simulator refuses a step beyond it).  Without momentum dependence the estimate is the
+    three a step, not four.  Against two evaluations a kick: about the same error (its z^3
+    term, for the test equation y' = -lambda y, is -z^3/8 in both), a cheaper step under drag
+    (benchmarks/effect_cost.py), and a lower stability limit lambda h for a stiff linear
+    decay (physics/stability.py measures it and the Simulator refuses a step beyond it;
+    docs/physics_api.md has the figures).  Without momentum dependence the estimate is the
     wrench at the state, unused.
     """
     if not forcing.momentum_dependent:
