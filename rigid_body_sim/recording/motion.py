@@ -19,7 +19,7 @@ Time.  The time axis is simulated time from the scene's start: an offline bag na
 stamp of simulated time 0 in its custom data, and the node's stamps with ``publish_clock``
 are simulated time already; so a 5 s run at 100 Hz shows ticks at 0.01 .. 5 s.  A live bag
 stamped with the wall clock has its ticks arrive as the machine schedules them (under load
-0.2-90 ms apart at 100 Hz): when it holds the node's /diagnostics, whose reports say the
+far from evenly): when it holds the node's /diagnostics, whose reports say the
 simulated time and rate once a second in the tick of a state, each tick is timed from the
 last report before it plus one period per tick whose state moved (a paused tick adds none;
 a reset restarts at its report's time).  Without reports the wall-clock time from the first

@@ -86,7 +86,8 @@ IMU_TOPIC = 'imu'
 _BATCH_TICKS = 1024
 FLUSH_PERIOD = 1.0
 """Default wall-clock s between flushes of simulate's bag (record flushes every 0.25 s;
-a simulation writes far more per second, so less often keeps the cost below 1 %)."""
+a simulation writes far more per second, so less often keeps a flush's cost small beside
+the writing)."""
 # The first stamp builtin_interfaces/Time (int32 seconds) cannot hold.
 _LAST_STAMP = 2**31 * 10**9
 
