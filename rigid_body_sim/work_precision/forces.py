@@ -416,8 +416,8 @@ class _Mujoco:
         """
         Return MuJoCo's physical state packed as the kernels take it (q, x, p, L; world).
 
-        Built from qpos and qvel directly, a few microseconds a step, as a user of MuJoCo's
-        Python API would write it (a State with its checks would cost the twin ~40 us).
+        Built from qpos and qvel directly, as a user of MuJoCo's Python API would write it (a
+        State with its checks would cost the twin far more than its step).
         """
         data, scene = self.data, self.case.scene
         body = scene.body

@@ -48,7 +48,7 @@ __all__ = ['BenchmarkConfig', 'FULL', 'QUICK', 'step_counts', 'measure_run', 'ru
 # Simulated time (s) between the energy / momentum samples of an accuracy run.
 SAMPLE_INTERVAL = 0.1
 # Least CPU time (s) of one timing sample: short runs are repeated (fresh each time) until
-# they add up to this, so the timer's own cost (~1 us) stays below 0.1 % of a sample.
+# they add up to this, so the timer's own cost stays a negligible part of a sample.
 MIN_SAMPLE_CPU = 2e-3
 
 

@@ -61,8 +61,8 @@ FIXED_SUBSTEPS = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 3
 """Substeps per tick of the fixed-step runs (a dense grid: costs are interpolated on it)."""
 FIXED_METHODS = ('buss', 'splitting', 'rk4')
 REFERENCE_SUBSTEPS = 64
-# A method's sweep stops once its error is below this (rad): 10x under the finest level the
-# report compares (1e-8).
+# A method's sweep stops once its error is below this (rad): a decade under the finest level
+# the report compares (1e-8).
 FINEST_ERROR = 1e-9
 # Nor does it go on past this many integrator steps per simulated second of the span.
 MOST_STEPS_PER_SECOND = 5.0e5

@@ -72,7 +72,7 @@ def rotate_unnormalised(q, v):
 
     R's homogeneous form (quadratic in q) over |q|^2: no square root, so the product need
     not wait for q's normalisation (rk4's stage quaternions are not unit; its stages' L
-    then comes 12 % sooner in a step under drag: benchmarks/effect_cost.py).  Equal to
+    then comes sooner in a step under drag: benchmarks/effect_cost.py times it).  Equal to
     rotate(normalised(q), v) to a few ulps.
     """
     x, y, z, w = q[0], q[1], q[2], q[3]
