@@ -5,8 +5,8 @@ numba compiles each kernel from a Python function (``py_func``).  :func:`source_
 gives that function back with every compiled function it reaches replaced by its own
 source in turn, and numba's objects that have no Python form replaced by their stand-ins
 (:func:`stand_in`: a Model is a named tuple of the same fields).  It is what runs while the
-kernels compile (the node's first seconds on a machine that never compiled them), about a
-thousand times slower than the kernels and computing the same steps: the same operations in
+kernels compile (the node's first seconds on a machine that never compiled them), orders of
+magnitude slower than the kernels and computing the same steps: the same operations in
 the same order (numba does not reorder or fuse them), so the results agree to the last bits
 but where a library function (sqrt, sin) or numpy rounds differently.
 
