@@ -7,6 +7,8 @@ from pathlib import Path
 
 from .forces import forces_goal_table
 from .forces import LEVELS
+from .report import case_panels
+from .report import save_figure
 
 __all__ = ['write_forces_outputs', 'forces_goal_counts']
 
@@ -89,19 +91,13 @@ def _markdown(result, rows):
 
 
 def _plot(result, path):
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
+    from matplotlib import colormaps
 
     cases = list(result['references'])
-    columns = 3
-    rows = math.ceil(len(cases) / columns)
-    figure, axes = plt.subplots(rows, columns, figsize=(5.2 * columns, 4.2 * rows),
-                                squeeze=False)
+    figure, panels, _ = case_panels(len(cases), 3, (5.2, 4.2))
     methods = sorted({r['method'] for r in result['records']})
-    colours = plt.get_cmap('tab10')
-    for index, case in enumerate(cases):
-        axis = axes[index // columns][index % columns]
+    colours = colormaps['tab10']
+    for axis, case in zip(panels, cases):
         for number, method in enumerate(methods):
             runs = sorted((r for r in result['records'] if r['case'] == case
                            and r['method'] == method and math.isfinite(r['error'])
@@ -119,15 +115,11 @@ def _plot(result, path):
         axis.set_ylabel(f'orientation error at {result["config"]["horizon"]:g} s (rad)')
         axis.set_ylim(1e-13, 10)
         axis.grid(True, which='major', alpha=0.3)
-    for index in range(len(cases), rows * columns):
-        axes[index // columns][index % columns].axis('off')
-    handles, labels = axes[0][0].get_legend_handles_labels()
+    handles, labels = panels[0].get_legend_handles_labels()
     figure.legend(handles, labels, loc='lower right', fontsize=8, ncol=2)
     figure.suptitle("Forced bodies: error against cost (grey: below the reference's "
                     'uncertainty)')
-    figure.tight_layout()
-    figure.savefig(path, dpi=90)
-    plt.close(figure)
+    save_figure(figure, path, dpi=90)
 
 
 def write_forces_outputs(result, out):

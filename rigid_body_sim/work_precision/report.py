@@ -35,7 +35,8 @@ from .extended_reference import key_string
 from .reference import MEASUREMENT_FLOOR
 
 __all__ = ['machine_info', 'cost_to_reach', 'Reach', 'verdict', 'goal_table', 'goal_summary',
-           'augmentation_table', 'step_costs', 'write_outputs', 'GOAL_LEVELS', 'SATURATION']
+           'augmentation_table', 'step_costs', 'write_outputs', 'case_panels', 'save_figure',
+           'GOAL_LEVELS', 'SATURATION']
 
 # Orientation error levels (rad) at which the CPU cost of ours and MuJoCo's are compared.
 GOAL_LEVELS = tuple(10.0 ** -k for k in range(2, 13))
@@ -704,21 +705,45 @@ def _styles(methods):
     return styles
 
 
-def _plot(result, path, horizon='short'):
+def case_panels(count, columns, panel_size, spare=0):
+    """
+    Return (figure, panels, spares): a grid of plot panels, one for each of `count` cases.
+
+    `columns` panels a row, each `panel_size` (width, height) inches; `spare` more panels
+    (for a legend) and the grid's unused ones are switched off and returned as `spares`.
+    The benchmark's figures are drawn off screen (matplotlib's Agg backend).
+    """
     import matplotlib
     matplotlib.use('Agg')
     from matplotlib import pyplot
+
+    rows = math.ceil((count + spare) / columns)
+    figure, axes = pyplot.subplots(rows, columns, squeeze=False,
+                                   figsize=(panel_size[0] * columns, panel_size[1] * rows))
+    panels = list(axes.flat)
+    for axis in panels[count:]:
+        axis.axis('off')
+    return figure, panels[:count], panels[count:]
+
+
+def save_figure(figure, path, dpi):
+    """Lay out `figure`, write it to `path` at `dpi` and free it."""
+    from matplotlib import pyplot
+
+    figure.tight_layout()
+    figure.savefig(path, dpi=dpi)
+    pyplot.close(figure)
+
+
+def _plot(result, path, horizon='short'):
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
     cases = list(result['references'])
-    columns = 3
-    rows = (len(cases) + 1 + columns - 1) // columns
-    figure, axes = pyplot.subplots(rows, columns, figsize=(6.0 * columns, 4.8 * rows),
-                                   squeeze=False)
+    figure, panels, spare = case_panels(len(cases), 3, (6.0, 4.8), spare=1)
     styles = _styles(result['methods'])
     seconds = result['config']['horizons'][HORIZONS.index(horizon)]
-    for axis, case in zip(axes.flat, cases):
+    for axis, case in zip(panels, cases):
         floor = resolution(result, case, horizon)
         for method in result['methods']:
             points = _curve(result, case, method, horizon)
@@ -753,9 +778,6 @@ def _plot(result, path, horizon='short'):
         axis.set_xlabel('CPU seconds per simulated second')
         axis.set_ylabel(f'orientation error at {seconds:g} s (rad)')
         axis.grid(True, which='major', alpha=0.3)
-    spare = list(axes.flat)[len(cases):]
-    for axis in spare:
-        axis.axis('off')
     handles = []
     for method in result['methods']:
         style = styles[method]
@@ -772,9 +794,7 @@ def _plot(result, path, horizon='short'):
     figure.suptitle(f'Work-precision at {seconds:g} s: orientation error vs CPU per simulated '
                     f'second; dt from {max(result["config"]["dts"]):g} s (left) to '
                     f'{min(result["config"]["dts"]):g} s (right)')
-    figure.tight_layout()
-    figure.savefig(path, dpi=100)
-    pyplot.close(figure)
+    save_figure(figure, path, dpi=100)
 
 
 def _json_safe(value):

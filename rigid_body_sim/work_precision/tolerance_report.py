@@ -14,8 +14,10 @@ import json
 import math
 import os
 
+from .report import case_panels
 from .report import cost_to_reach
 from .report import SATURATION
+from .report import save_figure
 
 __all__ = ['control_goal_table', 'sweep_markdown', 'write_sweep_outputs', 'CONTROL_LEVELS',
            'GOAL_RATIO']
@@ -147,16 +149,11 @@ _STYLES = {'buss+control': ('tab:red', 'o', '-'), 'buss': ('tab:blue', 's', '--'
 
 
 def _plot(result, path):
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
     cases = list(result['references'])
     columns = 4
     rows = math.ceil(len(cases) / columns)
-    figure, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 3.6 * rows),
-                                squeeze=False)
-    for index, case in enumerate(cases):
-        axis = axes[index // columns][index % columns]
+    figure, panels, _ = case_panels(len(cases), columns, (4.2, 3.6))
+    for index, (axis, case) in enumerate(zip(panels, cases)):
         for method, (colour, marker, line) in _STYLES.items():
             curve = _curve(result, case, method)
             if not curve:
@@ -179,14 +176,10 @@ def _plot(result, path):
             axis.set_ylabel('largest error over the span (rad)')
         if index // columns == rows - 1:
             axis.set_xlabel('CPU s per simulated s')
-    for index in range(len(cases), rows * columns):
-        axes[index // columns][index % columns].axis('off')
-    axes[0][0].legend(fontsize=7)
+    panels[0].legend(fontsize=7)
     figure.suptitle(f'Error control: error over {result["config"]["span"]:g} s against '
                     'CPU per simulated second', fontsize=11)
-    figure.tight_layout()
-    figure.savefig(path, dpi=110)
-    plt.close(figure)
+    save_figure(figure, path, dpi=110)
 
 
 def write_sweep_outputs(result, directory):
