@@ -22,6 +22,7 @@ results.json, tolerance_sweep.json and forces.json, also near the top of the .md
 the committed run's are in docs/benchmark/).  The tolerance sweep is the longest part.
 """
 
+import contextlib
 import os
 from pathlib import Path
 import sys
@@ -59,15 +60,27 @@ def add_arguments(parser):
                              'van_zon and heavy_top)')
 
 
-def _progress_bar(total):
+@contextlib.contextmanager
+def _progress(total, description='bench', mujoco=True):
+    """
+    Show a progress bar of `total` runs while a part of the benchmark runs; yield its advance.
+
+    advance(label) counts one run, labelled.  With `mujoco`, MuJoCo's warning prints are
+    swallowed meanwhile (see :func:`_silence_mujoco_warnings`).
+    """
     from tqdm import tqdm
-    bar = tqdm(total=total, desc='bench', unit='run', file=sys.stderr,
+    bar = tqdm(total=total, desc=description, unit='run', file=sys.stderr,
                dynamic_ncols=True, leave=True)
 
     def advance(label):
         bar.set_postfix_str(label, refresh=False)
         bar.update(1)
-    return bar, advance
+    restore_warnings = _silence_mujoco_warnings() if mujoco else (lambda: None)
+    try:
+        yield advance
+    finally:
+        bar.close()
+        restore_warnings()
 
 
 def _silence_mujoco_warnings():
@@ -125,13 +138,10 @@ def run_tolerance_sweep(args):
     cases = scene_cases(names, span=span)
     machine = machine_info()
     started = time.perf_counter()
-    bar, advance = _progress_bar(sweep_units(cases, tolerances, fixed_substeps=substeps))
-    bar.set_description('tolerance sweep')
-    try:
+    with _progress(sweep_units(cases, tolerances, fixed_substeps=substeps), 'tolerance sweep',
+                   mujoco=False) as advance:
         result = tolerance_sweep(cases, tolerances, fixed_substeps=substeps, repeats=repeats,
                                  progress=advance)
-    finally:
-        bar.close()
     machine['load_average_end'] = list(os.getloadavg())
     result.update({
         'machine': machine, 'command': _command(args),
@@ -167,14 +177,8 @@ def run_forces_benchmark(args):
     with_mujoco = not args.no_mujoco
     machine = machine_info()
     started = time.perf_counter()
-    bar, advance = _progress_bar(forces_units(config, with_mujoco))
-    bar.set_description('forces')
-    restore_warnings = _silence_mujoco_warnings()
-    try:
+    with _progress(forces_units(config, with_mujoco), 'forces') as advance:
         result = run_forces(config, with_mujoco=with_mujoco, progress=advance)
-    finally:
-        bar.close()
-        restore_warnings()
     machine['load_average_end'] = list(os.getloadavg())
     result.update({'machine': machine, 'command': _command(args),
                    'config': {'cases': list(config.cases), 'horizon': config.horizon,
@@ -275,13 +279,8 @@ def main(args):
     machine = machine_info()
     started = time.perf_counter()
     cpu_started = time.process_time()
-    bar, advance = _progress_bar(work_units(config, with_mujoco))
-    restore_warnings = _silence_mujoco_warnings()
-    try:
+    with _progress(work_units(config, with_mujoco)) as advance:
         result = run_benchmark(config, with_mujoco=with_mujoco, progress=advance)
-    finally:
-        bar.close()
-        restore_warnings()
     machine['load_average_end'] = list(os.getloadavg())
     result.update({
         'machine': machine,
