@@ -1,6 +1,5 @@
 """Write the forced benchmark's results: forces.md, forces.json, forces.csv, the plot."""
 
-import csv
 import json
 import math
 from pathlib import Path
@@ -9,6 +8,7 @@ from .forces import forces_goal_table
 from .forces import LEVELS
 from .report import case_panels
 from .report import save_figure
+from .report import write_records_csv
 
 __all__ = ['write_forces_outputs', 'forces_goal_counts']
 
@@ -134,9 +134,6 @@ def write_forces_outputs(result, out):
     document['goal'] = [{'case': r['case'], 'level': r['level'], 'verdict': r['verdict'],
                          'ours': r['ours'], 'mujoco': r['mujoco']} for r in rows]
     paths['forces_json'].write_text(json.dumps(document, indent=1, default=float) + '\n')
-    with open(paths['forces_csv'], 'w', newline='') as stream:
-        writer = csv.DictWriter(stream, fieldnames=list(result['records'][0]))
-        writer.writeheader()
-        writer.writerows(result['records'])
+    write_records_csv(result['records'], paths['forces_csv'])
     _plot(result, paths['forces_plot'])
     return paths

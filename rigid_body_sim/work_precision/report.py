@@ -36,6 +36,7 @@ from .reference import MEASUREMENT_FLOOR
 
 __all__ = ['machine_info', 'cost_to_reach', 'Reach', 'verdict', 'goal_table', 'goal_summary',
            'augmentation_table', 'step_costs', 'write_outputs', 'case_panels', 'save_figure',
+           'write_records_csv',
            'GOAL_LEVELS', 'SATURATION']
 
 # Orientation error levels (rad) at which the CPU cost of ours and MuJoCo's are compared.
@@ -726,6 +727,14 @@ def case_panels(count, columns, panel_size, spare=0):
     return figure, panels[:count], panels[count:]
 
 
+def write_records_csv(records, path):
+    """Write `records` (dicts with the same keys, in order) to `path` as CSV, a row each."""
+    with open(path, 'w', newline='') as table:
+        writer = csv.DictWriter(table, fieldnames=list(records[0]))
+        writer.writeheader()
+        writer.writerows(records)
+
+
 def save_figure(figure, path, dpi):
     """Lay out `figure`, write it to `path` at `dpi` and free it."""
     from matplotlib import pyplot
@@ -840,10 +849,7 @@ def write_outputs(result, directory):
                               'goal_long': long_rows,
                               'augmentation': augmentation_rows}), data, indent=1)
         data.write('\n')
-    with open(paths['results.csv'], 'w', newline='') as table:
-        writer = csv.DictWriter(table, fieldnames=list(result['records'][0]))
-        writer.writeheader()
-        writer.writerows(result['records'])
+    write_records_csv(result['records'], paths['results.csv'])
     _plot(result, paths['work_precision.png'], 'short')
     _plot(result, paths[long_plot], 'long')
     return paths

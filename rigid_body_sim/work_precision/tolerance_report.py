@@ -9,7 +9,6 @@ bracket the level, both tracking the motion), and their ratio; the goal is a rat
 most :data:`GOAL_RATIO` (the price of not knowing the right step in advance).
 """
 
-import csv
 import json
 import math
 import os
@@ -18,6 +17,7 @@ from .report import case_panels
 from .report import cost_to_reach
 from .report import SATURATION
 from .report import save_figure
+from .report import write_records_csv
 
 __all__ = ['control_goal_table', 'sweep_markdown', 'write_sweep_outputs', 'CONTROL_LEVELS',
            'GOAL_RATIO']
@@ -194,10 +194,7 @@ def write_sweep_outputs(result, directory):
     with open(paths['tolerance_sweep.json'], 'w') as data:
         json.dump(_json_safe({**result, 'goal': rows}), data, indent=1)
         data.write('\n')
-    with open(paths['tolerance_sweep.csv'], 'w', newline='') as table:
-        writer = csv.DictWriter(table, fieldnames=list(result['records'][0]))
-        writer.writeheader()
-        writer.writerows(result['records'])
+    write_records_csv(result['records'], paths['tolerance_sweep.csv'])
     _plot(result, paths['tolerance_sweep.png'])
     return paths
 
