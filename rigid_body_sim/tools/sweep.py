@@ -41,9 +41,9 @@ choice [values...], uniform_rotation (a unit quaternion x, y, z, w).  Runs: scen
 integrators x rates x tolerances x substeps x durations x grid x count.
 
 Typical use:
-  rigid-body-sim sweep small --out runs/small          # 16 runs; the bar shows the time left
+  rigid-body-sim sweep small --out runs/small          # the bar shows the time left
   rigid-body-sim sweep small --out runs/small          # again: every run found done
-  rigid-body-sim sweep my_spec.yaml --out runs/mine --dry-run
+  rigid-body-sim sweep my_spec.yaml --out runs/mine --dry-run   # its runs, none run
   rigid-body-sim sweep imu_dataset --out runs/imu --scheduler tcp://HOST:8786
 """
 
