@@ -54,7 +54,7 @@ PENDING = (
     ('physics/error_control.py', '2.5x the'),
     ('physics/error_control.py', 'asked 2x'),
     ('physics/error_control.py', '~40 ns each'),
-    ('physics/error_control.py', 'step\'s 50 ns'),
+    ('physics/error_control.py', "step's 50 ns"),
     ('physics/simulator.py', '~0.05 us per step'),
     ('physics/simulator.py', '~1000x slower'),
 )
@@ -131,9 +131,9 @@ def f():
 
 
 def test_the_check_leaves_alone_simulated_time_dimensions_and_allowed_constants():
-    source = '''
+    source = """
 # A run of 60 s at 1 kHz, a 0.4 x 0.2 x 0.1 m box, 100 x 0.1 s, (k'^2 -> 0), 0x hex, 2^31 s.
 # Chunks of 1 MiB, as rosbags does.
-'''
+"""
     assert [figure for _, figure, _ in figures(source)] == ['1 MiB']
     assert figures(source, allowed=['1 MiB']) == []
