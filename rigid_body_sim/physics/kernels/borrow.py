@@ -19,7 +19,6 @@ borrowed view is the array itself.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 import os
 from typing import Any
 from typing import TypeVar
@@ -65,8 +64,10 @@ def _view_without_reference(typingctx: Any, array: Any) -> Any:
     return array(array), codegen
 
 
+# Not annotated: numba requires the implementation it returns (a lambda, which cannot be
+# annotated) to have the same parameters as this function, annotations included.
 @overload(borrowed, inline='always')
-def _borrowed_compiled(array: Any) -> Callable[[Any], Any] | None:
+def _borrowed_compiled(array):  # type: ignore[no-untyped-def]
     if not isinstance(array, types.Array):
         return None
     if not borrowing:
