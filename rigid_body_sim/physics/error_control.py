@@ -72,6 +72,9 @@ any integrator's run kernel as a first-class function (kernels/loop.py's RUN_SIG
 that no integrator compiles a controller of its own.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable
 import math
 
 from numba import types
@@ -87,7 +90,10 @@ from .kernels.layout import BODY_KIND
 from .kernels.layout import BODY_MOMENTS
 from .kernels.layout import inverse_inertia_times
 from .kernels.loop import METHOD_TYPE
+from .kernels.loop import MethodConstants
 from .kernels.loop import RUN_SIGNATURE
+from .kernels.model import Array
+from .kernels.model import Model
 from .kernels.model import MODEL_TYPE
 
 __all__ = ['new_control', 'controlled_ticks', 'controlled', 'CONTROLLED_SIGNATURE',
@@ -131,7 +137,7 @@ _TWO = np.int64(2)
 _RETAKES = 2
 
 
-def new_control(order, substeps=1, tolerance=0.0):
+def new_control(order: int, substeps: int = 1, tolerance: float = 0.0) -> Array:
     """
     Return a new control array for a method of order `order` (see the module docstring).
 
@@ -147,7 +153,7 @@ def new_control(order, substeps=1, tolerance=0.0):
     return control
 
 
-def changed(control, forget=False):
+def changed(control: Array, forget: bool = False) -> None:
     """
     Say that something changed: estimate at the next tick, the turning points too.
 
@@ -159,26 +165,26 @@ def changed(control, forget=False):
         control[HELD] = 0.0
 
 
-def set_torque_free(control, torque_free):
+def set_torque_free(control: Array, torque_free: bool) -> None:
     """Say whether the motion is torque-free (the turning points are then estimated too)."""
     control[TORQUE_FREE] = 1.0 if torque_free else 0.0
     control[ORBIT_CONSTANT] = 0.0
     control[ORBIT_COUNTDOWN] = 0.0
 
 
-def set_tolerance(control, tolerance):
+def set_tolerance(control: Array, tolerance: float) -> None:
     """Set the tolerance (rad/s, > 0) and estimate at the next tick."""
     control[TOLERANCE] = tolerance
     changed(control)
 
 
-def set_order(control, order):
+def set_order(control: Array, order: int) -> None:
     """Set the order of the method now in use and estimate at the next tick."""
     control[ORDER] = order
     changed(control, forget=True)
 
 
-def set_bounds(control, substeps):
+def set_bounds(control: Array, substeps: int) -> None:
     """Set the lower bound n_min (int >= 1); n is raised to it at once."""
     control[MIN_SUBSTEPS] = substeps
     control[CAP] = max(MAX_SUBSTEPS, substeps)
@@ -186,7 +192,7 @@ def set_bounds(control, substeps):
     changed(control)
 
 
-def reset_statistics(control):
+def reset_statistics(control: Array) -> None:
     """Start a new statistics period (substeps min/max, steps, ticks, estimates)."""
     control[LOWEST] = np.inf
     control[HIGHEST] = 0.0
@@ -195,7 +201,7 @@ def reset_statistics(control):
     control[HIGHEST_RATE] = np.nan
 
 
-def statistics(control):
+def statistics(control: Array) -> dict[str, float | None]:
     """
     Return the controller's figures as a dict.
 
@@ -220,7 +226,7 @@ def statistics(control):
 
 
 @helper
-def step_difference(a, b, body, h):
+def step_difference(a: Array, b: Array, body: Array, h: float) -> float:
     """
     Return the difference (rad) of two packed states after the same span, h s a step.
 
@@ -241,7 +247,8 @@ def step_difference(a, b, body, h):
 
 
 @helper
-def next_substeps(control, substeps, rate, constant, tick):
+def next_substeps(control: Array, substeps: int, rate: float, constant: float,
+                  tick: float) -> int:
     """
     Return the substep count after an estimate at `substeps` substeps of a `tick` s tick.
 
@@ -269,7 +276,7 @@ def next_substeps(control, substeps, rate, constant, tick):
 
 
 @helper
-def turning_points(state, body):
+def turning_points(state: Array, body: Array) -> tuple[Array, int]:
     """
     Return the body momenta (kg m^2/s, body frame) at the turning points of the polhode.
 
@@ -317,7 +324,7 @@ def turning_points(state, body):
 
 
 @helper
-def _turn_rate(state, body):
+def _turn_rate(state: Array, body: Array) -> float:
     """Return |Omega| (rad/s) of a packed state: |I_b^-1 R^T L|."""
     ox, oy, oz = inverse_inertia_times(body, rotate_back(
         (state[0], state[1], state[2], state[3]), (state[10], state[11], state[12])))
@@ -325,7 +332,7 @@ def _turn_rate(state, body):
 
 
 @helper
-def _ticks_between_estimates(substeps, tick, turn_rate):
+def _ticks_between_estimates(substeps: int, tick: float, turn_rate: float) -> float:
     """Return the ticks to take without an estimate after one (see OVERHEAD, MAX_TURN)."""
     extra = (1.0 if substeps >= 2 else 2.0) + ESTIMATE_WORK
     by_cost = math.ceil(extra / (OVERHEAD * substeps)) - 1.0
@@ -335,7 +342,7 @@ def _ticks_between_estimates(substeps, tick, turn_rate):
 
 
 @helper
-def _record(control, substeps, steps, ticks=1):
+def _record(control: Array, substeps: int, steps: int, ticks: int = 1) -> None:
     """Note `ticks` ticks of `substeps` substeps each that took `steps` integrator steps."""
     control[LAST] = substeps
     control[LOWEST] = min(control[LOWEST], substeps)
@@ -345,7 +352,9 @@ def _record(control, substeps, steps, ticks=1):
     control[TICKS] += ticks
 
 
-def controlled_ticks(run, state, model, method, tick, ticks, time, control):
+def controlled_ticks(run: Callable[..., int], state: Array, model: Model,
+                     method: MethodConstants, tick: float, ticks: int, time: float,
+                     control: Array) -> int:
     """
     Advance a packed state in place by `ticks` ticks of `tick` s from `time` (s), controlled.
 

@@ -6,13 +6,22 @@ owns the only mutable thing, the current state and time; bodies, states and inte
 values and pure functions.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable
+from collections.abc import Iterable
 import math
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
+from numpy.typing import NDArray
 
 from . import error_control
+from .body import RigidBody
 from .effects.registry import Effect
 from .integrators import get_integrator
+from .integrators import Integrator
 from .kernels import interpreting
 from .kernels.interpreted import ARITHMETIC_ERRORS
 from .kernels.layout import body_values
@@ -54,12 +63,12 @@ class DivergedError(ValueError):
     integrator, the step, the effects and the held wrench) and what to change.
     """
 
-    def __init__(self, message, time):
+    def __init__(self, message: str, time: float) -> None:
         super().__init__(message)
         self.time = time
 
 
-def _checked_vector(value, name):
+def _checked_vector(value: Any, name: str) -> NDArray[np.float64]:
     array = np.zeros(3) if value is None else np.array(value, dtype=float).reshape(-1)
     if array.shape != (3,):
         raise ValueError(f'{name} must be a 3-vector; got shape {np.shape(value)}')
@@ -68,7 +77,7 @@ def _checked_vector(value, name):
     return array
 
 
-def _checked_positive(value, name):
+def _checked_positive(value: Any, name: str) -> float:
     try:
         number = float(value)
     except (TypeError, ValueError):
@@ -118,7 +127,19 @@ class Simulator:
 
     """
 
-    def __init__(self, body, state, integrator='buss', effects=(), tolerance=None, substeps=1):
+    # The types of attributes that __init__ does not set, or sets to None.
+    _tolerance: float | None
+    _state: State | None
+    _integrated: State | None
+    _checked: tuple[float, int, Integrator, float | None] | None
+    _run: Callable[..., int] | None
+    _controlled_run: Callable[..., int]
+    _controller: Callable[..., int]
+    _model_arguments: dict[str, Any]
+
+    def __init__(self, body: RigidBody, state: State, integrator: str = 'buss',
+                 effects: Iterable[Effect] = (), tolerance: float | None = None,
+                 substeps: int = 1) -> None:
         if not isinstance(state, State):
             raise ValueError(f'state must be a State; got {type(state).__name__}')
         self._body = body
@@ -144,7 +165,7 @@ class Simulator:
         self.substeps = substeps
         self.tolerance = tolerance
 
-    def _sort_effects(self):
+    def _sort_effects(self) -> None:
         """Sort the effects by what they do and build the compiled model, once."""
         wrenches, flows, constraints = [], [], []
         for effect in self._effects:
@@ -186,17 +207,17 @@ class Simulator:
     # -- configuration
 
     @property
-    def body(self):
+    def body(self) -> RigidBody:
         """Get the simulated RigidBody."""
         return self._body
 
     @property
-    def effects(self):
+    def effects(self) -> tuple[Effect, ...]:
         """Get the effects evaluated every step (a tuple)."""
         return self._effects
 
     @property
-    def path(self):
+    def path(self) -> str:
         """
         Get what takes the steps: 'compiled' (the kernels) or 'interpreted'.
 
@@ -205,7 +226,7 @@ class Simulator:
         return INTERPRETED if self._interpreted else COMPILED
 
     @property
-    def interpreted(self):
+    def interpreted(self) -> bool:
         """
         Whether the kernels run as their Python source instead of compiled (settable).
 
@@ -217,7 +238,7 @@ class Simulator:
         return self._interpreted
 
     @interpreted.setter
-    def interpreted(self, interpreted):
+    def interpreted(self, interpreted: bool) -> None:
         interpreted = bool(interpreted)
         if interpreted != self._interpreted:
             self._interpreted = interpreted
@@ -225,19 +246,19 @@ class Simulator:
             self._run = None
 
     @property
-    def integrator(self):
+    def integrator(self) -> str:
         """Name of the integrator in use; settable, an unknown name is a ValueError."""
         return self._integrator.name
 
     @integrator.setter
-    def integrator(self, name):
+    def integrator(self, name: str) -> None:
         self._integrator = get_integrator(name)
         # Its compiled run kernel, fetched on the first compiled step (compiled or loaded).
         self._run = None
         self._set_order()
         self._plan()
 
-    def _set_order(self):
+    def _set_order(self) -> None:
         """
         Give the controller the order of the steps as taken.
 
@@ -253,7 +274,7 @@ class Simulator:
         error_control.set_order(self._control, order)
 
     @property
-    def tolerance(self):
+    def tolerance(self) -> float | None:
         """
         Error control: rad per simulated second, or None (off: fixed `substeps`).
 
@@ -263,7 +284,7 @@ class Simulator:
         return self._tolerance
 
     @tolerance.setter
-    def tolerance(self, tolerance):
+    def tolerance(self, tolerance: float | None) -> None:
         if tolerance is not None:
             try:
                 tolerance = float(tolerance)
@@ -280,7 +301,7 @@ class Simulator:
             error_control.set_tolerance(self._control, tolerance)
 
     @property
-    def substeps(self):
+    def substeps(self) -> int:
         """
         Get the steps per outer step without a tolerance, the least with one (int >= 1).
 
@@ -289,7 +310,7 @@ class Simulator:
         return self._substeps
 
     @substeps.setter
-    def substeps(self, substeps):
+    def substeps(self, substeps: int) -> None:
         if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) \
                 or substeps < 1:
             raise ValueError(f'substeps must be a whole number >= 1; got {substeps!r}')
@@ -297,7 +318,7 @@ class Simulator:
         error_control.set_bounds(self._control, self._substeps)
         self._control_floor = self._substeps
 
-    def substep_statistics(self, reset=False):
+    def substep_statistics(self, reset: bool = False) -> dict[str, float | None]:
         """
         Return the substeps and the error estimates since the last reset, as a dict.
 
@@ -319,7 +340,8 @@ class Simulator:
             error_control.reset_statistics(self._control)
         return figures
 
-    def set_wrench(self, force=None, torque=None, frame='world'):
+    def set_wrench(self, force: ArrayLike | None = None, torque: ArrayLike | None = None,
+                   frame: str = 'world') -> None:
         """
         Hold a force through the COM (N) and a torque about it (N m) until changed.
 
@@ -336,8 +358,9 @@ class Simulator:
         else:
             self._hold(None, None, force, torque)
 
-    def hold_wrench(self, force_world=None, torque_world=None, force_body=None,
-                    torque_body=None):
+    def hold_wrench(self, force_world: ArrayLike | None = None,
+                    torque_world: ArrayLike | None = None, force_body: ArrayLike | None = None,
+                    torque_body: ArrayLike | None = None) -> None:
         """
         Hold world-fixed and body-fixed parts of the wrench at once (N, N m).
 
@@ -350,7 +373,9 @@ class Simulator:
                    _checked_vector(force_body, 'force_body'),
                    _checked_vector(torque_body, 'torque_body'))
 
-    def _hold(self, force_world, torque_world, force_body, torque_body):
+    def _hold(self, force_world: NDArray[np.float64] | None,
+              torque_world: NDArray[np.float64] | None, force_body: NDArray[np.float64] | None,
+              torque_body: NDArray[np.float64] | None) -> None:
         # Written in place: the compiled model holds this very array.
         for row, part in ((HELD_FORCE_WORLD, force_world), (HELD_TORQUE_WORLD, torque_world),
                           (HELD_FORCE_BODY, force_body), (HELD_TORQUE_BODY, torque_body)):
@@ -358,14 +383,14 @@ class Simulator:
         self._plan()
 
     @property
-    def held_wrench(self):
+    def held_wrench(self) -> tuple[NDArray[np.float64], ...]:
         """Get the held wrench: (force_world, torque_world, force_body, torque_body)."""
         return tuple(self._held[row].copy() for row in range(4))
 
     # -- state
 
     @property
-    def state(self):
+    def state(self) -> State:
         """Get the current State (world frame)."""
         if self._state is None:
             if self._constraint is None:
@@ -375,7 +400,7 @@ class Simulator:
         return self._state
 
     @state.setter
-    def state(self, state):
+    def state(self, state: State) -> None:
         if not isinstance(state, State):
             raise ValueError(f'state must be a State; got {type(state).__name__}')
         if self._constraint is None:
@@ -388,24 +413,24 @@ class Simulator:
         # A new state: estimate at the next outer step, from scratch.
         error_control.changed(self._control, forget=True)
 
-    def _store(self, integrated):
+    def _store(self, integrated: State) -> None:
         """Make `integrated` (a State of the integrated system) the current one."""
         np.concatenate(integrated._fields(), out=self._values)
         self._integrated = integrated
         self._state = None
 
-    def _integrated_state(self):
+    def _integrated_state(self) -> State:
         """Return the State of the integrated system (the pivot system under a pivot)."""
         if self._integrated is None:
             self._integrated = State._from_values(self._values)
         return self._integrated
 
     @property
-    def time(self):
+    def time(self) -> float:
         """Get the simulated time in s since the start."""
         return self._time
 
-    def reset(self, state, time=0.0):
+    def reset(self, state: State, time: float = 0.0) -> None:
         """Set the state and the time (s, finite)."""
         try:
             time = float(time)
@@ -417,7 +442,7 @@ class Simulator:
         self._time = time
         self._time_compensation = 0.0
 
-    def energy(self):
+    def energy(self) -> float:
         """Return the total energy in J: kinetic plus the effects' potential energies."""
         state = self.state
         energy = state.kinetic_energy(self._body)
@@ -427,7 +452,7 @@ class Simulator:
                 energy += potential(self._body, state)
         return energy
 
-    def applied_wrench(self):
+    def applied_wrench(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """
         Return (force N, torque N m) applied now: held plus effects, about the COM (world).
 
@@ -438,7 +463,9 @@ class Simulator:
         wrench = applied(values, self._time, self._model)
         return np.array(wrench[:3]), np.array(wrench[3:])
 
-    def wrench_function(self):
+    def wrench_function(
+            self) -> Callable[[State, float],
+                              tuple[NDArray[np.float64], NDArray[np.float64]]] | None:
         """
         Return the total wrench as ``wrench(state, time)``, or None when nothing pushes.
 
@@ -453,7 +480,7 @@ class Simulator:
         force_world, torque_world, force_body, torque_body = self.held_wrench
         body = self._body
 
-        def wrench(state, time):
+        def wrench(state: State, time: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
             force = force_world + state.rotation @ force_body
             torque = torque_world + state.rotation @ torque_body
             for effect in effects:
@@ -467,7 +494,7 @@ class Simulator:
 
     # -- time stepping
 
-    def step(self, dt):
+    def step(self, dt: float) -> State:
         """
         Advance one outer step of dt s; return the new State.
 
@@ -487,7 +514,8 @@ class Simulator:
             self._advance(self._substeps, dt / self._substeps, dt)
         return self.state
 
-    def run(self, duration, dt, progress=None):
+    def run(self, duration: float, dt: float,
+            progress: Callable[[float], object] | None = None) -> State:
         """
         Advance by `duration` s in outer steps of dt s; return the final State.
 
@@ -538,7 +566,7 @@ class Simulator:
             progress(1.0)
         return self.state
 
-    def _plan(self):
+    def _plan(self) -> None:
         """Tell the error controller the configuration changed, and if it is torque-free."""
         held = self._held
         torque_free = not (self._flows or np.any(held[HELD_TORQUE_WORLD])
@@ -550,7 +578,7 @@ class Simulator:
         error_control.set_torque_free(self._control, torque_free)
         error_control.changed(self._control)
 
-    def _check_stiffness(self, dt):
+    def _check_stiffness(self, dt: float) -> None:
         """
         Refuse a fixed step too long for a stiff effect; under error control, bound it.
 
@@ -567,7 +595,7 @@ class Simulator:
             error_control.set_bounds(self._control, floor)
             self._control_floor = floor
 
-    def _advanced(self, duration, finite):
+    def _advanced(self, duration: float, finite: bool) -> None:
         """
         Take the state a kernel left after `duration` s: finite, or the last one restored.
 
@@ -581,7 +609,7 @@ class Simulator:
             raise DivergedError(self._divergence(duration), self._time)
         self._add_time(duration)
 
-    def _divergence(self, duration):
+    def _divergence(self, duration: float) -> str:
         """Return the one-line message of a state that turned non-finite."""
         acting = [repr(effect) for effect in self._effects
                   if getattr(effect, 'compiled_wrench', None) is not None
@@ -599,7 +627,7 @@ class Simulator:
                 f't = {self._time:.9g} s: a shorter step (rate, substeps) or smaller '
                 'coefficients or inputs keep it finite')
 
-    def _advance(self, steps, dt, duration=None):
+    def _advance(self, steps: int, dt: float, duration: float | None = None) -> None:
         """Take `steps` steps of dt s; the clock moves by `duration` (default steps x dt)."""
         # Called once a tick by the node: no closure, no call more than needed.
         values = self._values
@@ -611,7 +639,7 @@ class Simulator:
         finite = run(values, self._model, self._integrator.method, dt, steps, self._time) >= 0
         self._advanced(steps * dt if duration is None else duration, finite)
 
-    def _controlled(self, tick, ticks):
+    def _controlled(self, tick: float, ticks: int) -> None:
         """
         Take `ticks` outer steps of `tick` s under error control (error_control.py).
 
@@ -626,7 +654,7 @@ class Simulator:
                                   self._control) >= 0
         self._advanced(ticks * tick, finite and _all_finite(values))
 
-    def _load_kernels(self):
+    def _load_kernels(self) -> Callable[..., int]:
         """Fetch the run kernel and the controller, compiled or interpreted; return the run."""
         if self._interpreted:
             # The controller calls the run as it is (an error ends the whole call: -1).
@@ -638,7 +666,7 @@ class Simulator:
             self._controller = error_control.controlled.dispatcher
         return self._run
 
-    def _add_time(self, increment):
+    def _add_time(self, increment: float) -> None:
         # Kahan summation: keeps the clock exact to round-off over millions of ticks, where a
         # plain running sum would drift by ~steps * eps * time.
         y = increment - self._time_compensation
@@ -647,9 +675,9 @@ class Simulator:
         self._time = total
 
 
-def _interpreted(function):
+def _interpreted(function: Callable[..., int]) -> Callable[..., int]:
     """Return an interpreted kernel that says -1 (not finite) where Python's math raises."""
-    def guarded(*arguments):
+    def guarded(*arguments: Any) -> int:
         try:
             return function(*arguments)
         except ARITHMETIC_ERRORS:
@@ -657,7 +685,7 @@ def _interpreted(function):
     return guarded
 
 
-def _all_finite(values):
+def _all_finite(values: NDArray[np.float64]) -> bool:
     """Return whether every entry of a float array is finite."""
     # The sum of the values as Python floats is finite when they all are, in a tenth of the
     # time of np.isfinite (a step() per tick); only a sum overflowed by finite values near
@@ -665,7 +693,8 @@ def _all_finite(values):
     return math.isfinite(sum(values.tolist())) or bool(np.isfinite(values).all())
 
 
-def unresolved_rotation(body, state, period, substeps=1, tolerance=None):
+def unresolved_rotation(body: RigidBody, state: State, period: float, substeps: int = 1,
+                        tolerance: float | None = None) -> str | None:
     """
     Return a one-line warning if a tick's steps turn the body too far, else None.
 

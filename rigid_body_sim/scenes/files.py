@@ -7,11 +7,17 @@ and :func:`default_state` are those of the node's default scene, for callers tha
 body or the state alone.
 """
 
+from __future__ import annotations
+
+import os
 from pathlib import Path
 
 from .schema import parse_scene
+from .schema import Scene
 from .strict_yaml import read_scene_yaml
 from ..paths import scenes_dir
+from ..physics import RigidBody
+from ..physics import State
 from ..text import one_line_errors
 
 __all__ = ['DEFAULT_SCENE', 'default_body', 'default_state', 'find_scene', 'load_scene',
@@ -21,13 +27,13 @@ DEFAULT_SCENE = 'default'
 """The node's default scene: the T-handle with external_wrench, so a newcomer can push it."""
 
 
-def scene_names():
+def scene_names() -> list[str]:
     """Return the names of the built-in scenes (``config/scenes/*.yaml``), sorted."""
     return sorted(path.stem for path in Path(scenes_dir()).glob('*.yaml'))
 
 
 @one_line_errors
-def find_scene(name_or_path):
+def find_scene(name_or_path: str | os.PathLike[str]) -> Path:
     """
     Return the file of a scene given by built-in name or by path.
 
@@ -58,7 +64,7 @@ def find_scene(name_or_path):
 
 
 @one_line_errors
-def load_scene(name_or_path=DEFAULT_SCENE):
+def load_scene(name_or_path: str | os.PathLike[str] = DEFAULT_SCENE) -> Scene:
     """
     Read, validate and return a scene, by built-in name or by path.
 
@@ -83,11 +89,11 @@ def load_scene(name_or_path=DEFAULT_SCENE):
     return parse_scene(data, source)
 
 
-def default_body():
+def default_body() -> RigidBody:
     """Return the default scene's RigidBody (the T-handle: mass 1 kg, I = diag(1, 2, 3) kg m^2)."""
     return load_scene(DEFAULT_SCENE).body
 
 
-def default_state():
+def default_state() -> State:
     """Return the default scene's initial State: at the origin, at rest, spinning near axis 2."""
     return load_scene(DEFAULT_SCENE).state

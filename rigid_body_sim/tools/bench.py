@@ -22,6 +22,11 @@ results.json, tolerance_sweep.json and forces.json, also near the top of the .md
 the committed run's are in docs/benchmark/).  The tolerance sweep is the longest part.
 """
 
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from collections.abc import Iterator
 import contextlib
 import os
 from pathlib import Path
@@ -32,7 +37,7 @@ import time
 # line builds every tool's parser at start-up, and `rigid-body-sim run` should not pay for it.
 
 
-def add_arguments(parser):
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of ``rigid-body-sim bench``."""
     parser.add_argument('--quick', action='store_true',
                         help='a small sweep for CI: 2 bodies, dt 1, 0.1 and 0.01, 2 s and 10 s')
@@ -61,7 +66,8 @@ def add_arguments(parser):
 
 
 @contextlib.contextmanager
-def _progress(total, description='bench', mujoco=True):
+def _progress(total: int, description: str = 'bench',
+              mujoco: bool = True) -> Iterator[Callable[[str], None]]:
     """
     Show a progress bar of `total` runs while a part of the benchmark runs; yield its advance.
 
@@ -72,7 +78,7 @@ def _progress(total, description='bench', mujoco=True):
     bar = tqdm(total=total, desc=description, unit='run', file=sys.stderr,
                dynamic_ncols=True, leave=True)
 
-    def advance(label):
+    def advance(label: str) -> None:
         bar.set_postfix_str(label, refresh=False)
         bar.update(1)
     restore_warnings = _silence_mujoco_warnings() if mujoco else (lambda: None)
@@ -83,7 +89,7 @@ def _progress(total, description='bench', mujoco=True):
         restore_warnings()
 
 
-def _silence_mujoco_warnings():
+def _silence_mujoco_warnings() -> Callable[[], None]:
     """
     Swallow MuJoCo's warning prints; return a function that restores them.
 
@@ -99,7 +105,7 @@ def _silence_mujoco_warnings():
     return lambda: mujoco.set_mju_user_warning(previous)
 
 
-def _command(args):
+def _command(args: argparse.Namespace) -> str:
     return ('rigid-body-sim bench' + (' --quick' if args.quick else '')
             + ('' if args.repeats is None else f' --repeats {args.repeats}')
             + (' --no-mujoco' if args.no_mujoco else '')
@@ -110,7 +116,7 @@ def _command(args):
             + f' --out {args.out}')
 
 
-def run_tolerance_sweep(args):
+def run_tolerance_sweep(args: argparse.Namespace) -> dict[str, Path]:
     """Run the tolerance sweep, write tolerance_sweep.*, print the goal's count; return paths."""
     from ..work_precision.report import machine_info
     from ..work_precision.tolerance_report import control_goal_table
@@ -124,6 +130,8 @@ def run_tolerance_sweep(args):
     from ..work_precision.tolerance_sweep import TOLERANCES
     from ..scenes import scene_names
 
+    tolerances: tuple[float, ...]
+    substeps: tuple[int, ...]
     if args.quick:
         names = args.scenes or ['van_zon', 'heavy_top']
         span, tolerances, substeps = 2.0, (1e-3, 1e-5, 1e-7), (1, 2, 4, 8)
@@ -159,7 +167,7 @@ def run_tolerance_sweep(args):
     return paths
 
 
-def run_forces_benchmark(args):
+def run_forces_benchmark(args: argparse.Namespace) -> dict[str, Path]:
     """Run the forced benchmark, write forces.*, print the goal's count; return paths."""
     from ..work_precision.forces import FORCES_FULL
     from ..work_precision.forces import FORCES_QUICK
@@ -196,7 +204,7 @@ def run_forces_benchmark(args):
     return paths
 
 
-def _outputs(args):
+def _outputs(args: argparse.Namespace) -> list[str]:
     """Return the JSON results this invocation writes (one per part it runs)."""
     if getattr(args, 'forces', False):
         return ['forces.json']
@@ -206,7 +214,7 @@ def _outputs(args):
                                               else ['tolerance_sweep.json'])
 
 
-def refuse_quick_over_full_results(args):
+def refuse_quick_over_full_results(args: argparse.Namespace) -> None:
     """
     Raise ValueError if a --quick run would overwrite full results in --out.
 
@@ -229,7 +237,7 @@ def refuse_quick_over_full_results(args):
                              'DIR (default ./bench-results)')
 
 
-def missing_mujoco_line(args):
+def missing_mujoco_line(args: argparse.Namespace) -> str | None:
     """
     Return the one line to print when the run wants MuJoCo's peer and mujoco is missing.
 
@@ -245,7 +253,7 @@ def missing_mujoco_line(args):
             f'{INSTALL_HINT}')
 
 
-def main(args):
+def main(args: argparse.Namespace) -> int:
     """Run the benchmark, write the outputs, print where they are; return 0."""
     refuse_quick_over_full_results(args)
     missing = missing_mujoco_line(args)

@@ -16,6 +16,9 @@ Typical use:
   rigid-body-sim plot t_handle_1khz --out t_handle.png
 """
 
+from __future__ import annotations
+
+import argparse
 from datetime import datetime
 import math
 from pathlib import Path
@@ -35,7 +38,7 @@ from ..scenes import load_scene
 from ..text import one_line
 
 
-def add_arguments(parser):
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of ``rigid-body-sim simulate``."""
     parser.add_argument('--scene', default=DEFAULT_SCENE,
                         help='built-in scene name (see rigid-body-sim scenes) or path to a '
@@ -85,7 +88,7 @@ def add_arguments(parser):
     add_animation_options(parser, prefix='animate-')
 
 
-def start_time_nanoseconds(text):
+def start_time_nanoseconds(text: str) -> int:
     """Return the --start-time value in ns since the epoch: a number of s, or 'now'."""
     if text == 'now':
         return time.time_ns()
@@ -106,7 +109,7 @@ def start_time_nanoseconds(text):
 _COMPANIONS = ('-journal', '-wal', '-shm')
 
 
-def _named_by_metadata(path):
+def _named_by_metadata(path: Path) -> list[str]:
     """Return the names metadata.yaml of the bag directory `path` lists, or raise ValueError."""
     import yaml
 
@@ -128,7 +131,7 @@ def _named_by_metadata(path):
     return named
 
 
-def remove_bag(path):
+def remove_bag(path: Path) -> None:
     """
     Remove the bag directory `path` (for --overwrite).
 
@@ -160,7 +163,7 @@ def remove_bag(path):
     path.rmdir()
 
 
-def main(args):
+def main(args: argparse.Namespace) -> int:
     """
     Run the simulation into the bag and print what was written; return 0.
 

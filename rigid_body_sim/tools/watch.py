@@ -18,13 +18,24 @@ Typical use (the node in another terminal: make run):
   rigid-body-sim watch --timeout 10           give up (exit 1) if no node shows in 10 s
 """
 
+from __future__ import annotations
+
+import argparse
 import math
 import signal
 import sys
 import time
+from types import FrameType
+from typing import Literal
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # for the annotations: the command imports the watch (rclpy) when it runs
+    from ..watch.listener import Listener
+    from ..watch.live import LiveState
+    from ..watch.live import Snapshot
 
 
-def add_arguments(parser):
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of ``rigid-body-sim watch``."""
     parser.add_argument('--node', help='the node to watch: its name or /namespace/name '
                                        '(default: the first found)')
@@ -43,28 +54,28 @@ def add_arguments(parser):
 class _Stop:
     """SIGINT and SIGTERM end the watch cleanly (a window closes, the context shuts down)."""
 
-    def __init__(self):
-        self.signal = None
+    def __init__(self) -> None:
+        self.signal: signal.Signals | None = None
         self.timed_out = False
 
-    def __enter__(self):
+    def __enter__(self) -> _Stop:
         self._previous = {number: signal.signal(number, self._handle)
                           for number in (signal.SIGINT, signal.SIGTERM)}
         return self
 
-    def _handle(self, number, frame):
+    def _handle(self, number: int, frame: FrameType | None) -> None:
         self.signal = signal.Signals(number)
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> Literal[False]:
         for number, handler in self._previous.items():
             signal.signal(number, handler)
         return False
 
-    def __call__(self):
+    def __call__(self) -> bool:
         return self.signal is not None or self.timed_out
 
 
-def main(args):
+def main(args: argparse.Namespace) -> int:
     """Watch until Ctrl-C, the window's closing or the timeout; return the exit code."""
     for name in ('history', 'interval'):
         value = getattr(args, name)
@@ -94,7 +105,7 @@ def main(args):
     return 0 if stop.signal in (None, signal.SIGTERM) else 128 + stop.signal
 
 
-def _no_node_for(listener, timeout, stop):
+def _no_node_for(listener: Listener, timeout: float, stop: _Stop) -> bool:
     """Note a timeout (and say so) if no node has shown for `timeout` s; return True then."""
     if listener.watched is not None or time.monotonic() - listener.searching_since < timeout:
         return False
@@ -106,7 +117,8 @@ def _no_node_for(listener, timeout, stop):
     return True
 
 
-def _terminal(state, listener, args, stop):
+def _terminal(state: LiveState, listener: Listener, args: argparse.Namespace,
+              stop: _Stop) -> None:
     from ..watch.terminal import render_lines
     from ..watch.terminal import TerminalView
     from ..watch.terminal import waiting_lines
@@ -125,13 +137,14 @@ def _terminal(state, listener, args, stop):
         time.sleep(args.interval)
 
 
-def _window(state, listener, args, stop):
+def _window(state: LiveState, listener: Listener, args: argparse.Namespace,
+            stop: _Stop) -> None:
     from ..watch.window import WatchWindow
 
-    def should_stop():
+    def should_stop() -> bool:
         return stop() or _no_node_for(listener, args.timeout, stop)
 
-    def drawn(snapshot):
+    def drawn(snapshot: Snapshot) -> None:
         # One line when the body and both charts are on screen: scripts and the tests wait
         # for it.
         print(f'rigid-body-sim watch: window shows {snapshot.node}', flush=True)

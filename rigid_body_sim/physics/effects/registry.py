@@ -46,11 +46,19 @@ defaults and required ones from the signature); it checks their values with the 
 helpers here, which raise :class:`ParameterError` naming the parameter.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable
+from collections.abc import Mapping
 import inspect
 import math
+from typing import Any
+from typing import TypeVar
 
 import numpy as np
+from numpy.typing import NDArray
 
+from ..body import RigidBody
 from ..state import State
 
 __all__ = [
@@ -65,22 +73,26 @@ __all__ = [
     'register_effect',
 ]
 
-EFFECTS = {}
+EFFECTS: dict[str, type[Effect]] = {}
 """Effect name -> effect class (see the module docstring for what an effect provides)."""
 
 
 class ParameterError(ValueError):
     """A bad effect parameter: `key` names the parameter, `problem` says what is wrong."""
 
-    def __init__(self, key, problem):
+    def __init__(self, key: str, problem: str) -> None:
         super().__init__(f'{key}: {problem}')
         self.key = key
         self.problem = problem
 
 
-def register_effect(name):
+# An effect class, given back by the decorator that registers it.
+_Effect = TypeVar('_Effect', bound='Effect')
+
+
+def register_effect(name: str) -> Callable[[type[_Effect]], type[_Effect]]:
     """Register the decorated effect class under `name`; it gains ``effect_name``."""
-    def decorate(cls):
+    def decorate(cls: type[_Effect]) -> type[_Effect]:
         if name in EFFECTS:
             raise ValueError(f'effect {name!r} is registered twice')
         cls.effect_name = name
@@ -89,7 +101,7 @@ def register_effect(name):
     return decorate
 
 
-def effect_parameters(name):
+def effect_parameters(name: str) -> dict[str, Any]:
     """
     Return {parameter: default} of the effect `name`; a required one has no default.
 
@@ -99,7 +111,7 @@ def effect_parameters(name):
     return {key: parameter.default for key, parameter in signature.parameters.items()}
 
 
-def create_effect(name, parameters=None):
+def create_effect(name: str, parameters: Mapping[str, Any] | None = None) -> Effect:
     """
     Return the effect `name` built from a mapping of its parameters.
 
@@ -124,7 +136,7 @@ def create_effect(name, parameters=None):
     return cls(**parameters)
 
 
-def _effect_class(name):
+def _effect_class(name: str) -> type[Effect]:
     try:
         return EFFECTS[name]
     except (KeyError, TypeError):
@@ -142,40 +154,50 @@ class Effect:
     repr shows the parameters in force.
     """
 
-    effect_name = None
+    effect_name: str | None = None
     momentum_dependent = False
     reads_state = False
     exerts_torque = True
     accepts_external_wrench = False
-    compiled_wrench = None
-    compiled_flow = None
-    example = None
-    conserves = ()
+    compiled_wrench: Callable[..., Any] | None = None
+    compiled_flow: Callable[..., Any] | None = None
+    example: dict[str, Any] | None = None
+    conserves: tuple[str, ...] = ()
     keeps_pivot_invariants = False
+    # Optional members, absent unless an effect defines them (read with getattr): declared
+    # here for their types only.
+    constrain: Callable[[RigidBody], Any]
+    damping_rate: Callable[[RigidBody], tuple[float, str]]
+    potential_energy: Callable[[RigidBody, State], float]
 
-    def wrench_parameters(self, body):
+    def wrench_parameters(self, body: RigidBody) -> NDArray[np.float64]:
         """Return the parameters (1-D float array) of the compiled wrench on `body`."""
         raise NotImplementedError
 
-    def flow_parameters(self, body):
+    def flow_parameters(self, body: RigidBody) -> NDArray[np.float64]:
         """Return the parameters (1-D float array) of the compiled flow on `body`."""
         raise NotImplementedError
 
-    def wrench(self, body, state, time):
+    def wrench(self, body: RigidBody, state: State,
+               time: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Return (force N, torque N m) about the COM, world frame, at `state` and `time` s."""
+        if self.compiled_wrench is None:
+            raise NotImplementedError
         values = np.concatenate(state._fields())
         result = self.compiled_wrench(values, float(time), np.ascontiguousarray(
             self.wrench_parameters(body), dtype=float))
         return np.array(result[:3]), np.array(result[3:])
 
-    def flow(self, body, state, dt):
+    def flow(self, body: RigidBody, state: State, dt: float) -> State:
         """Return the state after dt s of this effect's flow alone."""
+        if self.compiled_flow is None:
+            raise NotImplementedError
         values = np.concatenate(state._fields())
         self.compiled_flow(values, np.ascontiguousarray(self.flow_parameters(body),
                                                         dtype=float), float(dt))
         return State._from_values(values)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         """Return ``Name(parameter=value, ...)`` with the parameters in force."""
         signature = inspect.signature(type(self))
         parts = []
@@ -189,7 +211,7 @@ class Effect:
 
 # -- parameter checks (the loader's messages come from here, prefixed with the key path)
 
-def describe_value(value):
+def describe_value(value: object) -> str:
     """Return how a (YAML) value reads in a message: "the string '0.3'", "a list of 2"."""
     if isinstance(value, str):
         return f'the string {value!r}'
@@ -204,13 +226,14 @@ def describe_value(value):
     return f'{type(value).__name__} {value!r}'
 
 
-def _is_number(value):
+def _is_number(value: object) -> bool:
     # bool is an int in Python, but `true` in a scene file is never meant as 1.
     return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
         value, (bool, np.bool_))
 
 
-def check_number(value, key, unit='', minimum=None, positive=False, maximum=None):
+def check_number(value: Any, key: str, unit: str = '', minimum: float | None = None,
+                 positive: bool = False, maximum: float | None = None) -> float:
     """
     Return `value` as a finite float, else raise ParameterError naming `key`.
 
@@ -232,7 +255,8 @@ def check_number(value, key, unit='', minimum=None, positive=False, maximum=None
     return number
 
 
-def check_vector(value, key, unit='', size=3, largest=None):
+def check_vector(value: object, key: str, unit: str = '', size: int = 3,
+                 largest: float | None = None) -> NDArray[np.float64]:
     """
     Return `value` as a float array of `size` finite numbers, else raise ParameterError.
 
@@ -263,5 +287,5 @@ def check_vector(value, key, unit='', size=3, largest=None):
     return array
 
 
-def _unit(unit):
+def _unit(unit: str) -> str:
     return f' in {unit}' if unit else ''

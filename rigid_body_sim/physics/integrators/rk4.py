@@ -24,29 +24,39 @@ nor the energy, nor, torque-free, the world angular momentum (L = R m drifts at 
 method's order, ~h^4); it is fourth order.
 """
 
+from __future__ import annotations
+
+from typing import Any
+
 from .registry import register_integrator
 from ..kernels import helper
 from ..kernels import inline
 from ..kernels.algebra import conjugate
 from ..kernels.algebra import cross
 from ..kernels.algebra import normalised
+from ..kernels.algebra import Quaternion
 from ..kernels.algebra import quaternion_product
 from ..kernels.algebra import rotate
 from ..kernels.algebra import rotate_back
 from ..kernels.algebra import rotate_unnormalised
+from ..kernels.algebra import Vector
 from ..kernels.layout import angular_momentum_of
 from ..kernels.layout import BODY_MASS
 from ..kernels.layout import inverse_inertia_times
 from ..kernels.layout import quaternion_of
+from ..kernels.loop import MethodConstants
 from ..kernels.loop import run_kernel
 from ..kernels.loop import run_steps_specialised
+from ..kernels.model import Array
 from ..kernels.model import integrated_wrench
+from ..kernels.model import Model
 
 __all__ = ['rk4', 'world_momentum_change']
 
 
 @helper
-def world_momentum_change(quaternion, quaternion_change, momentum_body, momentum_change):
+def world_momentum_change(quaternion: Quaternion, quaternion_change: Quaternion,
+                          momentum_body: Vector, momentum_change: Vector) -> Vector:
     """
     Return R0^T (L1 - L0) = R(d) m1 - m0 (body frame at the start), from increments alone.
 
@@ -73,19 +83,21 @@ def world_momentum_change(quaternion, quaternion_change, momentum_body, momentum
 
 
 @helper
-def _stage4(y, k, h):
+def _stage4(y: Quaternion, k: Quaternion, h: float) -> Quaternion:
     """Return the 4-tuple y + h k."""
     return (y[0] + h * k[0], y[1] + h * k[1], y[2] + h * k[2], y[3] + h * k[3])
 
 
 @helper
-def _stage3(y, k, h):
+def _stage3(y: Vector, k: Vector, h: float) -> Vector:
     """Return the 3-tuple y + h k."""
     return (y[0] + h * k[0], y[1] + h * k[1], y[2] + h * k[2])
 
 
 @inline
-def _derivatives(q, momentum_body, position, linear_momentum, time, forcing, pushed):
+def _derivatives(q: Quaternion, momentum_body: Vector, position: Vector,
+                 linear_momentum: Vector, time: float, forcing: Any,
+                 pushed: bool) -> tuple[Quaternion, Vector, Vector]:
     """
     Return (dq, dm, F) of the stage at the (unnormalised) stage quaternion q (a 4-tuple).
 
@@ -117,7 +129,8 @@ def _derivatives(q, momentum_body, position, linear_momentum, time, forcing, pus
 
 
 @inline
-def step(state, forcing, method, dt, time, pushed, translates):
+def step(state: Array, forcing: Any, method: MethodConstants, dt: float, time: float,
+         pushed: bool, translates: bool) -> None:
     """Take the classical RK4 step on a packed state in place (no method constants)."""
     mass = forcing.body[BODY_MASS]
     half, sixth = 0.5 * dt, dt / 6.0
@@ -158,7 +171,8 @@ def step(state, forcing, method, dt, time, pushed, translates):
 
 
 @run_kernel(compile_seconds=22.0)
-def run(state, model, method, dt, steps, time):
+def run(state: Array, model: Model, method: MethodConstants, dt: float, steps: int,
+        time: float) -> int:
     """Take `steps` RK4 steps of dt s from `time` (kernels/loop.py)."""
     return run_steps_specialised(step, state, model, method, dt, steps, time)
 

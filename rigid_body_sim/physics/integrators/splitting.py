@@ -36,7 +36,12 @@ cancels the stage's h^3 term (its coefficients' cubes sum to zero), not the h^4 
 One free flow (:func:`free_flow`), composed with the kicks by :func:`step`.
 """
 
+from __future__ import annotations
+
+from collections.abc import Iterable
+from collections.abc import Sequence
 import math
+from typing import Any
 
 from .registry import KICK_STAGE
 from .registry import register_integrator
@@ -45,14 +50,18 @@ from ..kernels import inline
 from ..kernels import outlined
 from ..kernels.algebra import conjugate
 from ..kernels.algebra import normalised
+from ..kernels.algebra import Quaternion
 from ..kernels.algebra import quaternion_product
 from ..kernels.algebra import rotate_back
 from ..kernels.layout import BODY_FRAME
 from ..kernels.layout import BODY_MASS
 from ..kernels.layout import BODY_MOMENTS
+from ..kernels.loop import MethodConstants
 from ..kernels.loop import run_kernel
 from ..kernels.loop import run_steps_specialised
+from ..kernels.model import Array
 from ..kernels.model import impulse
+from ..kernels.model import Model
 from ..kernels.model import NO_ESTIMATE
 
 __all__ = ['STRANG_AXES', 'SUZUKI_AXES', 'SUZUKI_COEFFICIENTS', 'free_flow', 'splitting',
@@ -69,7 +78,8 @@ _METHOD_SIZE = 10
 
 
 @outlined
-def free_flow(q, lx, ly, lz, moments, frame, axes, dt):
+def free_flow(q: Quaternion, lx: float, ly: float, lz: float, moments: Array,
+              frame: Quaternion, axes: MethodConstants, dt: float) -> Quaternion:
     """
     Return q after the torque-free Strang step of dt s (world L unchanged), as a 4-tuple.
 
@@ -117,7 +127,7 @@ def free_flow(q, lx, ly, lz, moments, frame, axes, dt):
 
 
 @helper
-def _compensated_add(total, addend, compensation):
+def _compensated_add(total: float, addend: float, compensation: float) -> tuple[float, float]:
     """Return (total + addend, new compensation): one step of Kahan summation."""
     corrected = addend - compensation
     result = total + corrected
@@ -125,7 +135,8 @@ def _compensated_add(total, addend, compensation):
 
 
 @inline
-def step(state, forcing, method, dt, time, pushed, translates):
+def step(state: Array, forcing: Any, method: MethodConstants, dt: float, time: float,
+         pushed: bool, translates: bool) -> None:
     """
     Take the splitting step on a packed state in place.
 
@@ -195,12 +206,13 @@ def step(state, forcing, method, dt, time, pushed, translates):
 
 
 @run_kernel(compile_seconds=8.0)
-def run(state, model, method, dt, steps, time):
+def run(state: Array, model: Model, method: MethodConstants, dt: float, steps: int,
+        time: float) -> int:
     """Take `steps` splitting steps of dt s from `time` (kernels/loop.py)."""
     return run_steps_specialised(step, state, model, method, dt, steps, time)
 
 
-def _method(axes, coefficients):
+def _method(axes: Iterable[float], coefficients: Sequence[float]) -> MethodConstants:
     """Return the method constants of a composition of Strang steps (see :func:`step`)."""
     constants = tuple(axes) + (len(coefficients),) + tuple(coefficients)
     return tuple(float(value) for value in constants) + (0.0,) * (_METHOD_SIZE - len(constants))

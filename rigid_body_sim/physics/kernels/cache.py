@@ -40,6 +40,11 @@ setting, documented in its caching notes), for this package's files only; any ot
 function keeps numba's own locators.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable
+from collections.abc import Iterable
+from collections.abc import Iterator
 import contextlib
 import errno
 import fcntl
@@ -51,6 +56,7 @@ import pickle
 import shutil
 import sys
 import time
+from typing import Any
 
 import llvmlite
 import llvmlite.binding
@@ -78,7 +84,7 @@ _LAST_USED = 'last-used'
 _CACHE_SUFFIXES = ('.nbi', '.nbc')
 
 
-def source_key(root=PHYSICS_ROOT):
+def source_key(root: Path = PHYSICS_ROOT) -> str:
     """
     Return the SHA-256 (hex) of what the kernels are compiled from.
 
@@ -97,7 +103,7 @@ def source_key(root=PHYSICS_ROOT):
     return digest.hexdigest()
 
 
-def cpu_key():
+def cpu_key() -> str:
     """Return a short hash of the CPU numba compiles for (its name and features)."""
     config = numba.config
     name = config.CPU_NAME or llvmlite.binding.get_host_cpu_name()
@@ -106,7 +112,7 @@ def cpu_key():
     return hashlib.sha256(f'{name}\0{features}'.encode()).hexdigest()[:12]
 
 
-def cache_root():
+def cache_root() -> Path:
     """Return the folder the kernel folders live in (see the module docstring)."""
     explicit = os.environ.get(CACHE_DIR_VARIABLE)
     if explicit:
@@ -122,12 +128,12 @@ SOURCES = source_key()
 """The key of the sources this process compiles and loads (read once, at import)."""
 
 
-def kernel_dir(sources=None):
+def kernel_dir(sources: str | None = None) -> Path:
     """Return the folder of the kernels of `sources` (default: this process's) for this CPU."""
     return cache_root() / f'kernels-{(sources or SOURCES)[:20]}-{cpu_key()}'
 
 
-def _usable(folder):
+def _usable(folder: Path) -> str | None:
     """Return None if `folder` can be created and written, else the reason (one phrase)."""
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -139,7 +145,7 @@ def _usable(folder):
     return None
 
 
-def _problem():
+def _problem() -> str | None:
     reason = _usable(kernel_dir())
     if reason is None:
         return None
@@ -152,15 +158,15 @@ PROBLEM = _problem()
 """None, or the one line that says why the kernels cannot be cached and what to set."""
 
 
-def caching_enabled():
+def caching_enabled() -> bool:
     """Return whether compiled kernels are cached (False: see :data:`PROBLEM`)."""
     return PROBLEM is None
 
 
-_claimed = set()
+_claimed: set[str] = set()
 
 
-def claim_file(path):
+def claim_file(path: str) -> None:
     """
     Cache the compiled functions of the source file `path` with the kernels.
 
@@ -181,7 +187,7 @@ class KernelCacheLocator(caching.InTreeCacheLocator):
     to numba's other locators.
     """
 
-    def __init__(self, py_func, py_file):
+    def __init__(self, py_func: Callable[..., Any], py_file: str) -> None:
         super().__init__(py_func, py_file)
         path = Path(os.path.realpath(py_file))
         try:
@@ -191,12 +197,13 @@ class KernelCacheLocator(caching.InTreeCacheLocator):
                 str(path.parent).encode()).hexdigest()[:16]
         self._kernel_folder = str(kernel_dir() / relative)
 
-    def get_cache_path(self):
+    def get_cache_path(self) -> str:
         """Return the folder this function's cache files go to."""
         return self._kernel_folder
 
     @classmethod
-    def from_function(cls, py_func, py_file):
+    def from_function(cls, py_func: Callable[..., Any],
+                      py_file: str) -> KernelCacheLocator | None:
         """Return a locator for a function of this package, else None (numba's decide)."""
         if not caching_enabled() or not os.path.isfile(py_file):
             return None
@@ -213,7 +220,7 @@ _NUMBA_LOCATORS = ('UserProvidedCacheLocator,InTreeCacheLocator,UserWideCacheLoc
                    'IPythonCacheLocator,ZipCacheLocator')
 
 
-def install_locator():
+def install_locator() -> None:
     """
     Tell numba to ask :class:`KernelCacheLocator` first, then its own locators.
 
@@ -233,7 +240,8 @@ def install_locator():
 
 
 @contextlib.contextmanager
-def compile_lock(folder=None, waiting=None):
+def compile_lock(folder: Path | None = None,
+                 waiting: Callable[[Path], object] | None = None) -> Iterator[Path]:
     """
     Hold the exclusive lock of a kernel folder while compiling into it.
 
@@ -257,29 +265,29 @@ def compile_lock(folder=None, waiting=None):
             fcntl.flock(handle, fcntl.LOCK_UN)
 
 
-def _cache_files(folder):
+def _cache_files(folder: Path) -> list[Path]:
     return sorted(path for path in folder.rglob('*')
                   if path.suffix in _CACHE_SUFFIXES and path.is_file())
 
 
-def _digest(path):
+def _digest(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def _write_atomically(path, text):
+def _write_atomically(path: Path, text: str) -> None:
     temporary = path.with_name(f'.{path.name}.{os.getpid()}.tmp')
     temporary.write_text(text)
     os.replace(temporary, path)
 
 
-def _manifest(folder):
+def _manifest(folder: Path) -> dict[str, list[Any]]:
     try:
         return json.loads((folder / _MANIFEST).read_text())
     except (OSError, ValueError):
         return {}
 
 
-def seal(folder=None):
+def seal(folder: Path | None = None) -> int:
     """Record the size and SHA-256 of every cache file in the folder (under the lock)."""
     folder = folder or kernel_dir()
     entries = {str(path.relative_to(folder)): [path.stat().st_size, _digest(path)]
@@ -288,7 +296,7 @@ def seal(folder=None):
     return len(entries)
 
 
-def _index_readable(path):
+def _index_readable(path: Path) -> bool:
     """Return whether an index file (numba's: pickles one after another) reads to its end."""
     try:
         with open(path, 'rb') as handle:
@@ -300,7 +308,7 @@ def _index_readable(path):
     return True
 
 
-def verify(folder=None):
+def verify(folder: Path | None = None) -> list[str]:
     """
     Return the sealed files of the folder that are missing or damaged (relative paths).
 
@@ -324,7 +332,7 @@ def verify(folder=None):
     return damaged
 
 
-def drop(names, folder=None):
+def drop(names: Iterable[str], folder: Path | None = None) -> None:
     """Delete the named cache files and every marker (their jobs compile again)."""
     folder = folder or kernel_dir()
     for name in names:
@@ -333,7 +341,7 @@ def drop(names, folder=None):
     unmark_all(folder)
 
 
-def drop_unsealed(folder=None):
+def drop_unsealed(folder: Path | None = None) -> int:
     """Delete the cache files the seal does not know (a compile whose sources changed)."""
     folder = folder or kernel_dir()
     sealed = set(_manifest(folder))
@@ -346,29 +354,29 @@ def drop_unsealed(folder=None):
     return count
 
 
-def marker(job, folder=None):
+def marker(job: str, folder: Path | None = None) -> Path:
     """Return the marker file that says `job`'s kernels are compiled and sealed."""
     return (folder or kernel_dir()) / _MARKERS / job
 
 
-def is_marked(job, folder=None):
+def is_marked(job: str, folder: Path | None = None) -> bool:
     """Return whether `job`'s kernels are compiled and sealed in the folder."""
     return marker(job, folder).exists()
 
 
-def mark(job, seconds, folder=None):
+def mark(job: str, seconds: float, folder: Path | None = None) -> None:
     """Mark `job` compiled; the marker holds the CPU seconds it took (estimates read it)."""
     path = marker(job, folder)
     path.parent.mkdir(parents=True, exist_ok=True)
     _write_atomically(path, f'{seconds:.3f}\n')
 
 
-def unmark_all(folder=None):
+def unmark_all(folder: Path | None = None) -> None:
     """Delete every marker of the folder."""
     shutil.rmtree((folder or kernel_dir()) / _MARKERS, ignore_errors=True)
 
 
-def measured_seconds(job):
+def measured_seconds(job: str) -> float | None:
     """
     Return the CPU seconds `job` took to compile on this machine, or None if never measured.
 
@@ -390,14 +398,14 @@ def measured_seconds(job):
     return None
 
 
-def touch_used(folder=None):
+def touch_used(folder: Path | None = None) -> None:
     """Stamp the folder as used now (pruning keeps what is used)."""
     folder = folder or kernel_dir()
     with contextlib.suppress(OSError):
         (folder / _LAST_USED).touch()
 
 
-def prune(keep_days=KEEP_DAYS):
+def prune(keep_days: float = KEEP_DAYS) -> list[Path]:
     """Remove the kernel folders of other sources unused for `keep_days` days; return them."""
     removed = []
     now = time.time()
@@ -416,7 +424,7 @@ def prune(keep_days=KEEP_DAYS):
     return removed
 
 
-def clear():
+def clear() -> int:
     """Remove every cached kernel folder under the root; return how many."""
     folders = [folder for folder in cache_root().glob('kernels-*') if folder.is_dir()]
     for folder in folders:
