@@ -27,7 +27,9 @@ N for another count); with --scheduler ADDRESS (or Dask's configuration), your c
 references go first, then every cell of the parts run, the dearest first.  A cell's errors
 do not depend on where it ran; its CPU time is measured on the worker that ran it (the CPU
 time of the thread that ran it), and each report says which machines (hostname, CPU) and how
-many workers ran its cells.  --in-process runs the cells in this process, one after another.
+many workers ran its cells.  With the parts run together, each part's wall_seconds is the
+time from the first reference sent to its last cell back.  --in-process runs the cells in
+this process, one after another.
 """
 
 import os
