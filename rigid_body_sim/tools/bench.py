@@ -254,11 +254,12 @@ def _run_on_engine(args, parts, advance):
     from ..work_precision.measure import our_integrators
 
     units = sum(part.plan.units for part in parts)
-    workers = None if args.scheduler else min(args.workers or local_workers(), units)
-    cluster = (f'the Dask cluster at {args.scheduler}' if args.scheduler
-               else 'a local Dask cluster')
+    workers = min(args.workers or local_workers(), units)
+    engine = Engine(args.scheduler, workers, our_integrators())
+    cluster = ('a local Dask cluster' if engine.is_local
+               else f'the Dask cluster at {engine.scheduler}')
     print(f'bench: {units} cells on {cluster}'
-          + ('' if args.scheduler else f' of {workers} worker process(es)')
+          + (f' of {workers} worker process(es)' if engine.is_local else '')
           + '; starting the workers (each loads the kernels once) ...', file=sys.stderr,
           flush=True)
     placement, finished = {}, {}
@@ -278,7 +279,7 @@ def _run_on_engine(args, parts, advance):
             advance(name)
         return values
 
-    with Engine(args.scheduler, workers, our_integrators()) as engine:
+    with engine:
         started = time.perf_counter()
         references = run(engine, [cell for part in parts for cell in part.plan.references])
         cells = [part.plan.cells(references) for part in parts]
@@ -288,7 +289,8 @@ def _run_on_engine(args, parts, advance):
         names = [cell.name for cell in part.plan.references + part_cells]
         done.append((part.plan.assemble(references, values),
                      max(finished[name] for name in names) - started,
-                     _ran_on(cluster, [placement[name] for name in names])))
+                     dict(_ran_on(cluster, [placement[name] for name in names]),
+                          start_seconds=engine.start_seconds)))
     return done
 
 

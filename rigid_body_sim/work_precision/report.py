@@ -88,16 +88,20 @@ def workers_line(info):
     Return the sentence saying where the cells ran, from a result's machine info.
 
     info['cells_ran_on'] (set by the bench command): 'engine' (in words), 'workers' (worker
-    processes) and 'hosts' ([{'host', 'cpu_model', 'workers', 'cells'}]); without it, the
-    cells ran in the process that wrote the report.
+    processes), 'hosts' ([{'host', 'cpu_model', 'workers', 'cells'}]) and 'start_seconds'
+    (the cluster's start, its workers' kernels loaded); without it, the cells ran in the
+    process that wrote the report.
     """
     ran_on = info.get('cells_ran_on')
     if not ran_on or not ran_on.get('hosts'):
         return 'Cells ran in this process, one after another.'
     hosts = '; '.join(f'{h["host"]} ({h["cpu_model"]}): {h["workers"]} worker(s), '
                       f'{h["cells"]} cells' for h in ran_on['hosts'])
+    started = ran_on.get('start_seconds')
     return (f'Cells ran on {ran_on["engine"]}, {ran_on["workers"]} worker process(es), each '
-            f'cell timed on the worker that ran it: {hosts}.')
+            f'cell timed on the worker that ran it: {hosts}'
+            + ('.' if started is None else
+               f' (the cluster started, kernels loaded, in {started:.1f} s).'))
 
 
 def machine_info():
