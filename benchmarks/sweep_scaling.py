@@ -173,8 +173,10 @@ def _cpu_name():
 
 
 def _wrap(text, indent=''):
-    return textwrap.fill(' '.join(text.split()), 95, initial_indent=indent,
-                         subsequent_indent=indent + ('  ' if indent else ''),
+    """Return `text` wrapped at 95 columns; a list item's lines go under its first word."""
+    words = ' '.join(text.split())
+    under = indent + ('  ' if words.startswith('- ') else '')
+    return textwrap.fill(words, 95, initial_indent=indent, subsequent_indent=under,
                          break_on_hyphens=False)
 
 
@@ -194,7 +196,7 @@ def scale_block(figures, args, started_load, revision, date):
     noop = figures['noop'].get(second) or figures['noop'].get(first) or {}
     per_task = noop.get('engine run_each', 0.0)
     runs, machines, workers = 100_000, 100, os.cpu_count()
-    runs_per_task = max(1, math.ceil(1.0 / run_wall))
+    runs_per_task = max(1, int(1.0 / run_wall))  # as the engine sizes its tasks
     compute = runs * run_wall / (machines * workers)
     scheduling = runs / runs_per_task * per_task
     driver = runs * summary['driver_cpu_per_run']
@@ -221,19 +223,19 @@ def scale_block(figures, args, started_load, revision, date):
         '1.8x) |',
         '',
         _wrap(f'- A run costs {run_wall * 1e3:.0f} ms wall, {run_cpu * 1e3:.0f} ms CPU on its '
-              'worker (scene, simulation, bag, row).', ''),
+              'worker (scene, simulation, bag, row).'),
         _wrap(f'- The overhead of the engine per run, with {first} worker: the wall time of '
               'the sweep per run less the wall time of the run on its worker (scheduling, '
               f'transfer, the row of the table), {summary["overhead_per_run"] * 1e3:.1f} ms, '
               f'{100 * summary["overhead_share"]:.1f} % of a run (goal: at most 5 %); the '
               'driver (client, local scheduler, table writer) spends '
-              f'{summary["driver_cpu_per_run"] * 1e3:.2f} ms of CPU per row.', ''),
+              f'{summary["driver_cpu_per_run"] * 1e3:.2f} ms of CPU per row.'),
         _wrap(f'- The cost per task, {args.noop_tasks:,} no-op tasks on {second} workers '
               '(median of 3): ' + ', '.join(f'{name} {seconds * 1e3:.2f} ms'
-                                            for name, seconds in noop.items()) + '.', ''),
+                                            for name, seconds in noop.items()) + '.'),
         _wrap(f'- A local cluster starts with its kernels loaded in {start:.1f} s (median; '
               'the machine has the kernels compiled: a new machine compiles them once first, '
-              'see [Kernels on the workers](#kernels-on-the-workers)).', ''),
+              'see [Kernels on the workers](#kernels-on-the-workers)).'),
         '',
         _wrap(f'Projected: {runs:,} such runs on {machines} machines like this one, '
               f'{workers} single-threaded workers each ({machines * workers} workers), one '
@@ -243,25 +245,23 @@ def scale_block(figures, args, started_load, revision, date):
         _wrap(f'- compute, {runs:,} x {run_wall * 1e3:.0f} ms / {machines * workers} workers = '
               f'{_duration(compute)}: each worker as fast as here and busy throughout (tasks '
               'are sized to about 1 s, two out per worker thread, so a worker waits for no '
-              'round trip);', ''),
+              'round trip);'),
         _wrap(f'- the scheduler, {runs // runs_per_task:,} tasks of {runs_per_task} runs (1 s '
               f'/ {run_wall * 1e3:.0f} ms) x {per_task * 1e3:.2f} ms = '
               f'{_duration(scheduling)}: its cost per task as measured on the local cluster '
               '(no network; the network round trip of a task overlaps the work of the next), '
-              'the same with 200 workers (the scheduler of Dask handles tasks one at a time);',
-              ''),
+              'the same with 200 workers (the scheduler of Dask handles tasks one at a time);'),
         _wrap(f'- the driver, {runs:,} rows x {summary["driver_cpu_per_run"] * 1e3:.2f} ms = '
               f'{_duration(driver)}: every row reaches one driver, which writes the table '
-              '(measured with the local scheduler in the same process, so an upper bound);',
-              ''),
+              '(measured with the local scheduler in the same process, so an upper bound);'),
         _wrap(f'- plus the start, {start:.0f} s (the workers start in parallel, on machines '
-              f'whose kernels are compiled), and the last task, {tail:.0f} s.', ''),
+              f'whose kernels are compiled), and the last task, {tail:.0f} s.'),
     ]
     if not args.no_bags:
         lines.append(_wrap(
             f'- The bags, {runs:,} x {bag_bytes / 1e6:.2f} MB = {runs * bag_bytes / 1e9:.0f} '
             f'GB, reach the shared file system at {runs * bag_bytes / wall / 1e6:.0f} MB/s '
-            'over that time: a file system slower than that is the limit instead.', ''))
+            'over that time: a file system slower than that is the limit instead.'))
     return '\n'.join(lines)
 
 
