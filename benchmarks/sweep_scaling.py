@@ -40,7 +40,6 @@ import json
 import multiprocessing
 import os
 from pathlib import Path
-import math
 import platform
 import statistics
 import subprocess
