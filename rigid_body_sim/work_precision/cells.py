@@ -8,9 +8,10 @@ puts the values together into the part's result, in the order the report reads t
 cell's function is a module-level function of this package (it travels to another process
 by name), its arguments travel pickled (names and numbers: a case is named and built again
 where the cell runs, as a Scene's State does not unpickle), and its figures depend on its
-arguments only: where it runs changes its CPU times, not its errors.  Its CPU time is measured in the cell itself, on the thread that runs it
-(:data:`CPU_CLOCK`), so it is the CPU of the machine that ran it, whatever else that
-process does (a Dask worker's own threads are not counted).
+arguments only: where it runs changes its CPU times, not its errors.  Its CPU time is
+measured in the cell itself, on the thread that runs it (:data:`CPU_CLOCK`), so it is the
+CPU of the machine that ran it, whatever else that process does (a Dask worker's own
+threads are not counted).
 
 :func:`run_in_process` runs a plan here, cell after cell; :func:`run_cells` is what runs a
 batch of cells in any process (a Dask task: ``rigid-body-sim bench`` gives the cells to the
