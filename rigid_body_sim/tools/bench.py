@@ -29,7 +29,9 @@ do not depend on where it ran; its CPU time is measured on the worker that ran i
 time of the thread that ran it), and each report says which machines (hostname, CPU) and how
 many workers ran its cells.  With the parts run together, each part's wall_seconds is the
 time from the first reference sent to its last cell back.  --in-process runs the cells in
-this process, one after another.
+this process, one after another: for --quick on a machine of a few cores the quicker, as the
+cluster's start (its workers import the package and load every kernel) costs more than the
+few seconds of cells it shares out (docs/benchmark.md).
 """
 
 import os
