@@ -9,6 +9,7 @@ from .forces import LEVELS
 from .report import case_panels
 from .report import save_figure
 from .report import write_records_csv
+from .report import workers_line
 
 __all__ = ['write_forces_outputs', 'forces_goal_counts']
 
@@ -50,7 +51,7 @@ def _markdown(result, rows):
         f'{result["machine"].get("git_commit", "unknown")}) in {result["wall_seconds"]:.0f} s '
         f'on {result["machine"].get("cpu_model", "this machine")} (load average at the end '
         f'{", ".join(f"{v:.2f}" for v in result["machine"]["load_average_end"])}). '
-        f'MuJoCo peer: {result["mujoco"]}.',
+        f'MuJoCo peer: {result["mujoco"]}. ' + workers_line(result['machine']),
         '',
         f'Orientation error (rad) at {config["horizon"]:g} s against a reference solve '
         f'({_reference_words(result)}); CPU seconds per simulated second (median of fresh '

@@ -31,13 +31,14 @@ import subprocess
 
 import numpy as np
 
+from .cells import CPU_CLOCK_NAME
+from .cells import cpu_model
 from .extended_reference import key_string
 from .reference import MEASUREMENT_FLOOR
 
-__all__ = ['machine_info', 'cost_to_reach', 'Reach', 'verdict', 'goal_table', 'goal_summary',
-           'augmentation_table', 'step_costs', 'write_outputs', 'case_panels', 'save_figure',
-           'write_records_csv',
-           'GOAL_LEVELS', 'SATURATION']
+__all__ = ['machine_info', 'workers_line', 'cost_to_reach', 'Reach', 'verdict', 'goal_table',
+           'goal_summary', 'augmentation_table', 'step_costs', 'write_outputs', 'case_panels',
+           'save_figure', 'write_records_csv', 'GOAL_LEVELS', 'SATURATION']
 
 # Orientation error levels (rad) at which the CPU cost of ours and MuJoCo's are compared.
 GOAL_LEVELS = tuple(10.0 ** -k for k in range(2, 13))
@@ -51,27 +52,6 @@ SATURATION = 0.5
 ISSUE_DTS = (0.1, 0.03, 0.01, 0.003, 0.001)
 VERDICTS = ('holds', 'holds*', 'not decided', 'fails', 'neither reaches', 'unresolved',
             'no peer')
-
-
-def _cpu_model():
-    """Return (CPU model name, number of physical cores or None) from /proc/cpuinfo."""
-    model, cores, current = None, set(), {}
-    try:
-        with open('/proc/cpuinfo') as cpuinfo:
-            for line in cpuinfo:
-                key, _, value = (part.strip() for part in line.partition(':'))
-                if key == 'model name' and model is None:
-                    model = value
-                elif key in ('physical id', 'core id'):
-                    current[key] = value
-                elif not key and current:
-                    cores.add((current.get('physical id'), current.get('core id')))
-                    current = {}
-    except OSError:
-        pass
-    if current:
-        cores.add((current.get('physical id'), current.get('core id')))
-    return model or platform.processor() or 'unknown', len(cores) or None
 
 
 def _version(module_name):
@@ -103,13 +83,34 @@ def _git_commit():
     return commit, sorted(line[3:] for line in (status or '').splitlines() if line.strip())
 
 
+def workers_line(info):
+    """
+    Return the sentence saying where the cells ran, from a result's machine info.
+
+    info['cells_ran_on'] (set by the bench command): 'engine' (in words), 'workers' (worker
+    processes), 'hosts' ([{'host', 'cpu_model', 'workers', 'cells'}]) and 'start_seconds'
+    (the cluster's start, its workers' kernels loaded); without it, the cells ran in the
+    process that wrote the report.
+    """
+    ran_on = info.get('cells_ran_on')
+    if not ran_on or not ran_on.get('hosts'):
+        return 'Cells ran in this process, one after another.'
+    hosts = '; '.join(f'{h["host"]} ({h["cpu_model"]}): {h["workers"]} worker(s), '
+                      f'{h["cells"]} cells' for h in ran_on['hosts'])
+    started = ran_on.get('start_seconds')
+    return (f'Cells ran on {ran_on["engine"]}, {ran_on["workers"]} worker process(es), each '
+            f'cell timed on the worker that ran it: {hosts}'
+            + ('.' if started is None else
+               f' (the cluster started, kernels loaded, in {started:.1f} s).'))
+
+
 def machine_info():
     """Return a dict describing this machine and the software versions."""
     try:
         usable = len(os.sched_getaffinity(0))
     except AttributeError:
         usable = os.cpu_count()
-    model, physical = _cpu_model()
+    model, physical = cpu_model()
     commit, modified = _git_commit()
     return {
         'cpu_model': model,
@@ -124,7 +125,7 @@ def machine_info():
         'mujoco': _version('mujoco'),
         'git_commit': commit,
         'git_modified': modified,
-        'timer': 'time.process_time (CPU time of this process)',
+        'timer': CPU_CLOCK_NAME,
         'date_utc': datetime.datetime.now(datetime.timezone.utc).strftime('%Y-%m-%d %H:%M UTC'),
         'load_average_start': list(os.getloadavg()),
     }
@@ -491,8 +492,9 @@ def _markdown(result, goal_rows, long_rows, augmentation_rows, issue_rows=()):
         '- Load average (1, 5, 15 min) at start: '
         + ', '.join(f'{v:.2f}' for v in info['load_average_start'])
         + '; at end: ' + ', '.join(f'{v:.2f}' for v in info['load_average_end'])
-        + f'. Wall time of the whole run: {result["wall_seconds"]:.0f} s; CPU time of this '
-        f'process: {result.get("cpu_seconds", math.nan):.0f} s.',
+        + f'. Wall time of the whole run: {result["wall_seconds"]:.0f} s; CPU time of the '
+        f'command\'s own process: {result.get("cpu_seconds", math.nan):.0f} s.',
+        f'- {workers_line(info)}',
         f'- Timer: {info.get("timer", "time.process_time")}.  On a loaded machine the CPU '
         'times still vary by tens of percent from run to run (caches and frequency are '
         'shared): read costs to about a factor 1.5.',

@@ -18,6 +18,7 @@ from .report import cost_to_reach
 from .report import SATURATION
 from .report import save_figure
 from .report import write_records_csv
+from .report import workers_line
 
 __all__ = ['control_goal_table', 'sweep_markdown', 'write_sweep_outputs', 'CONTROL_LEVELS',
            'GOAL_RATIO']
@@ -82,7 +83,8 @@ def sweep_markdown(result, rows):
         '',
         f'Produced by `{result["command"]}` (the sweep after the work-precision benchmark) on '
         f'{result["machine"]["date_utc"]}; machine, load and timer as in results.md.  '
-        f'Wall time of the sweep: {result["wall_seconds"]:.0f} s.',
+        f'Wall time of the sweep: {result["wall_seconds"]:.0f} s.  '
+        + workers_line(result['machine']),
         '',
         'Each built-in scene at its own tick (1 / rate) over '
         f"{config['span']:g} s: `buss` under error control at each tolerance (rad per "
@@ -92,8 +94,8 @@ def sweep_markdown(result, rows):
         f'{config["sample_interval"]:g} s, against the reference (the extended-precision '
         'Taylor solve for torque-free rotation, else rk4 at 128 substeps per tick; its '
         'uncertainty is listed per scene).  **steps/tick**: integrator steps per tick, the '
-        "estimates' extra steps included.  **CPU s/sim s**: `time.process_time` of one "
-        '`Simulator.run` over the span (tick by tick for `driven`, whose pushed wrench '
+        "estimates' extra steps included.  **CPU s/sim s**: CPU time (`time.thread_time`) of "
+        'one `Simulator.run` over the span (tick by tick for `driven`, whose pushed wrench '
         f'changes every tick), median of {config["repeats"]}.',
         '',
         '## The goal: error control costs at most 1.5x the best fixed step',
