@@ -7,8 +7,9 @@ from pathlib import Path
 
 from .forces import forces_goal_table
 from .forces import LEVELS
+from .report import method_styles
 
-__all__ = ['write_forces_outputs', 'forces_goal_counts']
+__all__ = ['forces_figure', 'write_forces_outputs', 'forces_goal_counts']
 
 
 def forces_goal_counts(rows):
@@ -88,10 +89,12 @@ def _markdown(result, rows):
     return '\n'.join(lines) + '\n'
 
 
-def _plot(result, path):
+def forces_figure(result):
+    """Return the forced benchmark's figure (matplotlib): error against cost, per case."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
 
     cases = list(result['references'])
     columns = 3
@@ -99,19 +102,21 @@ def _plot(result, path):
     figure, axes = plt.subplots(rows, columns, figsize=(5.2 * columns, 4.2 * rows),
                                 squeeze=False)
     methods = sorted({r['method'] for r in result['records']})
-    colours = plt.get_cmap('tab10')
+    styles = method_styles(methods)
     for index, case in enumerate(cases):
         axis = axes[index // columns][index % columns]
-        for number, method in enumerate(methods):
+        for method in methods:
             runs = sorted((r for r in result['records'] if r['case'] == case
                            and r['method'] == method and math.isfinite(r['error'])
                            and r['error'] > 0), key=lambda r: r['cpu_per_sim_second'])
             if not runs:
                 continue
+            style = styles[method]
             axis.loglog([r['cpu_per_sim_second'] for r in runs], [r['error'] for r in runs],
-                        marker='s' if method.startswith('mujoco') else 'o', markersize=4,
-                        linestyle='--' if method.startswith('mujoco') else '-',
-                        color=colours(number % 10), label=method)
+                        marker=style['marker'], markersize=4, linestyle=style['linestyle'],
+                        color=style['color'],
+                        markerfacecolor=style['markerfacecolor'] or style['color'],
+                        label=method)
         axis.axhspan(1e-16, max(result['references'][case]['uncertainty'], 1e-16),
                      color='0.85', zorder=0)
         axis.set_title(case)
@@ -121,11 +126,21 @@ def _plot(result, path):
         axis.grid(True, which='major', alpha=0.3)
     for index in range(len(cases), rows * columns):
         axes[index // columns][index % columns].axis('off')
-    handles, labels = axes[0][0].get_legend_handles_labels()
-    figure.legend(handles, labels, loc='lower right', fontsize=8, ncol=2)
+    # Every method in the legend, also one that the first case lacks.
+    handles = [Line2D([], [], color=styles[m]['color'], marker=styles[m]['marker'],
+                      linestyle=styles[m]['linestyle'],
+                      markerfacecolor=styles[m]['markerfacecolor'] or styles[m]['color'],
+                      label=m) for m in methods]
+    figure.legend(handles=handles, loc='lower right', fontsize=8, ncol=2)
     figure.suptitle("Forced bodies: error against cost (grey: below the reference's "
                     'uncertainty)')
     figure.tight_layout()
+    return figure
+
+
+def _plot(result, path):
+    import matplotlib.pyplot as plt
+    figure = forces_figure(result)
     figure.savefig(path, dpi=90)
     plt.close(figure)
 

@@ -17,8 +17,8 @@ import os
 from .report import cost_to_reach
 from .report import SATURATION
 
-__all__ = ['control_goal_table', 'sweep_markdown', 'write_sweep_outputs', 'CONTROL_LEVELS',
-           'GOAL_RATIO']
+__all__ = ['control_goal_table', 'sweep_markdown', 'tolerance_figure', 'write_sweep_outputs',
+           'CONTROL_LEVELS', 'GOAL_RATIO']
 
 CONTROL_LEVELS = tuple(10.0 ** -k for k in range(2, 9))
 """Error levels (rad over the span) at which controlled and fixed-step buss are compared."""
@@ -146,7 +146,8 @@ _STYLES = {'buss+control': ('tab:red', 'o', '-'), 'buss': ('tab:blue', 's', '--'
            'splitting': ('tab:green', '^', '--'), 'rk4': ('tab:purple', 'D', '--')}
 
 
-def _plot(result, path):
+def tolerance_figure(result):
+    """Return the tolerance sweep's figure (matplotlib): error against cost, per case."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
@@ -185,6 +186,12 @@ def _plot(result, path):
     figure.suptitle(f'Error control: error over {result["config"]["span"]:g} s against '
                     'CPU per simulated second', fontsize=11)
     figure.tight_layout()
+    return figure
+
+
+def _plot(result, path):
+    import matplotlib.pyplot as plt
+    figure = tolerance_figure(result)
     figure.savefig(path, dpi=110)
     plt.close(figure)
 
