@@ -440,6 +440,7 @@ def test_custom_data_names_the_run(van_zon_bag):
     assert float(custom['rigid_body_sim.rate']) == 1000.0
     inertia = np.array(custom['rigid_body_sim.inertia'].split(), dtype=float).reshape(3, 3)
     np.testing.assert_array_equal(inertia, scene.body.inertia)
+    assert custom['rigid_body_sim.body_shape'] == scene.data['body'].get('shape', '')
 
 
 def test_metadata_names_jazzy_as_ros_distro_in_every_place_rosbag2_keeps_it(tmp_path):

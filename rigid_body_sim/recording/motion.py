@@ -82,6 +82,11 @@ _SIMULATED_STAMPS_BEFORE = 365 * 86400 * 10**9
 # Two principal moments closer than this (relative to the largest) are equal: the body is
 # symmetric about the third axis.
 _SYMMETRY_TOLERANCE = 1e-9
+# The inertia a live bag's motion shows is taken when the motion spans all six of its
+# components (the least singular value of the fit at least this fraction of the largest) and
+# L = I Omega holds to this fraction of |L| over the ticks.
+_FIT_CONDITION = 1e-6
+_FIT_RESIDUAL = 1e-6
 
 
 class BagMotion:
@@ -203,6 +208,50 @@ class BagMotion:
             return None
         return [{'effect': name.strip()} for name in names.split(',')
                 if name.strip() and name.strip() != 'none']
+
+    @property
+    def body_shape(self):
+        """
+        Return the shape the scene gave the body ('box', ...), '' if given by inertia, or None.
+
+        None when the bag does not say (a live recording, or an offline bag of an older
+        version).
+        """
+        return self.custom('body_shape')
+
+    def inertia_seen(self):
+        """
+        Return the inertia (3, 3) in kg m^2, body frame: the one the bag names, or the motion's.
+
+        A live bag names none; its motion shows it where L = I Omega (in the body frame, R^T
+        L) pins down all six components: the least-squares fit over the ticks.  None when
+        the motion does not (a steady spin about one axis shows one column of I).
+        """
+        named = self.inertia
+        if named is not None:
+            return named
+        step = max(1, len(self.stamps) // 2000)
+        omega = self.angular_velocity_body[::step]
+        momentum = np.einsum('nji,nj->ni', self.rotation[::step], self.angular_momentum[::step])
+        if len(omega) < 2 or not (np.all(np.isfinite(omega)) and np.all(np.isfinite(momentum))):
+            return None
+        # Unknowns (Ixx, Iyy, Izz, Ixy, Ixz, Iyz); three equations per tick.
+        x, y, z = omega.T
+        zero = np.zeros_like(x)
+        design = np.concatenate([np.stack([x, zero, zero, y, z, zero], axis=1),
+                                 np.stack([zero, y, zero, x, zero, z], axis=1),
+                                 np.stack([zero, zero, z, zero, x, y], axis=1)])
+        target = np.concatenate(momentum.T)
+        values, _, rank, singular = np.linalg.lstsq(design, target, rcond=None)
+        if rank < 6 or singular[-1] < _FIT_CONDITION * singular[0]:
+            return None
+        xx, yy, zz, xy, xz, yz = values
+        inertia = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+        fitted = design @ values
+        if np.linalg.norm(fitted - target) > _FIT_RESIDUAL * np.linalg.norm(target) or \
+                np.any(np.linalg.eigvalsh(inertia) <= 0.0):
+            return None
+        return inertia
 
     def total_energy(self, gravity):
         """Return E = T_rot + 1/2 m |v|^2 - m g . x in J, (n,); `gravity` in m/s^2 or None."""

@@ -441,6 +441,9 @@ def _set_custom_data(writer, scene, simulator, rate, substeps, start_time):
         'start_time': str(start_time),
         'mass': f'{body.mass:.17g}',
         'inertia': ' '.join(f'{value:.17g}' for value in body.inertia.ravel()),
+        # The scene's own shape of the body ('' for a body given by its inertia): a box
+        # marker of a box body is that box, not a stand-in with its moments.
+        'body_shape': scene.data.get('body', {}).get('shape', ''),
         'effects': ', '.join(scene.effect_names()) or 'none',
         'effect_parameters': effect_parameters_json(scene),
         'writer': 'rigid-body-sim simulate',
