@@ -266,6 +266,40 @@ def test_cli_plots_and_reports_bags_it_cannot_plot(tmp_path, van_zon, capsys):
     assert 'rigid-body-sim record --recover' in capsys.readouterr().err
 
 
+def test_plot_of_a_folder_that_is_no_bag_says_so_and_suggests_no_recovery(tmp_path, van_zon,
+                                                                          capsys):
+    """
+    A photo album, an empty folder, a text file: "is not a bag", in one line.
+
+    A folder with a metadata.yaml that is not rosbag2's once got "try: rigid-body-sim
+    record --recover", which suits only a killed recorder's storage file without its
+    metadata.yaml: that one still gets it.
+    """
+    album = tmp_path / 'album'
+    album.mkdir()
+    (album / 'metadata.yaml').write_text('title: my photo album\n')
+    (album / 'IMG_0001.jpg').write_bytes(b'\xff\xd8\xff')
+    empty = tmp_path / 'empty'
+    empty.mkdir()
+    text = tmp_path / 'notes.txt'
+    text.write_text('notes\n')
+    for path, why in ((album, 'its metadata.yaml is not a rosbag2 one'),
+                      (empty, 'a folder with no metadata.yaml and no .mcap or .db3 file'),
+                      (text, 'a file that is not a storage file of one')):
+        assert cli_main(['plot', str(path)]) == 2
+        error = capsys.readouterr().err
+        assert error.count('\n') == 1 and f'{path} is not a bag: {why}' in error, error
+        assert 'recover' not in error
+    killed = tmp_path / 'killed'
+    killed.mkdir()
+    bag, _ = van_zon
+    (killed / 'van_zon.mcap').write_bytes((bag / 'van_zon.mcap').read_bytes())
+    assert cli_main(['plot', str(killed)]) == 2
+    error = capsys.readouterr().err
+    assert 'has storage files (van_zon.mcap) but no metadata.yaml' in error
+    assert f'try: rigid-body-sim record --recover {killed}' in error
+
+
 def test_the_custom_data_is_that_of_metadata_yaml_in_either_storage(tmp_path, van_zon):
     """rosbag2 keeps it in metadata.yaml; a bag without any (a live one) has none."""
     bag, scene = van_zon

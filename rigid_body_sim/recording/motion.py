@@ -69,12 +69,15 @@ __all__ = [
     'BagMotion',
     'ConservedQuantity',
     'conserved_quantities',
+    'not_a_bag',
     'read_motion',
     'simulated_time_from_reports',
     'symmetry_axis',
 ]
 
 _ODOMETRY = 'nav_msgs/msg/Odometry'
+# The file endings of rosbag2's storage files (MCAP, sqlite3).
+_STORAGE_SUFFIXES = ('.mcap', '.db3')
 _DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 _VECTOR3_STAMPED = 'geometry_msgs/msg/Vector3Stamped'
 # Stamps before this (one year after the epoch, ns) are simulated time, not the wall clock.
@@ -484,6 +487,9 @@ def read_motion(bag, namespace=''):
 
     """
     bag = Path(bag)
+    problem = not_a_bag(bag)
+    if problem is not None:
+        raise ValueError(problem)
     namespace = (namespace or '').rstrip('/')
     store = typestore()
     odometry = {}
@@ -517,6 +523,7 @@ def read_motion(bag, namespace=''):
     except FileNotFoundError:
         raise ValueError(f'no bag at {bag}') from None
     except ReaderError as error:
+        # A bag by its metadata (not_a_bag), which rosbags cannot read: a killed writer's.
         raise ValueError(f'cannot read the bag {bag}: {error} (if a recorder was killed, '
                          f'try: rigid-body-sim record --recover {bag})') from None
     stamps = sorted(set(odometry) & set(momentum))
@@ -527,6 +534,43 @@ def read_motion(bag, namespace=''):
                      [row[2] for row in rows], [momentum[stamp] for stamp in stamps],
                      custom, bag.name, velocity_body=[row[3] for row in rows],
                      reports=reports)
+
+
+def not_a_bag(path):
+    """
+    Return one line saying why `path` is not a rosbag2 bag, or None if it may be one.
+
+    A bag is a folder whose ``metadata.yaml`` holds ``rosbag2_bagfile_information``, or a
+    lone .mcap or .db3 file.  A folder with storage files and no metadata.yaml is a killed
+    recorder's bag, which ``record --recover`` completes; any other folder or file is not a
+    bag, and nothing suggests recovering it.
+    """
+    path = Path(path)
+    if not path.exists():
+        return f'no bag at {path}: nothing is there'
+    if not path.is_dir():
+        if path.suffix in _STORAGE_SUFFIXES:
+            return None
+        return (f'{path} is not a bag: a file that is not a storage file of one (.mcap, '
+                '.db3); a bag is a folder with its metadata.yaml')
+    metadata = path / 'metadata.yaml'
+    storage = [child.name for child in path.iterdir() if child.suffix in _STORAGE_SUFFIXES]
+    if not metadata.is_file():
+        if storage:
+            return (f'{path} has storage files ({", ".join(sorted(storage)[:3])}) but no '
+                    'metadata.yaml: a recorder killed before it wrote it? try: rigid-body-sim '
+                    f'record --recover {path}')
+        return (f'{path} is not a bag: a folder with no metadata.yaml and no .mcap or .db3 '
+                'file')
+    try:
+        document = YAML(typ='safe').load(metadata.read_text(encoding='utf-8'))
+    except Exception:  # noqa: B902 (any YAML or decoding error: not rosbag2's metadata)
+        document = None
+    if not isinstance(document, dict) or not isinstance(
+            document.get('rosbag2_bagfile_information'), dict):
+        return (f'{path} is not a bag: its metadata.yaml is not a rosbag2 one (no '
+                'rosbag2_bagfile_information)')
+    return None
 
 
 def _custom_data(bag):
