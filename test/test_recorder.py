@@ -349,7 +349,7 @@ def test_use_sim_time_logs_messages_at_the_simulated_time(tmp_path, node_100_hz)
     assert set(log_times) <= set(clock_times)
     assert np.all(np.diff(log_times) >= 0)
     early = stamps < clock_times[0]
-    said = re.search(r'(\d+) message\(s\) taken before the first /clock are logged at its '
+    said = re.search(r'(\d+) message\(s\) received before the first /clock are logged at its '
                      r'time, (\d+) ns', recorder.output())
     if said is not None:
         assert int(said.group(2)) == clock_times[0], recorder.output()
