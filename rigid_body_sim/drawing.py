@@ -215,11 +215,14 @@ class TrailAxis:
     name : str
         What it is, e.g. 'body y: the middle principal axis, which flips' (a legend's
         lines).
+    flips : bool
+        Whether it is the middle axis of three distinct moments: the one that flips.
 
     """
 
     direction: np.ndarray
     name: str
+    flips: bool = False
 
     @property
     def body_axis(self):
@@ -254,7 +257,7 @@ def middle_axis(inertia):
     low, middle, high = frame.moments
     if middle - low <= 1e-9 * high or high - middle <= 1e-9 * high:
         return TrailAxis(direction, f'{where}: a middle principal\naxis (two moments equal)')
-    return TrailAxis(direction, f'{where}: the middle\nprincipal axis, which flips')
+    return TrailAxis(direction, f'{where}: the middle\nprincipal axis, which flips', True)
 
 
 def trail_points(rotations, direction):

@@ -11,6 +11,7 @@ import dataclasses
 import shutil
 
 import matplotlib.image
+import matplotlib.pyplot
 import numpy as np
 import pytest
 from rigid_body_sim.cli import main as cli_main
@@ -19,6 +20,7 @@ from rigid_body_sim.recording.motion import BagMotion
 from rigid_body_sim.recording.motion import conserved_quantities
 from rigid_body_sim.recording.motion import read_motion
 from rigid_body_sim.recording.motion import symmetry_axis
+from rigid_body_sim.recording.plot import _orientation_panel
 from rigid_body_sim.recording.plot import apex_index
 from rigid_body_sim.recording.plot import com_moves
 from rigid_body_sim.recording.plot import oscillations
@@ -339,3 +341,17 @@ def test_a_spin_constant_to_many_digits_is_drawn_from_a_round_value():
     from rigid_body_sim.recording.plot import _reference_value
     assert _reference_value(150.0 + np.linspace(1e-7, 5.5e-7, 50)) == 150.0
     assert _reference_value(np.linspace(-2.0, 2.0, 50)) == 0.0
+
+
+def test_the_orientation_panel_names_the_axis_that_flips(van_zon):
+    """Van Zon's body, I = (10, 20, 26): body y is the middle axis, as animate and watch say."""
+    bag, _ = van_zon
+    figure = matplotlib.pyplot.figure()
+    try:
+        axes = figure.add_subplot(projection='3d')
+        _orientation_panel(axes, read_motion(bag))
+        labels = [text.get_text() for text in axes.get_legend().get_texts()]
+        assert labels[1] == 'body y axis (the middle principal axis: it flips)', labels
+        assert 'flips' not in labels[0] + labels[2]
+    finally:
+        matplotlib.pyplot.close(figure)
