@@ -31,7 +31,6 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray
 from diagnostic_msgs.msg import DiagnosticStatus
 import numpy as np
-from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu
 
@@ -45,6 +44,7 @@ from ..messages.cdr import column
 from ..messages.cdr import offset_of
 from ..messages.cdr import rows_of
 from ..messages.cdr import sentinels
+from ..messages.cdr import serialize_zeroed
 from ..messages.cdr import STAMP_SENTINEL
 from ..messages.cdr import write_stamps
 from ..messages.diagnostics import diagnostic_array
@@ -284,7 +284,7 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
             static_connection = writer.add_topic(
                 TF_STATIC_TOPIC, message_type_name(transform_class),
                 [offered_qos(qos.TF_STATIC_QOS)])
-            writer.write(static_connection, start_time, serialize_message(static_transforms(
+            writer.write(static_connection, start_time, serialize_zeroed(static_transforms(
                 transform_class, body_frame, imu_frame, imu.model, start_time)))
             connections.append((TF_TOPIC, writer.add_topic(
                 TF_TOPIC, message_type_name(transform_class), [offered_qos(qos.TF_QOS)])))
@@ -366,7 +366,7 @@ class _ImuRows:
         seconds, nanoseconds = STAMP_SENTINEL
         fill_imu_message(message, seconds * 1_000_000_000 + nanoseconds, values[0:4],
                          values[4:7], values[7:10])
-        template = bytes(serialize_message(message))
+        template = bytes(serialize_zeroed(message))
         self._offsets = [offset_of(template, struct.pack('<d', value), 'an imu field')
                          for value in values]
         self._stamp_offset = offset_of(template, struct.pack('<iI', *STAMP_SENTINEL),
@@ -396,7 +396,7 @@ class _ImuRows:
 
 def _clock_rows(stamps):
     """Return the serialised rosgraph_msgs/Clock of each stamp, (n, size) uint8."""
-    rows = rows_of(serialize_message(Clock()), len(stamps))
+    rows = rows_of(serialize_zeroed(Clock()), len(stamps))
     # CDR: the 4-byte encapsulation header, then clock.sec (int32), clock.nanosec (uint32).
     write_stamps(rows, 4, stamps)
     return rows
@@ -442,6 +442,9 @@ def _set_custom_data(writer, scene, simulator, rate, substeps, start_time):
         'start_time': str(start_time),
         'mass': f'{body.mass:.17g}',
         'inertia': ' '.join(f'{value:.17g}' for value in body.inertia.ravel()),
+        # The scene's own shape of the body ('' for a body given by its inertia): a box
+        # marker of a box body is that box, not a stand-in with its moments.
+        'body_shape': scene.data.get('body', {}).get('shape', ''),
         'effects': ', '.join(scene.effect_names()) or 'none',
         'effect_parameters': effect_parameters_json(scene),
         'writer': 'rigid-body-sim simulate',
@@ -495,5 +498,5 @@ class _OfflineDiagnostics:
             clock_seconds=1e-9 * stamp if self._clock else None,
             reference_energy=self._reference_energy,
             reference_momentum=self._reference_momentum)
-        return serialize_message(diagnostic_array(
+        return serialize_zeroed(diagnostic_array(
             self._name, self._hardware_id, DiagnosticStatus.OK, 'running', values, stamp))

@@ -7,11 +7,12 @@ from pathlib import Path
 from .forces import forces_goal_table
 from .forces import LEVELS
 from .report import case_panels
+from .report import method_styles
 from .report import save_figure
-from .report import write_records_csv
 from .report import workers_line
+from .report import write_records_csv
 
-__all__ = ['write_forces_outputs', 'forces_goal_counts']
+__all__ = ['forces_figure', 'write_forces_outputs', 'forces_goal_counts']
 
 
 def forces_goal_counts(rows):
@@ -91,24 +92,27 @@ def _markdown(result, rows):
     return '\n'.join(lines) + '\n'
 
 
-def _plot(result, path):
-    from matplotlib import colormaps
+def forces_figure(result):
+    """Return the forced benchmark's figure (matplotlib): error against cost, per case."""
+    from matplotlib.lines import Line2D
 
     cases = list(result['references'])
     figure, panels, _ = case_panels(len(cases), 3, (5.2, 4.2))
     methods = sorted({r['method'] for r in result['records']})
-    colours = colormaps['tab10']
+    styles = method_styles(methods)
     for axis, case in zip(panels, cases):
-        for number, method in enumerate(methods):
+        for method in methods:
             runs = sorted((r for r in result['records'] if r['case'] == case
                            and r['method'] == method and math.isfinite(r['error'])
                            and r['error'] > 0), key=lambda r: r['cpu_per_sim_second'])
             if not runs:
                 continue
+            style = styles[method]
             axis.loglog([r['cpu_per_sim_second'] for r in runs], [r['error'] for r in runs],
-                        marker='s' if method.startswith('mujoco') else 'o', markersize=4,
-                        linestyle='--' if method.startswith('mujoco') else '-',
-                        color=colours(number % 10), label=method)
+                        marker=style['marker'], markersize=4, linestyle=style['linestyle'],
+                        color=style['color'],
+                        markerfacecolor=style['markerfacecolor'] or style['color'],
+                        label=method)
         axis.axhspan(1e-16, max(result['references'][case]['uncertainty'], 1e-16),
                      color='0.85', zorder=0)
         axis.set_title(case)
@@ -116,11 +120,20 @@ def _plot(result, path):
         axis.set_ylabel(f'orientation error at {result["config"]["horizon"]:g} s (rad)')
         axis.set_ylim(1e-13, 10)
         axis.grid(True, which='major', alpha=0.3)
-    handles, labels = panels[0].get_legend_handles_labels()
-    figure.legend(handles, labels, loc='lower right', fontsize=8, ncol=2)
+    # Every method in the legend, also one that the first case lacks.
+    handles = [Line2D([], [], color=styles[m]['color'], marker=styles[m]['marker'],
+                      linestyle=styles[m]['linestyle'],
+                      markerfacecolor=styles[m]['markerfacecolor'] or styles[m]['color'],
+                      label=m) for m in methods]
+    figure.legend(handles=handles, loc='lower right', fontsize=8, ncol=2)
     figure.suptitle("Forced bodies: error against cost (grey: below the reference's "
                     'uncertainty)')
-    save_figure(figure, path, dpi=90)
+    figure.tight_layout()
+    return figure
+
+
+def _plot(result, path):
+    save_figure(forces_figure(result), path, dpi=90)
 
 
 def write_forces_outputs(result, out):

@@ -25,6 +25,7 @@ import datetime
 import json
 import math
 import os
+from pathlib import Path
 import platform
 import statistics
 import subprocess
@@ -38,7 +39,8 @@ from .reference import MEASUREMENT_FLOOR
 
 __all__ = ['machine_info', 'workers_line', 'cost_to_reach', 'Reach', 'verdict', 'goal_table',
            'goal_summary', 'augmentation_table', 'step_costs', 'write_outputs', 'case_panels',
-           'save_figure', 'write_records_csv', 'GOAL_LEVELS', 'SATURATION']
+           'save_figure', 'write_records_csv', 'method_styles', 'read_results',
+           'work_precision_figure', 'GOAL_LEVELS', 'SATURATION']
 
 # Orientation error levels (rad) at which the CPU cost of ours and MuJoCo's are compared.
 GOAL_LEVELS = tuple(10.0 ** -k for k in range(2, 13))
@@ -685,26 +687,42 @@ def _markdown(result, goal_rows, long_rows, augmentation_rows, issue_rows=()):
 
 
 # Ours: filled markers, solid lines, tab10 colours; MuJoCo: open markers, dashed lines,
-# dark colours of their own, so the peer reads apart from ours at a glance.
+# dark colours of their own, so the peer reads apart from ours at a glance.  Ten colours and
+# nine markers: coprime counts, so stepping both with the method's index gives ninety
+# distinct pairs before one repeats (with nine of each, the tenth method drew as the first).
 _OUR_COLOURS = ('tab:blue', 'tab:orange', 'tab:green', 'tab:red', 'tab:purple', 'tab:brown',
-                'tab:pink', 'tab:cyan', 'tab:olive')
+                'tab:pink', 'tab:cyan', 'tab:olive', 'navy')
 _OUR_MARKERS = ('o', 'v', '^', '<', '>', 'D', 'p', 'h', '*')
 _PEER_COLOURS = ('black', '0.45', 'darkgoldenrod')
-_PEER_MARKERS = ('s', 'o', 'D')
+_PEER_MARKERS = ('s', 'o', 'D', 'P')
 
 
-def _styles(methods):
+def method_styles(methods):
+    """
+    Return {method: matplotlib line style} with every method told apart by colour and marker.
+
+    MuJoCo's methods (``mujoco_*``) are dashed with open markers in dark colours; ours solid
+    with filled markers.  Each method gets a (colour, marker) pair no other method has.
+
+    Raises
+    ------
+    ValueError
+        If there are more methods of one kind than distinct pairs.
+
+    """
     styles = {}
     ours = [m for m in methods if not m.startswith('mujoco_')]
     peers = [m for m in methods if m.startswith('mujoco_')]
-    for index, method in enumerate(ours):
-        styles[method] = {'color': _OUR_COLOURS[index % len(_OUR_COLOURS)],
-                          'marker': _OUR_MARKERS[index % len(_OUR_MARKERS)],
-                          'linestyle': '-', 'markerfacecolor': None}
-    for index, method in enumerate(peers):
-        styles[method] = {'color': _PEER_COLOURS[index % len(_PEER_COLOURS)],
-                          'marker': _PEER_MARKERS[index % len(_PEER_MARKERS)],
-                          'linestyle': '--', 'markerfacecolor': 'white'}
+    for group, colours, markers, line, face in (
+            (ours, _OUR_COLOURS, _OUR_MARKERS, '-', None),
+            (peers, _PEER_COLOURS, _PEER_MARKERS, '--', 'white')):
+        if len(group) > math.lcm(len(colours), len(markers)):
+            raise ValueError(f'{len(group)} methods to draw; the styles tell apart '
+                             f'{math.lcm(len(colours), len(markers))}')
+        for index, method in enumerate(group):
+            styles[method] = {'color': colours[index % len(colours)],
+                              'marker': markers[index % len(markers)],
+                              'linestyle': line, 'markerfacecolor': face}
     return styles
 
 
@@ -746,13 +764,14 @@ def save_figure(figure, path, dpi):
     pyplot.close(figure)
 
 
-def _plot(result, path, horizon='short'):
+def work_precision_figure(result, horizon='short'):
+    """Return the work-precision figure (matplotlib) of a benchmark result at a horizon."""
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
     cases = list(result['references'])
     figure, panels, spare = case_panels(len(cases), 3, (6.0, 4.8), spare=1)
-    styles = _styles(result['methods'])
+    styles = method_styles(result['methods'])
     seconds = result['config']['horizons'][HORIZONS.index(horizon)]
     for axis, case in zip(panels, cases):
         floor = resolution(result, case, horizon)
@@ -805,7 +824,12 @@ def _plot(result, path, horizon='short'):
     figure.suptitle(f'Work-precision at {seconds:g} s: orientation error vs CPU per simulated '
                     f'second; dt from {max(result["config"]["dts"]):g} s (left) to '
                     f'{min(result["config"]["dts"]):g} s (right)')
-    save_figure(figure, path, dpi=100)
+    figure.tight_layout()
+    return figure
+
+
+def _plot(result, path, horizon='short'):
+    save_figure(work_precision_figure(result, horizon), path, dpi=100)
 
 
 def _json_safe(value):
@@ -818,6 +842,19 @@ def _json_safe(value):
     if isinstance(value, np.generic):
         return _json_safe(value.item())
     return value
+
+
+def read_results(path):
+    """
+    Return the results a benchmark wrote to JSON (results.json, forces.json, ...).
+
+    The JSON writes an infinite value as the string 'inf' (JSON has no infinity): the
+    records' are read back as floats, so the plots can be drawn again from the file.
+    """
+    result = json.loads(Path(path).read_text(encoding='utf-8'))
+    result['records'] = [{key: float(value) if value in ('inf', '-inf') else value
+                          for key, value in record.items()} for record in result['records']]
+    return result
 
 
 def _issue_dts(result):

@@ -20,8 +20,8 @@ from .report import save_figure
 from .report import write_records_csv
 from .report import workers_line
 
-__all__ = ['control_goal_table', 'sweep_markdown', 'write_sweep_outputs', 'CONTROL_LEVELS',
-           'GOAL_RATIO']
+__all__ = ['control_goal_table', 'sweep_markdown', 'tolerance_figure', 'write_sweep_outputs',
+           'CONTROL_LEVELS', 'GOAL_RATIO']
 
 CONTROL_LEVELS = tuple(10.0 ** -k for k in range(2, 9))
 """Error levels (rad over the span) at which controlled and fixed-step buss are compared."""
@@ -150,7 +150,8 @@ _STYLES = {'buss+control': ('tab:red', 'o', '-'), 'buss': ('tab:blue', 's', '--'
            'splitting': ('tab:green', '^', '--'), 'rk4': ('tab:purple', 'D', '--')}
 
 
-def _plot(result, path):
+def tolerance_figure(result):
+    """Return the tolerance sweep's figure (matplotlib): error against cost, per case."""
     cases = list(result['references'])
     columns = 4
     rows = math.ceil(len(cases) / columns)
@@ -181,7 +182,12 @@ def _plot(result, path):
     panels[0].legend(fontsize=7)
     figure.suptitle(f'Error control: error over {result["config"]["span"]:g} s against '
                     'CPU per simulated second', fontsize=11)
-    save_figure(figure, path, dpi=110)
+    figure.tight_layout()
+    return figure
+
+
+def _plot(result, path):
+    save_figure(tolerance_figure(result), path, dpi=110)
 
 
 def write_sweep_outputs(result, directory):
