@@ -143,7 +143,7 @@ def _assert_started_and_stops_cleanly(launch, namespace, scene_line):
     client = Client(namespace, extra_topics=_arrow_topic())
     try:
         poses = client.wait_for_messages('pose', 1, timeout=DISCOVERY_TIMEOUT)
-        assert poses[0].header.frame_id == 'world'
+        assert poses[0].header.frame_id == client.frame('world')
         arrays = client.wait_for_messages('angular_momentum_arrow', 1)
         momenta = client.wait_for_messages('angular_momentum', 1)
     finally:

@@ -31,7 +31,9 @@ one error line says so, the old integrator stays, and so does the parameter.  At
 the services, parameters and /diagnostics come first and the ticks start once the scene's
 integrator is compiled.
 
-Topics (relative names, so ``--ros-args -r __ns:=/sat1`` namespaces them):
+Topics (relative names, so ``--ros-args -r __ns:=/sat1`` namespaces them; the frame ids
+follow the namespace too: ``frame_prefix``, by default ``sat1/`` there, comes before
+``world_frame``, ``body_frame`` and ``imu_frame``, see :mod:`rigid_body_sim.messages.frames`):
 
 - published: ``pose``, ``twist``, ``angular_momentum``, ``odom``, ``marker`` (see
   :func:`rigid_body_sim.messages.state.state_messages`; the marker is the scene's
@@ -75,6 +77,7 @@ from .parameter_services import ParameterServices
 from .parameters import check_integrator
 from .parameters import declare_parameters
 from .parameters import declare_scene_parameter
+from .parameters import frame_ids_from_parameters
 from .parameters import given_overrides
 from .parameters import imu_model_from_parameters
 from .parameters import PARAMETERS
@@ -222,13 +225,11 @@ class RigidBodyNode(Node):
         self._substeps = values['substeps']
         self._input_timeout_ns = int(values['input_timeout'] * 1e9)
         self._max_wrench = values['max_wrench']
-        self._world_frame = values['world_frame']
-        self._body_frame = values['body_frame']
-        imu_frame = values['imu_frame']
-        frames = [self._world_frame, self._body_frame, imu_frame]
-        if len(set(frames)) < 3 or not all(frames):
-            raise ValueError(f'world_frame, body_frame and imu_frame must be three different '
-                             f'non-empty frame ids; got {[shortened(f) for f in frames]}')
+        # Prefixed (frame_prefix, by default the namespace) and as tf2 reads them.
+        frames = frame_ids_from_parameters(values)
+        self._world_frame = frames['world_frame']
+        self._body_frame = frames['body_frame']
+        imu_frame = self._imu_frame = frames['imu_frame']
 
         self._serializer = StateSerializer(
             body, self._world_frame, self._body_frame,
@@ -352,7 +353,7 @@ class RigidBodyNode(Node):
             f'({moments}) kg m^2, effects: {effects}; {self._simulator.integrator} at '
             f'{self._rate:g} Hz x {self._substeps} substep(s){timing}; publishing pose, '
             f'twist, angular_momentum, odom, marker in frame {self._world_frame!r}, imu in '
-            f'frame {values["imu_frame"]!r} ({imu_noise}), {tf_status}; subscribed to '
+            f'frame {self._imu_frame!r} ({imu_noise}), {tf_status}; subscribed to '
             f'{inputs}')
         self.get_logger().info(parameter_sources)
         warning = unresolved_rotation(body, self._simulator.state, self._period,
