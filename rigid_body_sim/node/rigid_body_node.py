@@ -690,7 +690,9 @@ class RigidBodyNode(Node):
     def _parameter_note(self, parameters):
         """Return what a successful set of `parameters` will do beyond setting them ('')."""
         for parameter in parameters:
-            if parameter.name == 'integrator' and isinstance(parameter.value, str):
+            # (An unknown name is refused by the validation: no note.)
+            if parameter.name == 'integrator' and isinstance(parameter.value, str) and \
+                    check_integrator(parameter.value) is None:
                 return self._switch_note(parameter.value)
         return ''
 
