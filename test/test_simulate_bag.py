@@ -454,7 +454,7 @@ def test_metadata_names_jazzy_as_ros_distro_in_every_place_rosbag2_keeps_it(tmp_
         assert 'ros_distro: jazzy\n' in serialized + '\n' and 'rosbags' not in serialized
 
 
-def test_namespace_moves_the_state_topics_only(tmp_path):
+def test_namespace_moves_the_state_topics_and_the_frames(tmp_path):
     simulate_to_bag(load_scene('default'), tmp_path / 'ns', 0.1, namespace='sat1')
     facts, messages = read_rosbags(tmp_path / 'ns')
     assert set(facts['connections']) == {'/sat1/pose', '/sat1/twist', '/sat1/angular_momentum',
@@ -462,6 +462,10 @@ def test_namespace_moves_the_state_topics_only(tmp_path):
                                          '/diagnostics', '/tf', '/tf_static'}
     assert len(messages['/sat1/pose']) == 10 and '/diagnostics' not in messages
     assert len(messages['/tf']) == 10
+    # The frames follow the namespace, as the node's (frame_prefix's default).
+    assert {m.header.frame_id for _, m in messages['/sat1/pose']} == {'sat1/world'}
+    assert {(t.header.frame_id, t.child_frame_id) for _, m in messages['/tf']
+            for t in m.transforms} == {('sat1/world', 'sat1/body')}
 
 
 def test_cli_writes_a_bag_and_refuses_bad_input(tmp_path, capsys):

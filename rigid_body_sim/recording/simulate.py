@@ -52,6 +52,8 @@ from ..messages.diagnostics import NODE_NAME
 from ..messages.diagnostics import status_name
 from ..messages.diagnostics import status_values
 from ..messages.diagnostics import TickFigures
+from ..messages.frames import default_frame_prefix
+from ..messages.frames import frame_ids
 from ..messages.imu import fill_imu_message
 from ..messages.imu import imu_message
 from ..messages.marker import marker_geometry_from_drawing
@@ -172,7 +174,7 @@ def _tick_count(duration, rate):
 def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1,
                     tolerance=None, storage='mcap', start_time=0, clock=False, namespace='',
                     world_frame='world', body_frame='body', progress=False, stop=None,
-                    flush_period=FLUSH_PERIOD, imu_frame='imu'):
+                    flush_period=FLUSH_PERIOD, imu_frame='imu', frame_prefix=None):
     """
     Simulate `scene` for `duration` s and write what the node would publish into a bag.
 
@@ -203,9 +205,14 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
     namespace : str
         Namespace of the state topics ('' or '/name'), as the node's ``__ns``.
     world_frame, body_frame, imu_frame : str
-        Frame ids, as the node's parameters.  The ``imu`` topic (sensor_msgs/Imu) holds
+        Frame names, as the node's parameters, after `frame_prefix` (unless one starts with
+        ``/``), checked and read as tf2 reads them (:mod:`rigid_body_sim.messages.frames`).
+        The ``imu`` topic (sensor_msgs/Imu) holds
         the scene's IMU (its ``imu:`` section: mount, noise and seed) as the node publishes
         it: the same readings, the same noise for the same seed.
+    frame_prefix : str, optional
+        Put before every frame name, as the node's parameter; default (None): the
+        namespace's, as the node's (``sat1/`` for ``/sat1``).
     progress : bool
         Show a tqdm progress bar (on stderr).
     stop : threading.Event, optional
@@ -224,7 +231,8 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
     Raises
     ------
     ValueError
-        For a bad duration, rate, substeps, storage or start time, or an existing bag.
+        For a bad duration, rate, substeps, storage, start time or frame, or an existing
+        bag.
 
     """
     rate = float(scene.rate if rate is None else rate)
@@ -241,8 +249,12 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
         raise ValueError(f'stamps must lie between 0 and {_LAST_STAMP // 10**9} s since the '
                          f'epoch; the start time {start_time * 1e-9:g} s and duration '
                          f'{ticks / rate:g} s do not fit')
-    if world_frame == body_frame:
-        raise ValueError(f'world_frame and body_frame must differ; both are {world_frame!r}')
+    if frame_prefix is None:
+        frame_prefix = default_frame_prefix(absolute_namespace(namespace))
+    frames = frame_ids(frame_prefix, {'world_frame': world_frame, 'body_frame': body_frame,
+                                      'imu_frame': imu_frame})
+    world_frame, body_frame, imu_frame = (frames[name] for name in (
+        'world_frame', 'body_frame', 'imu_frame'))
     names = topic_names(namespace)
     simulator = scene.simulator(integrator=integrator, tolerance=tolerance)
     simulator.substeps = substeps
@@ -250,9 +262,6 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
     geometry = marker_geometry_from_drawing(scene.drawing)
     serializer = BatchSerializer(body, world_frame, body_frame, geometry)
     types = {topic: message_type_name(STATE_TYPES[topic]) for topic in STATE_TOPICS}
-    if imu_frame in (world_frame, body_frame) or not imu_frame:
-        raise ValueError(f'imu_frame must differ from world_frame and body_frame and not be '
-                         f'empty; got {imu_frame!r}')
     transform_class, no_tf = transform_message_class()
     if no_tf is not None:
         print(f'simulate: no /tf or /tf_static in the bag: {no_tf}', file=sys.stderr)

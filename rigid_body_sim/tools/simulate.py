@@ -74,6 +74,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--namespace', default='',
                         help="namespace of the state topics, as the node's __ns (default: "
                              'none)')
+    parser.add_argument('--frame-prefix', default=None,
+                        help="put before the frame names, as the node's frame_prefix (default: "
+                             "the namespace's, 'sat1/' for /sat1, as the node's)")
     parser.add_argument('--world-frame', default='world', help='world frame id (default: world)')
     parser.add_argument('--body-frame', default='body', help='body frame id (default: body)')
     parser.add_argument('--quiet', action='store_true', help='no progress bar')
@@ -206,7 +209,8 @@ def main(args: argparse.Namespace) -> int:
             substeps=args.substeps, tolerance=args.tolerance, storage=args.storage,
             start_time=start_time,
             clock=args.clock, namespace=args.namespace, world_frame=args.world_frame,
-            body_frame=args.body_frame, progress=not args.quiet, stop=signals.stop,
+            body_frame=args.body_frame, frame_prefix=args.frame_prefix,
+            progress=not args.quiet, stop=signals.stop,
             flush_period=args.flush_period)
     print(summary)
     for topic, count in summary.message_counts.items():
