@@ -21,6 +21,7 @@ Typical use (the node in another terminal: make run):
 import math
 import signal
 import sys
+import threading
 import time
 
 
@@ -46,6 +47,8 @@ class _Stop:
     def __init__(self):
         self.signal = None
         self.timed_out = False
+        # Set by the signal: the terminal view's wait between refreshes ends at once.
+        self.event = threading.Event()
 
     def __enter__(self):
         self._previous = {number: signal.signal(number, self._handle)
@@ -54,6 +57,7 @@ class _Stop:
 
     def _handle(self, number, frame):
         self.signal = signal.Signals(number)
+        self.event.set()
 
     def __exit__(self, *exc):
         for number, handler in self._previous.items():
@@ -122,7 +126,7 @@ def _terminal(state, listener, args, stop):
             view.show(waiting_lines(listener, math.floor(waited)))
         else:
             view.show(render_lines(snapshot))
-        time.sleep(args.interval)
+        stop.event.wait(args.interval)
 
 
 def _window(state, listener, args, stop):

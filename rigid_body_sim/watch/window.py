@@ -7,26 +7,45 @@ shape, the body axes, the direction of L, a trail), a strip chart of the body an
 velocity, one of the drift of what the scene conserves, and the node's live cost and state
 from /diagnostics as text.  A timer redraws it a few times a second from a
 :class:`.live.Snapshot`; the ROS side runs in the listener's thread.
+
+What a peer sends (a scene name, a status, a parameter value) is drawn as plain text
+(``parse_math=False``): a ``$`` is a dollar sign, never mathtext to parse.  Each redraw is
+drawn at once and timed: the window says it shows the node only after a draw that
+succeeded, and the refresh slows down so that redrawing takes at most
+:data:`CPU_SHARE` of a core, and more when the machine is busy (load above its cores).
 """
 
+import os
 import time
 
 import numpy as np
 
 from .live import format_number
+from .terminal import flips_text
+from .terminal import refused_lines
 from .terminal import waiting_lines
 from ..drawing import AXIS_COLOURS
 from ..drawing import BodyView
 from ..drawing import shape_from_marker
 
-__all__ = ['display_problem', 'WatchWindow']
+__all__ = ['CPU_SHARE', 'display_problem', 'WatchWindow']
 
-# Redraws per second: the 3D body costs tens of ms a frame on a loaded 2-core machine.
+# The default and the longest time between redraws (ms): the 3D body costs tens of ms a
+# frame on a loaded 2-core machine.
 _REDRAW_PERIOD_MS = 200
+_SLOWEST_PERIOD_MS = 2000
+# How often the window checks whether the watch must end (ms).
+_STOP_CHECK_MS = 100
+CPU_SHARE = 0.2
+"""The share of a core the redraws may take: the period grows to draw time / CPU_SHARE."""
 # Simulated seconds in the charts before the window counts as showing the node.
 _SHOWN_SPAN = 2.0
 # Points per strip-chart line: about the chart's width in pixels.
 _CHART_POINTS = 800
+# Characters of a line of the text below the charts (about the window's width).
+_TEXT_WIDTH = 190
+# Event labels closer than this fraction of the chart's span are stacked.
+_LABEL_SPAN = 0.15
 
 
 def display_problem():
@@ -103,7 +122,9 @@ class WatchWindow:
         self.text_axes = self.figure.add_subplot(grid[2, :])
         self.text_axes.axis('off')
         self.text = self.text_axes.text(0.0, 1.0, '', va='top', ha='left', family='monospace',
-                                        fontsize=9, transform=self.text_axes.transAxes)
+                                        fontsize=9, transform=self.text_axes.transAxes,
+                                        parse_math=False)
+        self.title = self.figure.suptitle('rigid-body-sim watch', parse_math=False)
         self.body_view = None
         self.resets_seen = 0
         self.omega_lines = [self.omega_axes.plot([], [], color=colour, linewidth=1.2,
@@ -129,19 +150,30 @@ class WatchWindow:
             axes.ticklabel_format(axis='y', style='sci', scilimits=(-3, 4), useOffset=True)
         self.event_artists = []
         self.drawn_once = False
+        self.draw_error = None
+        self.period_ms = _REDRAW_PERIOD_MS
         self.timer = self.figure.canvas.new_timer(interval=_REDRAW_PERIOD_MS)
         self.timer.add_callback(self._redraw)
+        # Apart from the redraws, which may come seconds apart: Ctrl-C is answered at once.
+        self.stop_timer = self.figure.canvas.new_timer(interval=_STOP_CHECK_MS)
+        self.stop_timer.add_callback(self._check_stop)
 
     def run(self):
         """Show the window until it is closed or the watch must stop."""
         self.timer.start()
+        self.stop_timer.start()
         self._redraw()
         self.plt.show()
 
     def close(self):
         """Close the window (ends :meth:`run`)."""
         self.timer.stop()
+        self.stop_timer.stop()
         self.plt.close(self.figure)
+
+    def _check_stop(self):
+        if self.should_stop():
+            self.close()
 
     # -- drawing
 
@@ -149,15 +181,49 @@ class WatchWindow:
         if self.should_stop():
             self.close()
             return
+        started = time.thread_time()
+        charted = self._update()
+        try:
+            self.figure.canvas.draw()
+        except Exception as error:  # noqa: B902 (say it in the window, keep running)
+            self._show_draw_error(error)
+            return
+        self.draw_error = None
+        self._adapt_period(time.thread_time() - started)
+        if charted and self.body_view is not None and not self.drawn_once:
+            self.drawn_once = True
+            self.figure.canvas.flush_events()
+            if self.on_drawn is not None:
+                self.on_drawn(self.state.snapshot())
+
+    def _show_draw_error(self, error):
+        # What failed is not known: the window falls back to the text alone, which draws.
+        message = f'rigid-body-sim watch: the window could not be drawn: {error!r}'[:300]
+        if message != self.draw_error:
+            self.draw_error = message
+            print(message, flush=True)
+        self.text.set_text(message)
+
+    def _adapt_period(self, seconds):
+        """Set the next redraw's delay from this one's CPU time and the machine's load."""
+        busy = max(1.0, os.getloadavg()[0] / (os.cpu_count() or 1))
+        period = max(_REDRAW_PERIOD_MS, 1000.0 * seconds / CPU_SHARE) * busy
+        period = int(min(_SLOWEST_PERIOD_MS, period))
+        if abs(period - self.period_ms) > 0.1 * self.period_ms:
+            self.period_ms = period
+            self.timer.interval = period
+
+    def _update(self):
+        """Update the artists from a snapshot; return True if both charts show data."""
         snapshot = self.state.snapshot()
         if snapshot.node is None:
-            self.figure.suptitle('rigid-body-sim watch: no node')
+            self.title.set_text('rigid-body-sim watch: no node')
             waited = time.monotonic() - self.listener.searching_since
             self.text.set_text('\n'.join(waiting_lines(self.listener, waited)))
-            self.figure.canvas.draw_idle()
-            return
-        status = snapshot.value('status') or 'waiting for its first report'
-        self.figure.suptitle(f'rigid-body-sim watch: {snapshot.node} \u2014 {status}')
+            return False
+        status = snapshot.shown('status') if snapshot.diagnostics else \
+            'waiting for its first report'
+        self.title.set_text(f'rigid-body-sim watch: {snapshot.node} \u2014 {status}')
         if self.body_view is None:
             self._make_body_view(snapshot)
         if snapshot.resets_seen != self.resets_seen:
@@ -168,13 +234,10 @@ class WatchWindow:
         charted = self._draw_charts(snapshot)
         if self.body_view is not None and snapshot.latest is not None:
             self.body_view.show(snapshot.latest.quaternion, snapshot.latest.angular_momentum)
+            # The trail from every pose received (one per 2 degrees turned), not per redraw.
+            self.body_view.set_trail(snapshot.trail)
         self.text.set_text(self._text(snapshot))
-        self.figure.canvas.draw_idle()
-        if charted and self.body_view is not None and not self.drawn_once:
-            self.drawn_once = True
-            self.figure.canvas.flush_events()
-            if self.on_drawn is not None:
-                self.on_drawn(snapshot)
+        return charted
 
     def _make_body_view(self, snapshot):
         if snapshot.marker is None or len(snapshot.time) < 2:
@@ -186,12 +249,13 @@ class WatchWindow:
             shape = shape_from_marker(marker, quaternion,
                                       scene is not None and _drawing_is_equivalent_box(scene))
         except ValueError as error:
-            self.body_axes.set_title(f'the body: {error}', fontsize=9)
+            self.body_axes.set_title(f'the body: {error}', fontsize=9, parse_math=False)
             return
-        # The trail follows the axis the spin started about: it flips over (a T-handle) or
-        # precesses (a top), while the axes spinning about it would only paint a ring.
+        # The trail follows the body axis nearest the middle principal axis: it flips over
+        # (a T-handle), while the axes spinning about it would only paint a ring.
+        middle = snapshot.middle_axis
         self.body_view = BodyView(self.body_axes, shape,
-                                  2 if snapshot.flip_axis is None else snapshot.flip_axis)
+                                  2 if middle is None else int(np.argmax(np.abs(middle))))
         self.body_axes.set_title('The body, viewed from its COM', fontsize=10)
         self.body_axes.legend(loc='upper left', fontsize=7, frameon=False)
 
@@ -225,7 +289,7 @@ class WatchWindow:
             self.energy_line.set_data([], [])
             self.momentum_line.set_data([], [])
             title = ("Drift of the total energy, from the node's reports\n(effects "
-                     f'{snapshot.value("effects")}: $T_{{rot}}$, $|L|$ not conserved)')
+                     f'{snapshot.shown("effects")}: T_rot, |L| not conserved)')
         if self.legend_torque_free != torque_free:
             # The legend names what is drawn: the drifts computed here, or the reports.
             self.legend_torque_free = torque_free
@@ -241,7 +305,7 @@ class WatchWindow:
             self.report_line.set_data([], [])
         if snapshot.value('wrench_active') == 'True':
             title += '\nan outside input acts: drifts count from its end'
-        self.drift_axes.set_title(title, fontsize=10)
+        self.drift_axes.set_title(title, fontsize=10, parse_math=False)
         shown = [values for values in (energy, momentum) if torque_free and len(values)]
         if not torque_free:
             shown.append(np.array([value for _, value in self.reports]))
@@ -255,6 +319,8 @@ class WatchWindow:
         for artist in self.event_artists:
             artist.remove()
         self.event_artists = []
+        low, high = self.omega_axes.get_xlim()
+        row, previous = 0, None
         for moment, name, value in snapshot.events:
             if moment is None or moment < start or name == 'reset':
                 continue
@@ -262,39 +328,49 @@ class WatchWindow:
             for axes in (self.omega_axes, self.drift_axes):
                 self.event_artists.append(axes.axvline(moment, color='0.4', linestyle=':',
                                                        linewidth=1.0))
+            # Labels of events close in time go one under the other, never over each other.
+            row = row + 1 if previous is not None and \
+                moment - previous < _LABEL_SPAN * (high - low) else 0
+            previous = moment
             self.event_artists.append(self.omega_axes.annotate(
-                label, (moment, 1.0), xycoords=('data', 'axes fraction'), xytext=(2, -2),
-                textcoords='offset points', va='top', fontsize=8, color='0.3'))
+                label, (moment, 1.0), xycoords=('data', 'axes fraction'),
+                xytext=(2, -2 - 10 * (row % 4)), textcoords='offset points', va='top',
+                fontsize=8, color='0.3', parse_math=False,
+                bbox={'facecolor': 'white', 'edgecolor': 'none', 'alpha': 0.8, 'pad': 0.5}))
 
     def _text(self, snapshot):
-        value = snapshot.value
+        shown = snapshot.shown
         latest = snapshot.latest
-        lines = []
+        lines = list(snapshot.warnings.values())
         if latest is not None:
             now = 'not yet known' if latest.time is None else f'{latest.time:.3f} s'
             omega = ' '.join(format_number(w, 6) for w in latest.angular_velocity_body)
             magnitude = format_number(latest.momentum_magnitude, signed=False)
             lines.append(f'simulated time {now}   omega body [{omega}] rad/s   '
-                         f'|L| {magnitude} kg m^2/s   flips {snapshot.flips}')
+                         f'|L| {magnitude} kg m^2/s   flips {flips_text(snapshot)}')
         if snapshot.diagnostics:
-            tolerance = value('tolerance')
-            control = 'fixed step' if tolerance == 'off' else f'tolerance {tolerance} rad/s'
-            lines.append(f'scene {value("scene")} (effects: {value("effects")})   integrator '
-                         f'{value("integrator")}   {control}   substeps {value("substeps")} '
-                         f'({value("substeps_min")}-{value("substeps_max")} over the last '
+            tolerance = snapshot.value('tolerance')
+            control = 'fixed step' if tolerance == 'off' else \
+                f'tolerance {shown("tolerance")} rad/s'
+            lines.append(f'scene {shown("scene")} (effects: {shown("effects")})   integrator '
+                         f'{shown("integrator")}   {control}   substeps {shown("substeps")} '
+                         f'({shown("substeps_min")}-{shown("substeps_max")} over the last '
                          'report)')
-            lines.append(f'cost: {value("achieved_rate")} ticks/s of {value("rate")} Hz x '
-                         f'{value("real_time_factor")}; tick p50 {value("tick_p50")} ms, p99 '
-                         f'{value("tick_p99")} ms; step p50 {value("step_p50")} ms; '
-                         f'integration CPU per simulated s {value("cpu_per_simulated_second")}'
-                         f' s; missed ticks {value("missed_ticks")}')
-            lines.append(f'energy {value("energy")} J (drift since the last input '
-                         f'{value("energy_drift")}); |L| {value("momentum")} (drift '
-                         f'{value("momentum_drift")}); node report of t = '
-                         f'{value("simulated_time")} s')
+            lines.append(f'cost: {shown("achieved_rate")} ticks/s of {shown("rate")} Hz x '
+                         f'{shown("real_time_factor")}; tick p50 {shown("tick_p50")} ms, p99 '
+                         f'{shown("tick_p99")} ms; step p50 {shown("step_p50")} ms; '
+                         f'integration CPU per simulated s {shown("cpu_per_simulated_second")}'
+                         f' s; missed ticks {shown("missed_ticks")}')
+            lines.append(f'energy {shown("energy")} J (drift since the last input '
+                         f'{shown("energy_drift")}); |L| {shown("momentum")} (drift '
+                         f'{shown("momentum_drift")}); node report of t = '
+                         f'{shown("simulated_time")} s')
         else:
             lines.append("waiting for the node's first /diagnostics report (once a second)")
-        return '\n'.join(lines)
+        lines.extend(line.strip() for line in refused_lines(snapshot))
+        # Lines longer than the window is wide are cut (the terminal view has them whole).
+        return '\n'.join(line if len(line) <= _TEXT_WIDTH else line[:_TEXT_WIDTH - 3] + '...'
+                         for line in lines)
 
 
 def _autoscale_y(axes, values):
