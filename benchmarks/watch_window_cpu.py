@@ -5,7 +5,9 @@ Measure the CPU of `rigid-body-sim watch`'s window against the node's, side by s
 A node (default scene, its default rate unless --rate) runs in a ROS domain of its own on the
 loopback; `rigid-body-sim watch` opens its window on an Xvfb display of its own and watches it.
 Once the window says it shows the node, both processes' CPU time (user + system, /proc) is
-read over --seconds s, as a share of one core each, with the load average of the machine.
+read over --seconds s, as a share of one core each, with the load average of the machine,
+and watch's own count of its redraws and their CPU (it slows its refresh when the machine
+is busy: the load average says how much).
 
 The goal (issue 32): the window at most 25 % of a core at its default refresh.
 
@@ -16,6 +18,7 @@ import argparse
 import os
 from pathlib import Path
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -56,7 +59,7 @@ def main():
         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=tempfile.gettempdir(),
         env=environment)
     watch = subprocess.Popen([sys.executable, '-m', 'rigid_body_sim.cli', 'watch', *args.args],
-                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                              env=dict(environment, DISPLAY=display))
     try:
         for line in watch.stdout:
@@ -72,6 +75,7 @@ def main():
         node_share = (_cpu_seconds(node.pid) - node_before) / elapsed
         watch_share = (_cpu_seconds(watch.pid) - watch_before) / elapsed
     finally:
+        watch.send_signal(signal.SIGINT)
         for process in (watch, node):
             process.terminate()
             try:
@@ -80,9 +84,11 @@ def main():
                 process.kill()
         xvfb.terminate()
         xvfb.wait(10)
+    redraws = [line for line in watch.stderr.read().splitlines() if 'redraws in' in line]
     print(f'load average {load:.1f} at the start, {os.cpu_count()} cores; {args.seconds:g} s')
     print(f'watch window: {100 * watch_share:.1f} % of a core; node: {100 * node_share:.1f} % '
           f'of a core; window / node {watch_share / max(node_share, 1e-9):.1f}')
+    print(redraws[-1] if redraws else 'watch did not say how often it redrew')
     return 0
 
 

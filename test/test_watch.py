@@ -25,6 +25,7 @@ import pytest
 from rigid_body_sim.watch.live import DIAGNOSTICS_KEYS
 from rigid_body_sim.watch.live import format_number
 from rigid_body_sim.watch.live import LiveState
+from rigid_body_sim.watch.terminal import render_lines
 
 RATE = 100.0
 PERIOD_NS = 10_000_000
@@ -37,6 +38,15 @@ def _feed(state, stamps, omega=lambda k: (0.0, 2.0, 0.0), moving=True):
         stamp = 1_700_000_000_000_000_000 + k * PERIOD_NS
         state.add_odometry(stamp, quaternion, (0.0, 0.0, 0.0), omega(k))
         state.add_angular_momentum(stamp, (0.0, 4.0, 0.0))
+
+
+def _t_handle_marker(state, k):
+    """Give `state` the marker of a box whose middle edge (and middle moment) is along y."""
+    from visualization_msgs.msg import Marker
+    marker = Marker(type=Marker.CUBE)
+    marker.scale.x, marker.scale.y, marker.scale.z = 0.1, 0.3, 0.5
+    marker.pose.orientation.w = 1.0
+    state.add_marker(1_700_000_000_000_000_000 + k * PERIOD_NS, marker)
 
 
 def _report(state, k, simulated, paused=False, extra=None):
@@ -63,7 +73,9 @@ def test_ticks_get_simulated_time_from_the_report_of_their_tick():
 def test_a_report_behind_the_count_is_a_reset_and_forgets_what_came_before():
     state = LiveState(history=100.0)
     flips = iter([2.0] * 30 + [-2.0] * 40 + [2.0] * 100)
-    _feed(state, range(1, 71), omega=lambda k: (0.0, next(flips), 0.0))
+    _feed(state, range(1, 2), omega=lambda k: (0.0, next(flips), 0.0))
+    _t_handle_marker(state, 1)  # the middle axis is y
+    _feed(state, range(2, 71), omega=lambda k: (0.0, next(flips), 0.0))
     _report(state, 20, 0.2)
     assert state.snapshot().flips == 1
     # Reset at tick 71 (time 0, the state restarts): the report of tick 75 says 0.05 s.
@@ -93,6 +105,101 @@ def test_an_integrator_switch_is_noted_at_its_time():
     time_of_switch, name, value = state.snapshot().events[-1]
     assert (name, value) == ('integrator', 'rk4')
     assert time_of_switch == pytest.approx(0.2, abs=1e-9)
+
+
+def test_an_integrator_switch_is_one_event_though_the_next_report_says_it_too():
+    state = LiveState(history=100.0)
+    _feed(state, range(1, 21))
+    _report(state, 10, 0.1)
+    state.add_parameter_change('integrator', 'rk4')
+    _feed(state, range(21, 121))
+    _report(state, 110, 1.1, extra={DIAGNOSTICS_KEYS['integrator']: 'rk4'})
+    assert [name for _, name, _ in state.snapshot().events] == ['integrator']
+
+
+def test_a_state_not_finite_or_absurd_never_enters_the_history_and_is_said():
+    state = LiveState(history=100.0)
+    _feed(state, range(1, 21))
+    _report(state, 10, 0.1)
+    _feed(state, range(21, 23))
+    before = state.snapshot()
+    for k, omega in ((23, (float('nan'), 0.0, 0.0)), (24, (1e300, 0.0, 0.0))):
+        _feed(state, [k], omega=lambda k, omega=omega: omega)
+    state.add_odometry(1_700_000_000_000_000_000 + 25 * PERIOD_NS, (0.0, 0.0, 0.0, 0.0),
+                       (0.0, 0.0, 0.0), (0.0, 2.0, 0.0))
+    snapshot = state.snapshot()
+    assert len(snapshot.time) == len(before.time)
+    assert snapshot.latest is before.latest
+    assert np.all(np.isfinite(snapshot.angular_velocity_body))
+    assert snapshot.refused['odom'] == ('absurd', 3)
+    text = '\n'.join(render_lines(snapshot))
+    assert 'odom: 3 (absurd' in text
+    assert format_number(float('nan')) == 'not finite' and format_number(1e300) == 'absurd'
+
+
+def test_report_numbers_not_finite_or_absurd_are_said_and_keep_the_history_bounded():
+    state = LiveState(history=1.0)
+    state.set_node('/rigid_body_sim')
+    _feed(state, range(1, 21))
+    _report(state, 10, 0.1)
+    # A spoofed rate: the ticks keep the last rate the node gave, and old ones are dropped.
+    _report(state, 20, 0.2, extra={DIAGNOSTICS_KEYS['rate']: 'nan'})
+    _feed(state, range(21, 1000))
+    snapshot = state.snapshot()
+    assert snapshot.time[-1] - snapshot.time[0] <= 1.0 + 1e-9
+    _report(state, 999, 9.99, extra={DIAGNOSTICS_KEYS['simulated_time']: '1' + '0' * 308,
+                                     DIAGNOSTICS_KEYS['energy_drift']: 'inf'})
+    _feed(state, range(1000, 1002))
+    text = '\n'.join(render_lines(state.snapshot()))
+    assert '0' * 20 not in text and 'None' not in text
+    assert 'energy drift  not finite' in text
+    assert state.snapshot().current_time == pytest.approx(10.01, abs=1e-9)
+
+
+def test_peer_strings_reach_the_terminal_cut_and_escaped():
+    state = LiveState(history=100.0)
+    _feed(state, range(1, 21))
+    _report(state, 10, 0.1, extra={
+        DIAGNOSTICS_KEYS['status']: '\x1b]0;PWNED-TITLE\x07\x1b[2J',
+        DIAGNOSTICS_KEYS['scene']: 'x' * 5_000_000, 'k' * 100_000: 'v'})
+    _feed(state, range(21, 23))
+    lines = render_lines(state.snapshot())
+    assert not any(c in line for line in lines for c in '\x1b\x07')
+    assert max(len(line) for line in lines) < 600
+    assert 'PWNED-TITLE' in lines[0]
+
+
+def test_flips_count_sign_changes_along_the_middle_axis_only_while_the_body_is_free():
+    state = LiveState(history=100.0)
+    _feed(state, range(1, 2))
+    _t_handle_marker(state, 1)
+    # Pushed, the body turns about z and back: no flips while the input acts.
+    _report(state, 1, 0.01, extra={DIAGNOSTICS_KEYS['wrench_active']: 'True'})
+    swings = iter([(0.0, 2.0, 0.0)] * 10 + [(0.0, -2.0, 0.0)] * 10 + [(0.0, 2.0, 0.0)] * 10)
+    _feed(state, range(2, 32), omega=lambda k: next(swings))
+    assert state.snapshot().flips == 0
+    # Free: each swing of Omega_y through zero is a flip; Omega_z's swings are not.
+    _report(state, 31, 0.31, extra={DIAGNOSTICS_KEYS['wrench_active']: 'False'})
+    swings = iter([(0.0, 2.0, 0.0)] * 10 + [(0.0, -2.0, 0.0)] * 10 + [(0.0, 2.0, 0.0)] * 10
+                  + [(0.0, 0.1, 2.0)] * 10 + [(0.0, 0.1, -2.0)] * 10)
+    _feed(state, range(32, 82), omega=lambda k: next(swings))
+    snapshot = state.snapshot()
+    assert snapshot.flips == 2
+    assert snapshot.flips_since == 'since watch started'
+
+
+def test_the_trail_keeps_a_pose_each_time_the_body_turned_two_degrees():
+    state = LiveState(history=100.0)
+    angles = np.radians(np.arange(0.0, 90.0, 0.5))  # half a degree per tick
+    for k, angle in enumerate(angles):
+        stamp = 1_700_000_000_000_000_000 + k * PERIOD_NS
+        state.add_odometry(stamp, (0.0, 0.0, np.sin(angle / 2), np.cos(angle / 2)),
+                           (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+        state.add_angular_momentum(stamp, (0.0, 0.0, 1.0))
+    trail = state.snapshot().trail
+    turned = np.degrees(2.0 * np.arctan2(trail[:, 2], trail[:, 3]))
+    np.testing.assert_allclose(np.diff(turned), 2.0, atol=1e-9)
+    assert len(trail) == 45
 
 
 # -- over DDS: the node, the watch as a subprocess
@@ -224,7 +331,8 @@ def test_the_terminal_view_prints_the_nodes_numbers(node):
                     and fields['ticks/s'].startswith(report['achieved rate [Hz]'] + ' '))
         node.wait_for(lambda: any(shown(report) for report in _paused_reports(node, since)),
                       DISCOVERY_TIMEOUT, f'a report with the numbers of {fields}')
-        assert fields['flips'].startswith('0 (sign changes of Omega_y)')
+        assert fields['flips'].startswith('0 since watch started (sign changes of Omega along '
+                                          'the middle principal axis')
 
         # A reset shows as time 0 at the next report; a switch of integrator at once.
         node.reset()

@@ -16,6 +16,7 @@ succeeded, and the refresh slows down so that redrawing takes at most
 """
 
 import os
+import sys
 import time
 
 import numpy as np
@@ -112,18 +113,13 @@ class WatchWindow:
         self.should_stop = should_stop
         self.on_drawn = on_drawn
         self.plt = plt
-        self.figure = plt.figure(figsize=(13.0, 7.5), layout='constrained')
+        self.figure = plt.figure(figsize=(13.0, 6.4), layout='constrained')
         self.figure.canvas.manager.set_window_title('rigid-body-sim watch')
-        grid = self.figure.add_gridspec(3, 2, width_ratios=(1.0, 1.25),
-                                        height_ratios=(1.0, 1.0, 0.62))
+        grid = self.figure.add_gridspec(2, 2, width_ratios=(1.0, 1.25))
         self.body_axes = self.figure.add_subplot(grid[0:2, 0], projection='3d')
         self.omega_axes = self.figure.add_subplot(grid[0, 1])
         self.drift_axes = self.figure.add_subplot(grid[1, 1], sharex=self.omega_axes)
-        self.text_axes = self.figure.add_subplot(grid[2, :])
-        self.text_axes.axis('off')
-        self.text = self.text_axes.text(0.0, 1.0, '', va='top', ha='left', family='monospace',
-                                        fontsize=9, transform=self.text_axes.transAxes,
-                                        parse_math=False)
+        self.text = _TextPanel(self.figure.canvas)
         self.title = self.figure.suptitle('rigid-body-sim watch', parse_math=False)
         self.body_view = None
         self.resets_seen = 0
@@ -151,6 +147,8 @@ class WatchWindow:
         self.event_artists = []
         self.drawn_once = False
         self.draw_error = None
+        self.layout_key = None
+        self.redraws, self.redraw_seconds = 0, 0.0
         self.period_ms = _REDRAW_PERIOD_MS
         self.timer = self.figure.canvas.new_timer(interval=_REDRAW_PERIOD_MS)
         self.timer.add_callback(self._redraw)
@@ -162,8 +160,16 @@ class WatchWindow:
         """Show the window until it is closed or the watch must stop."""
         self.timer.start()
         self.stop_timer.start()
+        started = time.monotonic()
         self._redraw()
         self.plt.show()
+        elapsed = time.monotonic() - started
+        if self.redraws:
+            # For benchmarks/watch_window_cpu.py, and anyone who wonders why it lagged.
+            print(f'rigid-body-sim watch: {self.redraws} redraws in {elapsed:.1f} s, '
+                  f'{1000.0 * self.redraw_seconds / self.redraws:.0f} ms of CPU each '
+                  f'(redraw period {_REDRAW_PERIOD_MS} ms, {self.period_ms} ms at the end)',
+                  file=sys.stderr)
 
     def close(self):
         """Close the window (ends :meth:`run`)."""
@@ -183,18 +189,33 @@ class WatchWindow:
             return
         started = time.thread_time()
         charted = self._update()
+        self._lay_out_if_changed()
         try:
             self.figure.canvas.draw()
         except Exception as error:  # noqa: B902 (say it in the window, keep running)
             self._show_draw_error(error)
             return
         self.draw_error = None
+        self.redraws += 1
+        self.redraw_seconds += time.thread_time() - started
         self._adapt_period(time.thread_time() - started)
         if charted and self.body_view is not None and not self.drawn_once:
             self.drawn_once = True
             self.figure.canvas.flush_events()
             if self.on_drawn is not None:
                 self.on_drawn(self.state.snapshot())
+
+    def _lay_out_if_changed(self):
+        """Lay the figure out in this draw only if its size or its titles' lines changed."""
+        # The constrained layout takes most of a redraw's time; between changes, the last
+        # layout's positions stand.
+        key = (tuple(self.figure.get_size_inches()), self.body_view is None,
+               self.drift_axes.get_title().count('\n'), self.legend_torque_free)
+        if key != self.layout_key:
+            self.layout_key = key
+            self.figure.set_layout_engine('constrained')
+        else:
+            self.figure.set_layout_engine('none')
 
     def _show_draw_error(self, error):
         # What failed is not known: the window falls back to the text alone, which draws.
@@ -371,6 +392,35 @@ class WatchWindow:
         # Lines longer than the window is wide are cut (the terminal view has them whole).
         return '\n'.join(line if len(line) <= _TEXT_WIDTH else line[:_TEXT_WIDTH - 3] + '...'
                          for line in lines)
+
+
+class _TextPanel:
+    """
+    The text below the figure: a Tk label, not matplotlib text.
+
+    Agg renders every glyph at every redraw (most of a redraw's time for a few lines of
+    numbers); Tk draws its label's text as text, and takes it literally (no markup).
+    """
+
+    def __init__(self, canvas):
+        import tkinter
+        import tkinter.font
+        widget = canvas.get_tk_widget()
+        self.label = tkinter.Label(widget.master, text='', justify='left', anchor='nw',
+                                   font=tkinter.font.nametofont('TkFixedFont'),
+                                   background='white', padx=8, pady=4, height=8)
+        self.label.pack(side=tkinter.BOTTOM, fill=tkinter.X, before=widget)
+        self.shown = None
+
+    def set_text(self, text):
+        """Show `text` (a few lines)."""
+        if text != self.shown:
+            self.shown = text
+            self.label.configure(text=text)
+
+    def get_text(self):
+        """Return the text shown."""
+        return self.shown or ''
 
 
 def _autoscale_y(axes, values):
