@@ -205,7 +205,7 @@ def test_the_trail_keeps_a_pose_each_time_the_body_turned_two_degrees():
 # -- over DDS: the node, the watch as a subprocess
 
 
-class _Watch:
+class WatchProcess:
     """`rigid-body-sim watch` as a subprocess; its stdout collected in blocks."""
 
     def __init__(self, arguments, environment=None):
@@ -307,7 +307,7 @@ def _frozen_state(client):
 @pytest.mark.xdist_group('node')
 def test_the_terminal_view_prints_the_nodes_numbers(node):
     since, reports, odom, momentum = _frozen_state(node)
-    watch = _Watch(['--terminal', '--namespace', node.namespace, '--interval', '0.1'])
+    watch = WatchProcess(['--terminal', '--namespace', node.namespace, '--interval', '0.1'])
     try:
         time_text = f'{float(reports[-1]["simulated time [s]"]):.6f} s simulated'
 
@@ -353,7 +353,7 @@ def test_the_terminal_view_prints_the_nodes_numbers(node):
 
 def test_no_node_found_is_said_and_a_timeout_exits_with_1(tmp_path):
     isolate_ros_environment()
-    watch = _Watch(['--terminal', '--namespace', unique_namespace(), '--timeout', '1.5'])
+    watch = WatchProcess(['--terminal', '--namespace', unique_namespace(), '--timeout', '1.5'])
     watch.wait_for(lambda blocks, lines: any('no rigid_body_sim node named' in line
                                              for line in lines), 'no-node message')
     code, errors = watch.stop(signal_number=None, timeout=DISCOVERY_TIMEOUT)
@@ -417,7 +417,7 @@ def test_the_window_shows_the_body_and_both_charts(node, tmp_path):
     pytest.importorskip('tkinter', reason='this Python has no tkinter (the window needs it)')
     from PIL import ImageGrab
     xvfb, display = _start_xvfb()
-    watch = _Watch(['--namespace', node.namespace], environment={'DISPLAY': display})
+    watch = WatchProcess(['--namespace', node.namespace], environment={'DISPLAY': display})
     try:
         watch.wait_for(lambda blocks, lines: any('window shows' in line for line in lines),
                        'window drawn')
