@@ -77,11 +77,13 @@ def render_lines(snapshot):
     return lines
 
 
-def flips_text(snapshot):
+def flips_text(snapshot, brief=False):
     """Return the flips as the views say them: how many, of what, since when."""
     if snapshot.middle_axis is None:
         return ('not counted: the body has no middle principal axis' if snapshot.marker
                 else 'not counted until the marker tells the principal axes')
+    if brief:
+        return f'{snapshot.flips} {snapshot.flips_since} (about the middle axis, while free)'
     axis = ' '.join(f'{component:+.2f}' for component in snapshot.middle_axis)
     return (f'{snapshot.flips} {snapshot.flips_since} (sign changes of Omega along the middle '
             f'principal axis [{axis}] while no input acts)')

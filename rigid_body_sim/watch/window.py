@@ -44,7 +44,9 @@ _SHOWN_SPAN = 2.0
 # Points per strip-chart line: about the chart's width in pixels.
 _CHART_POINTS = 800
 # Characters of a line of the text below the charts (about the window's width).
-_TEXT_WIDTH = 190
+_TEXT_WIDTH = 180
+# The share of the charts' span kept on the left when they scroll on.
+_SCROLL_KEEP = 0.75
 # Event labels closer than this fraction of the chart's span are stacked.
 _LABEL_SPAN = 0.15
 
@@ -144,10 +146,14 @@ class WatchWindow:
         for axes in (self.omega_axes, self.drift_axes):
             axes.grid(True, alpha=0.3)
             axes.ticklabel_format(axis='y', style='sci', scilimits=(-3, 4), useOffset=True)
+        for artist in self._animated():
+            artist.set_animated(True)
         self.event_artists = []
         self.drawn_once = False
         self.draw_error = None
-        self.layout_key = None
+        self.background = self.background_key = None
+        self.events_key = None
+        self.chart_span = None
         self.redraws, self.redraw_seconds = 0, 0.0
         self.period_ms = _REDRAW_PERIOD_MS
         self.timer = self.figure.canvas.new_timer(interval=_REDRAW_PERIOD_MS)
@@ -189,10 +195,10 @@ class WatchWindow:
             return
         started = time.thread_time()
         charted = self._update()
-        self._lay_out_if_changed()
         try:
-            self.figure.canvas.draw()
+            self._draw()
         except Exception as error:  # noqa: B902 (say it in the window, keep running)
+            self.background_key = None
             self._show_draw_error(error)
             return
         self.draw_error = None
@@ -205,17 +211,40 @@ class WatchWindow:
             if self.on_drawn is not None:
                 self.on_drawn(self.state.snapshot())
 
-    def _lay_out_if_changed(self):
-        """Lay the figure out in this draw only if its size or its titles' lines changed."""
-        # The constrained layout takes most of a redraw's time; between changes, the last
-        # layout's positions stand.
-        key = (tuple(self.figure.get_size_inches()), self.body_view is None,
-               self.drift_axes.get_title().count('\n'), self.legend_torque_free)
-        if key != self.layout_key:
-            self.layout_key = key
-            self.figure.set_layout_engine('constrained')
+    def _draw(self):
+        """
+        Draw what changed: the moving artists over a saved background, or everything.
+
+        The background (axes, ticks, titles, legends, event marks; laid out anew) is drawn
+        again only when it changes: the charts scroll in steps and their y ranges stick
+        while the data fit.
+        """
+        canvas = self.figure.canvas
+        axes3d = self.body_axes
+        key = (canvas.get_width_height(), self.omega_axes.get_xlim(),
+               self.omega_axes.get_ylim(), self.drift_axes.get_ylim(),
+               self.drift_axes.get_title(), self.title.get_text(), self.events_key,
+               self.legend_torque_free, self.body_view is None, axes3d.get_title(),
+               axes3d.elev, axes3d.azim, axes3d.roll)
+        if key != self.background_key:
+            canvas.draw()  # the animated artists are left out
+            self.background = canvas.copy_from_bbox(self.figure.bbox)
+            self.background_key = key
         else:
-            self.figure.set_layout_engine('none')
+            canvas.restore_region(self.background)
+        for artist in self._animated():
+            if hasattr(artist, 'do_3d_projection'):
+                artist.do_3d_projection()
+            self.figure.draw_artist(artist)
+        canvas.blit(self.figure.bbox)
+
+    def _animated(self):
+        """Return the artists drawn at every redraw (the rest is the background)."""
+        artists = [*self.omega_lines, self.energy_line, self.momentum_line, self.report_line]
+        view = self.body_view
+        if view is not None:
+            artists += [view.polygons, *view.axis_lines, view.momentum_line, view.trail]
+        return artists
 
     def _show_draw_error(self, error):
         # What failed is not known: the window falls back to the text alone, which draws.
@@ -279,6 +308,8 @@ class WatchWindow:
                                   2 if middle is None else int(np.argmax(np.abs(middle))))
         self.body_axes.set_title('The body, viewed from its COM', fontsize=10)
         self.body_axes.legend(loc='upper left', fontsize=7, frameon=False)
+        for artist in self._animated():
+            artist.set_animated(True)
 
     def _draw_charts(self, snapshot):
         """Update the strip charts; return True if both show data."""
@@ -290,8 +321,7 @@ class WatchWindow:
         picked = np.r_[np.arange(0, len(times), stride), len(times) - 1]
         for k, line in enumerate(self.omega_lines):
             line.set_data(times[picked], snapshot.angular_velocity_body[picked, k])
-        start = max(times[0], end - self.history)
-        self.omega_axes.set_xlim(start, max(end, start + 1e-3))
+        start, _ = self._scroll(times[0], end)
         _autoscale_y(self.omega_axes, snapshot.angular_velocity_body)
 
         drift_time, energy, momentum = snapshot.drifts()
@@ -326,7 +356,8 @@ class WatchWindow:
             self.report_line.set_data([], [])
         if snapshot.value('wrench_active') == 'True':
             title += '\nan outside input acts: drifts count from its end'
-        self.drift_axes.set_title(title, fontsize=10, parse_math=False)
+        if title != self.drift_axes.get_title():
+            self.drift_axes.set_title(title, fontsize=10, parse_math=False)
         shown = [values for values in (energy, momentum) if torque_free and len(values)]
         if not torque_free:
             shown.append(np.array([value for _, value in self.reports]))
@@ -336,15 +367,26 @@ class WatchWindow:
         return end - times[0] >= _SHOWN_SPAN and bool(
             len(drift_time) if torque_free else self.reports)
 
+    def _scroll(self, first, end):
+        """Return the charts' time span: it moves in steps, so the background stands."""
+        if self.chart_span is None or not self.chart_span[0] <= end <= self.chart_span[1]:
+            low = max(first, end - _SCROLL_KEEP * self.history)
+            self.chart_span = (low, low + self.history)
+            self.omega_axes.set_xlim(*self.chart_span)
+        return self.chart_span
+
     def _draw_events(self, snapshot, start):
+        shown = [event for event in snapshot.events
+                 if event[0] is not None and event[0] >= start and event[1] != 'reset']
+        if shown == self.events_key:
+            return
+        self.events_key = shown
         for artist in self.event_artists:
             artist.remove()
         self.event_artists = []
         low, high = self.omega_axes.get_xlim()
         row, previous = 0, None
-        for moment, name, value in snapshot.events:
-            if moment is None or moment < start or name == 'reset':
-                continue
+        for moment, name, value in shown:
             label = name if value is None else f'{name} {value}'
             for axes in (self.omega_axes, self.drift_axes):
                 self.event_artists.append(axes.axvline(moment, color='0.4', linestyle=':',
@@ -368,7 +410,7 @@ class WatchWindow:
             omega = ' '.join(format_number(w, 6) for w in latest.angular_velocity_body)
             magnitude = format_number(latest.momentum_magnitude, signed=False)
             lines.append(f'simulated time {now}   omega body [{omega}] rad/s   '
-                         f'|L| {magnitude} kg m^2/s   flips {flips_text(snapshot)}')
+                         f'|L| {magnitude} kg m^2/s   flips {flips_text(snapshot, brief=True)}')
         if snapshot.diagnostics:
             tolerance = snapshot.value('tolerance')
             control = 'fixed step' if tolerance == 'off' else \
@@ -408,7 +450,7 @@ class _TextPanel:
         widget = canvas.get_tk_widget()
         self.label = tkinter.Label(widget.master, text='', justify='left', anchor='nw',
                                    font=tkinter.font.nametofont('TkFixedFont'),
-                                   background='white', padx=8, pady=4, height=8)
+                                   background='white', padx=8, pady=4, height=6, width=1)
         self.label.pack(side=tkinter.BOTTOM, fill=tkinter.X, before=widget)
         self.shown = None
 
@@ -424,12 +466,21 @@ class _TextPanel:
 
 
 def _autoscale_y(axes, values):
-    """Fit the y range to the values, with a fifth of the height free on top for the legend."""
+    """
+    Fit the y range to the values, with a fifth of the height free on top for the legend.
+
+    The range sticks while the values fit below the legend's room and fill a third of it:
+    a new range draws the chart's background again.
+    """
     values = np.asarray(values, dtype=float)
     values = values[np.isfinite(values)]
     if not values.size:
         return
     low, high = float(values.min()), float(values.max())
+    bottom, top = axes.get_ylim()
+    room = (top - bottom) / 1.25
+    if bottom <= low and high <= bottom + room and high - low >= room / 3.0:
+        return
     span = high - low
     margin = 0.06 * span if span > 0.0 else max(abs(high) * 0.1, 1e-12)
     low, high = low - margin, high + margin
