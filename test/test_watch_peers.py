@@ -32,7 +32,6 @@ from hypothesis import HealthCheck
 from hypothesis import settings
 from hypothesis import strategies as st
 from nav_msgs.msg import Odometry
-from node_harness import DISCOVERY_TIMEOUT
 from node_harness import isolate_ros_environment
 from node_harness import unique_namespace
 import pytest

@@ -279,7 +279,7 @@ class Listener:
             f' and {len(topic.foreign) - 3} more' if len(topic.foreign) > 3 else '')
         if topic.shared:
             text = (f'other publishers on {topic.name}: {others}; its messages that claim '
-                    'the node are taken only if they continue the stream of the node\'s own')
+                    "the node are taken only if they continue the stream of the node's own")
         else:
             text = (f'other publishers on {topic.name}: {others}; its messages are not taken '
                     'while they are matched')
