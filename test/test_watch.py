@@ -198,8 +198,10 @@ def test_the_trail_keeps_a_pose_each_time_the_body_turned_two_degrees():
         state.add_angular_momentum(stamp, (0.0, 0.0, 1.0))
     trail = state.snapshot().trail
     turned = np.degrees(2.0 * np.arctan2(trail[:, 2], trail[:, 3]))
-    np.testing.assert_allclose(np.diff(turned), 2.0, atol=1e-9)
-    assert len(trail) == 45
+    # Each kept pose at least 2 degrees from the one before, at most one tick more.
+    steps = np.diff(turned)
+    assert np.all(steps > 2.0 - 1e-6) and np.all(steps < 2.5 + 1e-6), steps
+    assert turned[-1] > 89.5 - 2.5
 
 
 # -- over DDS: the node, the watch as a subprocess
@@ -343,7 +345,8 @@ def test_the_terminal_view_prints_the_nodes_numbers(node):
             'changes', ''), 'the switch to rk4')
         node.pause(False)
         watch.wait_for(lambda blocks, lines: blocks[-1][0].endswith(': running')
-                       and 'integrator rk4 at 100 Hz' in blocks[-1][1], 'running under rk4')
+                       and 'integrator rk4 at 100 Hz' in _fields(blocks[-1]).get('scene', ''),
+                       'running under rk4')
     finally:
         code, errors = watch.stop()
         node.pause(False)

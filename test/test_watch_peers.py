@@ -65,6 +65,12 @@ QUATERNION = st.one_of(st.tuples(ANY_FLOAT, ANY_FLOAT, ANY_FLOAT, ANY_FLOAT),
 NUMBER_FIELDS = ('time', 'omega body', '|L|', 'energy drift')
 VERDICTS = ('not finite', 'absurd', 'not reported')
 PERIOD_NS = 10_000_000
+FIRST_STAMP = 1_700_000_000_000_000_000
+
+
+def simulated_time(stamp):
+    """Return the simulated time (s) of the tick stamped `stamp`: 100 Hz from 0."""
+    return (stamp - FIRST_STAMP) / 1e9
 
 
 class StandIn:
@@ -91,7 +97,7 @@ class StandIn:
     def tick(self, quaternion=(0.0, 0.0, 0.0, 1.0), position=(0.0, 0.0, 0.0),
              omega=(0.1, 2.0, 0.0), momentum=(0.0, 4.0, 0.0), frame='world'):
         """Publish one tick's odom, angular_momentum and marker; return its stamp (ns)."""
-        stamp = 1_700_000_000_000_000_000 + next(self.ticks) * PERIOD_NS
+        stamp = FIRST_STAMP + next(self.ticks) * PERIOD_NS
         odom = Odometry()
         odom.header.stamp.sec, odom.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
         odom.header.frame_id = odom.child_frame_id = frame
@@ -218,3 +224,68 @@ def test_any_peer_message_leaves_watch_alive_finite_escaped_and_bounded(
         assert _numbers_shown_are_finite_and_sane(shown) is None, shown
     memory.append(_resident_megabytes(watch.process.pid))
     assert memory[-1] - memory[0] <= 50.0, memory
+
+
+def _watch_stand_in(namespace):
+    """Return (stand-in, watch) once watch shows the stand-in's reports."""
+    stand_in = StandIn(namespace)
+    watch = WatchProcess(['--terminal', '--namespace', namespace, '--interval', '0.1'])
+
+    def shown(blocks, lines):
+        stamp = stand_in.tick()
+        stand_in.report(stamp, _sane('start', simulated_time(stamp)))
+        stand_in.tick()
+        return blocks and _fields(blocks[-1]).get('scene', '').startswith('start')
+    watch.wait_for(shown, 'the stand-in node shown')
+    return stand_in, watch
+
+
+def test_a_second_node_of_the_same_name_is_said_and_never_mixed_in():
+    isolate_ros_environment()
+    namespace = unique_namespace()
+    first, watch = _watch_stand_in(namespace)
+    second = StandIn(namespace)  # another participant: publisher GIDs of its own
+    try:
+        def warned(blocks, lines):
+            first.tick()
+            second.tick(omega=(9.0, 0.0, 0.0), momentum=(9.0, 0.0, 0.0))
+            return blocks and any('a second node named' in line for line in blocks[-1])
+        block = watch.wait_for(warned, 'the warning of a second node')
+        seen = len(watch.lines)
+        for _ in range(50):
+            second.tick(omega=(9.0, 0.0, 0.0), momentum=(9.0, 0.0, 0.0))
+        stamp = first.tick()
+        first.report(stamp, _sane('after', simulated_time(stamp)))
+        block = watch.wait_for(lambda blocks, lines: next((
+            block for block in reversed(blocks)
+            if _fields(block).get('scene', '').startswith('after')), None), 'the report after')
+        assert not any('+9.0000' in line for line in watch.lines[seen:]), block
+        assert any('refused' in line and 'another publisher' in line for line in block), block
+    finally:
+        code, errors = watch.stop()
+        first.close()
+        second.close()
+    assert 'Traceback' not in errors, errors
+
+
+def test_a_report_in_the_nodes_name_from_another_publisher_is_not_taken():
+    isolate_ros_environment()
+    namespace = unique_namespace()
+    node, watch = _watch_stand_in(namespace)
+    spoofer = StandIn(unique_namespace())  # another node, on the shared /diagnostics
+    spoofer.name = node.name
+    try:
+        def warned(blocks, lines):
+            stamp = node.tick()
+            node.report(stamp, _sane('steady', simulated_time(stamp)))
+            # A reset claimed: time 0, and a scene of its own.
+            spoofer.report(stamp, _sane('spoofed', 0.0))
+            return blocks and any('claimed the node' in line for line in blocks[-1])
+        watch.wait_for(warned, 'the spoofed report refused')
+        assert not any('spoofed' in line for line in watch.lines)
+        assert not any('reset' in _fields(block).get('changes', '') for block in watch.blocks)
+    finally:
+        code, errors = watch.stop()
+        node.close()
+        spoofer.close()
+    assert 'Traceback' not in errors, errors

@@ -272,17 +272,15 @@ class Listener:
         return present
 
     def _say(self, topic):
-        if not topic.foreign:
+        # Other nodes publish on the shared topics as a matter of course: a claim there that
+        # is not the node's is counted as refused, not warned about in advance.
+        if not topic.foreign or topic.shared:
             self.state.set_warning(topic.label, None)
             return
         others = ', '.join(topic.foreign[:3]) + (
             f' and {len(topic.foreign) - 3} more' if len(topic.foreign) > 3 else '')
-        if topic.shared:
-            text = (f'other publishers on {topic.name}: {others}; its messages that claim '
-                    "the node are taken only if they continue the stream of the node's own")
-        else:
-            text = (f'other publishers on {topic.name}: {others}; its messages are not taken '
-                    'while they are matched')
+        text = (f'other publishers on {topic.name}: {others}; its messages are not taken '
+                'while they are matched')
         self.state.set_warning(topic.label, text)
 
     def _subscribe(self, candidate):
