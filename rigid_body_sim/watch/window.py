@@ -15,6 +15,7 @@ succeeded, and the refresh slows down so that redrawing takes at most
 :data:`CPU_SHARE` of a core, and more when the machine is busy (load above its cores).
 """
 
+import math
 import os
 import sys
 import time
@@ -370,10 +371,21 @@ class WatchWindow:
             len(drift_time) if torque_free else self.reports)
 
     def _scroll(self, first, end):
-        """Return the charts' time span: it moves in steps, so the background stands."""
+        """
+        Return the charts' time span: it changes in steps, so the background stands.
+
+        While the charts hold less than their history, the span doubles (2, 4, 8, ... s)
+        from the first tick; then it moves on by a quarter of the history at a time.
+        """
         if self.chart_span is None or not self.chart_span[0] <= end <= self.chart_span[1]:
-            low = max(first, end - _SCROLL_KEEP * self.history)
-            self.chart_span = (low, low + self.history)
+            held = end - first
+            if held < _SCROLL_KEEP * self.history:
+                length = min(self.history, 2.0 ** math.ceil(math.log2(max(held, 1.0) * 1.25)))
+                low = first
+            else:
+                length = self.history
+                low = end - _SCROLL_KEEP * self.history
+            self.chart_span = (low, low + length)
             self.omega_axes.set_xlim(*self.chart_span)
         return self.chart_span
 
