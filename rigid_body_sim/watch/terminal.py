@@ -8,6 +8,7 @@ with :func:`.live.format_number`, the report's strings as they came (cut and esc
 :class:`.live.LiveState`); a number that is not finite or absurd is said to be so.
 """
 
+import shutil
 
 from .live import format_number
 
@@ -130,6 +131,11 @@ class TerminalView:
             return
         self._last = list(lines)
         if self.in_place:
+            # A line wider than the terminal would wrap, and the block's lines would no
+            # longer be the rows to go back up: each is cut to the width.
+            width = max(20, shutil.get_terminal_size().columns - 1)
+            lines = [line if len(line) <= width else line[:width - 3] + '...'
+                     for line in lines]
             # Up to the block's first line, rewrite each line, clear what is left below.
             text = (f'\x1b[{self._shown}F' if self._shown else '') + ''.join(
                 f'\x1b[2K{line}\n' for line in lines) + '\x1b[J'
