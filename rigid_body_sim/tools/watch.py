@@ -39,6 +39,10 @@ def add_arguments(parser):
                              'looking)')
     parser.add_argument('--interval', type=float, default=0.5, metavar='S',
                         help='seconds between refreshes of the terminal view (default 0.5)')
+    parser.add_argument('--refresh', type=float, metavar='S',
+                        help="seconds between the window's redraws, kept as given (default: "
+                             '0.2, longer while a redraw takes over a fifth of a core or the '
+                             'machine is busy)')
 
 
 class _Stop:
@@ -70,8 +74,10 @@ class _Stop:
 
 def main(args):
     """Watch until Ctrl-C, the window's closing or the timeout; return the exit code."""
-    for name in ('history', 'interval'):
+    for name in ('history', 'interval', 'refresh'):
         value = getattr(args, name)
+        if name == 'refresh' and value is None:
+            continue
         if not (math.isfinite(value) and value > 0.0):
             raise ValueError(f'--{name} must be a number of s > 0; got {value:g}')
     if math.isnan(args.timeout) or args.timeout <= 0.0:
@@ -139,4 +145,5 @@ def _window(state, listener, args, stop):
         # One line when the body and both charts are on screen: scripts and the tests wait
         # for it.
         print(f'rigid-body-sim watch: window shows {snapshot.node}', flush=True)
-    WatchWindow(state, listener, args.history, should_stop, on_drawn=drawn).run()
+    WatchWindow(state, listener, args.history, should_stop, on_drawn=drawn,
+                refresh=args.refresh).run()

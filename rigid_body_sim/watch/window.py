@@ -97,10 +97,13 @@ class WatchWindow:
     on_drawn : callable, optional
         Called once, with the snapshot, after the first redraw that showed the body and
         2 simulated seconds of data in both charts.
+    refresh : float, optional
+        Seconds between redraws, kept as given; by default 0.2 s, lengthened while a redraw
+        takes more than :data:`CPU_SHARE` of a core or the machine is busy.
 
     """
 
-    def __init__(self, state, listener, history, should_stop, on_drawn=None):
+    def __init__(self, state, listener, history, should_stop, on_drawn=None, refresh=None):
         import warnings
 
         import matplotlib
@@ -156,8 +159,11 @@ class WatchWindow:
         self.events_key = None
         self.chart_span = None
         self.redraws, self.redraw_seconds, self.full_draws = 0, 0.0, 0
-        self.period_ms = _REDRAW_PERIOD_MS
-        self.timer = self.figure.canvas.new_timer(interval=_REDRAW_PERIOD_MS)
+        self.adaptive = refresh is None
+        self.default_period_ms = _REDRAW_PERIOD_MS if refresh is None else max(
+            1, int(round(1000.0 * refresh)))
+        self.period_ms = self.default_period_ms
+        self.timer = self.figure.canvas.new_timer(interval=self.period_ms)
         self.timer.add_callback(self._redraw)
         # Apart from the redraws, which may come seconds apart: Ctrl-C is answered at once.
         self.stop_timer = self.figure.canvas.new_timer(interval=_STOP_CHECK_MS)
@@ -176,7 +182,8 @@ class WatchWindow:
             print(f'rigid-body-sim watch: {self.redraws} redraws in {elapsed:.1f} s '
                   f'({self.full_draws} of the whole figure), '
                   f'{1000.0 * self.redraw_seconds / self.redraws:.1f} ms of CPU each; redraw '
-                  f'period {_REDRAW_PERIOD_MS} ms, {self.period_ms} ms at the end',
+                  f'period {self.default_period_ms} ms'
+                  + (f', {self.period_ms} ms at the end' if self.adaptive else ' (kept)'),
                   file=sys.stderr)
 
     def close(self):
@@ -259,6 +266,8 @@ class WatchWindow:
 
     def _adapt_period(self, seconds):
         """Set the next redraw's delay from this one's CPU time and the machine's load."""
+        if not self.adaptive:
+            return
         busy = max(1.0, os.getloadavg()[0] / (os.cpu_count() or 1))
         period = max(_REDRAW_PERIOD_MS, 1000.0 * seconds / CPU_SHARE) * busy
         period = int(min(_SLOWEST_PERIOD_MS, period))
