@@ -7,8 +7,9 @@ watch --terminal` watches it (its output read and counted); once it shows the no
 a peer publishes /diagnostics arrays of --megabytes MB (one status whose hardware_id is the
 node's, one value that large) --rate times a second for --seconds s.  Printed: watch's
 resident memory (/proc) before, at its highest and at the end, the characters it printed,
-whether its view still advanced during the flood, and how long it took to end after SIGINT
-(Ctrl-C) sent at the end of the flood.
+whether its view still advanced during the flood, and how long after SIGINT (Ctrl-C, sent at
+the end of the flood) it said it stopped and its process ended.  With --window, watch draws
+its window on an Xvfb display of its own (the view is then not followed).
 
 The goal (issue 33): memory at most +50 MB over 60 s of 5 MB reports, Ctrl-C answered
 within 1 s.
@@ -19,6 +20,7 @@ Usage: .venv/bin/python benchmarks/watch_large_reports.py [--megabytes MB] [--se
 import argparse
 import os
 from pathlib import Path
+import shutil
 import signal
 import subprocess
 import sys
@@ -49,6 +51,17 @@ print(sent)
 """
 
 
+def _start_xvfb():
+    read, write = os.pipe()
+    process = subprocess.Popen([shutil.which('Xvfb'), '-displayfd', str(write), '-screen', '0',
+                                '1400x900x24', '-nolisten', 'tcp', '-s', '0'],
+                               pass_fds=(write,), stdout=subprocess.DEVNULL,
+                               stderr=subprocess.DEVNULL)
+    os.close(write)
+    with os.fdopen(read) as pipe:
+        return process, f':{pipe.readline().strip()}'
+
+
 def _resident_megabytes(pid):
     for line in Path(f'/proc/{pid}/status').read_text().splitlines():
         if line.startswith('VmRSS:'):
@@ -63,6 +76,8 @@ def main():
     parser.add_argument('--megabytes', type=float, default=5.0, help='MB per report')
     parser.add_argument('--seconds', type=float, default=60.0, help='seconds of reports')
     parser.add_argument('--rate', type=float, default=2.0, help='reports per second')
+    parser.add_argument('--window', action='store_true',
+                        help='watch with its window, on an Xvfb display of its own')
     parser.add_argument('--ctrl-c-wait', type=float, default=60.0,
                         help='seconds to wait for watch to end after Ctrl-C before killing it')
     args = parser.parse_args()
@@ -72,19 +87,34 @@ def main():
         [sys.executable, '-m', 'rigid_body_sim.node.entry_point'],
         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=tempfile.gettempdir(),
         env=environment)
+    xvfb = None
+    view = ['--terminal', '--interval', '0.2']
+    if args.window:
+        xvfb, display = _start_xvfb()
+        environment['DISPLAY'] = display
+        view = []
     watch = subprocess.Popen(
-        [sys.executable, '-m', 'rigid_body_sim.cli', 'watch', '--terminal', '--interval',
-         '0.2'], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=environment)
+        [sys.executable, '-m', 'rigid_body_sim.cli', 'watch', *view],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=environment)
     printed = [0]
     times = []
+    stopped = []
 
     def read():
         for line in watch.stdout:
             printed[0] += len(line)
-            if line.startswith(b'  time ') and b'simulated' in line:
+            if (line.startswith(b'  time ') and b'simulated' in line) or (
+                    b'window shows' in line):
                 times.append((time.monotonic(), line[:60].decode(errors='replace').strip()))
-    reader = threading.Thread(target=read, daemon=True)
-    reader.start()
+
+    def read_errors():
+        for line in watch.stderr:
+            if b'stopped (SIGINT)' in line:
+                stopped.append(time.monotonic())
+    readers = [threading.Thread(target=read, daemon=True),
+               threading.Thread(target=read_errors, daemon=True)]
+    for reader in readers:
+        reader.start()
     peer = None
     try:
         while not times:
@@ -112,8 +142,10 @@ def main():
         except subprocess.TimeoutExpired:
             watch.kill()
             latency = f'more than {args.ctrl_c_wait:g} s (killed)'
+        readers[1].join(5.0)
+        answered = f'{stopped[0] - signalled:.2f} s' if stopped else 'never said'
     finally:
-        for process in (peer, watch, node):
+        for process in (peer, watch, node, xvfb):
             if process is not None and process.poll() is None:
                 process.terminate()
                 process.wait(30)
@@ -123,7 +155,7 @@ def main():
           f'the end: +{highest - before:.1f} MB at most')
     print(f'watch printed {printed[0] - printed_before} characters during the reports; its '
           f'view advanced {len(advancing)} times (last: {advancing[-1] if advancing else "-"})')
-    print(f'Ctrl-C answered in {latency}')
+    print(f'Ctrl-C: watch said it stopped after {answered}, its process ended after {latency}')
     return 0
 
 

@@ -99,6 +99,10 @@ def main(args):
                 _window(state, listener, args, stop)
         finally:
             listener.close()
+    if stop.signal is not None:
+        # Said once all is closed: what is left is the interpreter's own exit.
+        print(f'rigid-body-sim watch: stopped ({stop.signal.name})', file=sys.stderr,
+              flush=True)
     if stop.timed_out:
         return 1
     return 0 if stop.signal in (None, signal.SIGTERM) else 128 + stop.signal
