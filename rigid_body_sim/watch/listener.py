@@ -26,6 +26,7 @@ megabytes cost a copy, never a deserialisation or the memory to hold them.
 """
 
 from dataclasses import dataclass
+from dataclasses import field
 import os
 import threading
 import time
@@ -108,19 +109,19 @@ def find_nodes(ros_node, exclude=()):
     return sorted(found, key=lambda candidate: candidate.fully_qualified_name)
 
 
+@dataclass
 class _Topic:
     """One subscription of the watch: its bound, and whose messages it takes now."""
 
-    def __init__(self, name, message_type, shared, limit, label):
-        self.name = name
-        self.message_type = message_type
-        self.shared = shared
-        self.limit = limit
-        self.label = label
-        self.subscription = None
-        self.own = 0  # the watched node's publishers on it, and the watch's own (graph)
-        self.foreign = []  # the other publishers' descriptions (graph)
-        self.last_sequence = None
+    name: str
+    message_type: type
+    shared: bool  # /diagnostics, /parameter_events: other nodes publish there too
+    limit: int  # bytes
+    label: str
+    subscription: object = None
+    own: int = 0  # the watched node's publishers on it, and the watch's own (graph)
+    foreign: list = field(default_factory=list)  # the others, described (graph)
+    last_sequence: int = None  # of the last message taken in the node's name
 
 
 class Listener:

@@ -203,8 +203,8 @@ class WatchWindow:
             self.close()
             return
         started = time.thread_time()
-        charted = self._update()
         try:
+            charted = self._update()
             self._draw()
         except Exception as error:  # noqa: B902 (say it in the window, keep running)
             self.background_key = None
