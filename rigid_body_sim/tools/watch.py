@@ -19,6 +19,7 @@ Typical use (the node in another terminal: make run):
 """
 
 import math
+import os
 import signal
 import sys
 import threading
@@ -73,7 +74,12 @@ class _Stop:
 
 
 def main(args):
-    """Watch until Ctrl-C, the window's closing or the timeout; return the exit code."""
+    """
+    Watch until Ctrl-C, the window's closing or the timeout; return the exit code.
+
+    After a signal (Ctrl-C, SIGTERM) the process ends here, once all is closed, with the
+    code it returns otherwise (130 for Ctrl-C, 0 for SIGTERM).
+    """
     for name in ('history', 'interval', 'refresh'):
         value = getattr(args, name)
         if name == 'refresh' and value is None:
@@ -99,13 +105,27 @@ def main(args):
                 _window(state, listener, args, stop)
         finally:
             listener.close()
-    if stop.signal is not None:
-        # Said once all is closed: what is left is the interpreter's own exit.
-        print(f'rigid-body-sim watch: stopped ({stop.signal.name})', file=sys.stderr,
-              flush=True)
     if stop.timed_out:
         return 1
-    return 0 if stop.signal in (None, signal.SIGTERM) else 128 + stop.signal
+    code = 0 if stop.signal in (None, signal.SIGTERM) else 128 + stop.signal
+    if stop.signal is not None:
+        _exit_now(f'rigid-body-sim watch: stopped ({stop.signal.name})', code)
+    return code
+
+
+def _exit_now(message, code):
+    """
+    Say `message` and end the process at once, with `code`.
+
+    Everything watch holds is released by now (the window, the DDS participant); what is
+    left is the interpreter's own exit, seconds on a busy machine (mostly LLVM's teardown,
+    which the physics core's numba brings), while a signal asks for the prompt back now.
+    """
+    import logging
+    print(message, file=sys.stderr, flush=True)
+    sys.stdout.flush()
+    logging.shutdown()
+    os._exit(code)
 
 
 def _no_node_for(listener, timeout, stop):

@@ -199,6 +199,8 @@ class Listener:
         self.executor.shutdown(timeout_sec=2.0)
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
+        # The DDS participant goes now, not in the interpreter's exit.
+        self.context.destroy()
 
     # -- discovery (the executor's thread)
 
