@@ -505,6 +505,7 @@ def _autoscale_y(axes, values):
     if bottom <= low and high <= bottom + room and high - low >= room / 3.0:
         return
     span = high - low
-    margin = 0.06 * span if span > 0.0 else max(abs(high) * 0.1, 1e-12)
+    # Room to grow (a drift that climbs): the range need not change at the next redraw.
+    margin = 0.15 * span if span > 0.0 else max(abs(high) * 0.1, 1e-12)
     low, high = low - margin, high + margin
     axes.set_ylim(low, high + 0.25 * (high - low))
