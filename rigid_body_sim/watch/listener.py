@@ -243,8 +243,8 @@ class Listener:
         participants = {gid[:_PARTICIPANT_BYTES] for gid, _ in odom}
         if self.participant is None and len(participants) == 1:
             self.participant = participants.pop()
-            participants = set()
-        present = self.participant is not None and any(
+        # (Two of that name from the start: none is chosen, and both are present.)
+        present = bool(odom) if self.participant is None else any(
             gid[:_PARTICIPANT_BYTES] == self.participant for gid, _ in odom)
         for topic in self._topics.values():
             own, foreign = 0, []
