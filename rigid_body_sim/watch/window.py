@@ -47,7 +47,7 @@ _CHART_POINTS = 800
 # Characters of a line of the text below the charts (about the window's width).
 _TEXT_WIDTH = 180
 # The share of the charts' span kept on the left when they scroll on.
-_SCROLL_KEEP = 0.75
+_SCROLL_KEEP = 0.5
 # Event labels closer than this fraction of the chart's span are stacked.
 _LABEL_SPAN = 0.15
 
@@ -246,7 +246,9 @@ class WatchWindow:
             if hasattr(artist, 'do_3d_projection'):
                 artist.do_3d_projection()
             self.figure.draw_artist(artist)
-        canvas.blit(self.figure.bbox)
+        # Only the three axes go to the screen: less to copy than the whole figure.
+        for axes in (self.body_axes, self.omega_axes, self.drift_axes):
+            canvas.blit(axes.bbox)
 
     def _animated(self):
         """Return the artists drawn at every redraw (the rest is the background)."""
@@ -383,13 +385,13 @@ class WatchWindow:
         """
         Return the charts' time span: it changes in steps, so the background stands.
 
-        While the charts hold less than their history, the span doubles (2, 4, 8, ... s)
-        from the first tick; then it moves on by a quarter of the history at a time.
+        While the charts hold less than their history, the span doubles (4, 8, 16, ... s)
+        from the first tick; then it moves on by half the history at a time.
         """
         if self.chart_span is None or not self.chart_span[0] <= end <= self.chart_span[1]:
             held = end - first
             if held < _SCROLL_KEEP * self.history:
-                length = min(self.history, 2.0 ** math.ceil(math.log2(max(held, 1.0) * 1.25)))
+                length = min(self.history, 2.0 ** math.ceil(math.log2(max(held, 2.0) * 1.25)))
                 low = first
             else:
                 length = self.history
