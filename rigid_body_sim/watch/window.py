@@ -44,8 +44,6 @@ CPU_SHARE = 0.2
 _SHOWN_SPAN = 2.0
 # Points per strip-chart line: about the chart's width in pixels.
 _CHART_POINTS = 800
-# Characters of a line of the text below the charts (about the window's width).
-_TEXT_WIDTH = 180
 # The share of the charts' span kept on the left when they scroll on.
 _SCROLL_KEEP = 0.5
 # Event labels closer than this fraction of the chart's span are stacked.
@@ -152,6 +150,9 @@ class WatchWindow:
             axes.ticklabel_format(axis='y', style='sci', scilimits=(-3, 4), useOffset=True)
         for artist in self._animated():
             artist.set_animated(True)
+        # A draw of the whole figure leaves the moving artists out (Tk draws it when the
+        # window is mapped, exposed or resized): they are drawn over it at once.
+        self.figure.canvas.mpl_connect('draw_event', self._on_full_draw)
         self.event_artists = []
         self.drawn_once = False
         self.draw_error = None
@@ -236,12 +237,29 @@ class WatchWindow:
                self.legend_torque_free, self.body_view is None, axes3d.get_title(),
                axes3d.elev, axes3d.azim, axes3d.roll)
         if key != self.background_key:
-            canvas.draw()  # the animated artists are left out
+            # The constrained layout settles in two passes when titles or tick labels
+            # changed (the first places them, the second makes room for them): one here,
+            # one in the draw.
+            self.figure.get_layout_engine().execute(self.figure)
+            canvas.draw()  # the animated artists left out; then _on_full_draw
             self.full_draws += 1
-            self.background = canvas.copy_from_bbox(self.figure.bbox)
             self.background_key = key
-        else:
-            canvas.restore_region(self.background)
+            return
+        canvas.restore_region(self.background)
+        self._draw_moving()
+
+    def _on_full_draw(self, event):
+        """After any draw of the whole figure (a redraw's, Tk's): keep it, add what moves."""
+        canvas = self.figure.canvas
+        self.background = canvas.copy_from_bbox(self.figure.bbox)
+        try:
+            self._draw_moving()
+        except Exception as error:  # noqa: B902 (say it in the window, keep running)
+            self.background_key = None
+            self._show_draw_error(error)
+
+    def _draw_moving(self):
+        canvas = self.figure.canvas
         for artist in self._animated():
             if hasattr(artist, 'do_3d_projection'):
                 artist.do_3d_projection()
@@ -456,9 +474,7 @@ class WatchWindow:
         else:
             lines.append("waiting for the node's first /diagnostics report (once a second)")
         lines.extend(line.strip() for line in refused_lines(snapshot))
-        # Lines longer than the window is wide are cut (the terminal view has them whole).
-        return '\n'.join(line if len(line) <= _TEXT_WIDTH else line[:_TEXT_WIDTH - 3] + '...'
-                         for line in lines)
+        return '\n'.join(lines)
 
 
 class _TextPanel:
@@ -473,14 +489,21 @@ class _TextPanel:
         import tkinter
         import tkinter.font
         widget = canvas.get_tk_widget()
+        self.font = tkinter.font.nametofont('TkFixedFont')
+        # width=1: the label takes the window's width, never widens it for a long line.
         self.label = tkinter.Label(widget.master, text='', justify='left', anchor='nw',
-                                   font=tkinter.font.nametofont('TkFixedFont'),
-                                   background='white', padx=8, pady=4, height=6, width=1)
+                                   font=self.font, background='white', padx=8, pady=4,
+                                   height=6, width=1)
         self.label.pack(side=tkinter.BOTTOM, fill=tkinter.X, before=widget)
         self.shown = None
 
     def set_text(self, text):
-        """Show `text` (a few lines)."""
+        """Show `text` (a few lines), each cut to the label's width."""
+        width = self.label.master.winfo_width()
+        if width > 100:  # (1 until the window is mapped: nothing to cut to yet)
+            columns = width // max(1, self.font.measure('0')) - 3
+            text = '\n'.join(line if len(line) <= columns else line[:columns - 3] + '...'
+                             for line in text.split('\n'))
         if text != self.shown:
             self.shown = text
             self.label.configure(text=text)
