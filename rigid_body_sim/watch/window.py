@@ -231,16 +231,18 @@ class WatchWindow:
         """
         canvas = self.figure.canvas
         axes3d = self.body_axes
-        key = (canvas.get_width_height(), self.omega_axes.get_xlim(),
-               self.omega_axes.get_ylim(), self.drift_axes.get_ylim(),
-               self.drift_axes.get_title(), self.title.get_text(), self.events_key,
-               self.legend_torque_free, self.body_view is None, axes3d.get_title(),
-               axes3d.elev, axes3d.azim, axes3d.roll)
+        texts = (canvas.get_width_height(), self.drift_axes.get_title(),
+                 self.title.get_text(), self.legend_torque_free, self.body_view is None,
+                 axes3d.get_title())
+        key = (texts, self.omega_axes.get_xlim(), self.omega_axes.get_ylim(),
+               self.drift_axes.get_ylim(), self.events_key, axes3d.elev, axes3d.azim,
+               axes3d.roll)
         if key != self.background_key:
-            # The constrained layout settles in two passes when titles or tick labels
-            # changed (the first places them, the second makes room for them): one here,
-            # one in the draw.
-            self.figure.get_layout_engine().execute(self.figure)
+            if self.background_key is None or texts != self.background_key[0]:
+                # The constrained layout settles in two passes when titles or legends
+                # changed (the first places them, the second makes room for them): one
+                # here, one in the draw.
+                self.figure.get_layout_engine().execute(self.figure)
             canvas.draw()  # the animated artists left out; then _on_full_draw
             self.full_draws += 1
             self.background_key = key
@@ -403,13 +405,13 @@ class WatchWindow:
         """
         Return the charts' time span: it changes in steps, so the background stands.
 
-        While the charts hold less than their history, the span doubles (4, 8, 16, ... s)
+        While the charts hold less than their history, the span doubles (8, 16, ... s)
         from the first tick; then it moves on by half the history at a time.
         """
         if self.chart_span is None or not self.chart_span[0] <= end <= self.chart_span[1]:
             held = end - first
             if held < _SCROLL_KEEP * self.history:
-                length = min(self.history, 2.0 ** math.ceil(math.log2(max(held, 2.0) * 1.25)))
+                length = min(self.history, 2.0 ** math.ceil(math.log2(max(held, 4.0) * 1.25)))
                 low = first
             else:
                 length = self.history
