@@ -205,10 +205,9 @@ class Listener:
     # -- discovery (the executor's thread)
 
     def _discover(self):
-        self.candidates = find_nodes(self.node, exclude=(self._own,))
-        wanted = [candidate for candidate in self.candidates
-                  if candidate.matches(self.wanted_node, self.wanted_namespace)]
         if self.watched is not None:
+            # Watching, only the watched node's topics are looked at: the whole graph is
+            # searched again once it is gone.
             if self._check_publishers():
                 self._last_seen = time.monotonic()
                 return
@@ -219,6 +218,9 @@ class Listener:
             self.participant = None
             self.searching_since = time.monotonic()
             self.state.set_node(None)
+        self.candidates = find_nodes(self.node, exclude=(self._own,))
+        wanted = [candidate for candidate in self.candidates
+                  if candidate.matches(self.wanted_node, self.wanted_namespace)]
         if wanted:
             self._subscribe(wanted[0])
 
