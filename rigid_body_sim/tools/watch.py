@@ -7,9 +7,12 @@ The window draws the body as `rigid-body-sim animate` does (its shape, the body 
 z in red, green, blue, the direction of L dashed, a trail), strip charts of the body
 angular velocity and of the drift of what the scene conserves, and the node's live cost
 and state from /diagnostics.  Without a display (or with --terminal) a terminal view
-refreshes in place: simulated time, omega, |L|, energy drift, flips so far, substeps,
-ticks per second.  Both follow a reset, a pause and an integrator switch, and say so while
-no node is found.  Ctrl-C (or closing the window) ends it.
+refreshes in place: simulated time, omega, |L|, energy drift, flips since watch started
+(about the middle principal axis, while no input acts), substeps, ticks per second.  Both
+follow a reset, a pause and an integrator switch, and say so while no node is found.  Only
+the watched node's own publishers are believed (another node of the same name is said);
+a peer's numbers that are not finite or absurd are said to be so, its text is cut and
+escaped.  Ctrl-C (or closing the window) ends it.
 
 Typical use (the node in another terminal: make run):
   rigid-body-sim watch                        the window, or the terminal view without one
