@@ -415,3 +415,22 @@ class BodyView:
         """Forget the trail (after a reset: the body jumps back to its start)."""
         self.trail_points.clear()
         self.trail.set_segments([np.zeros((2, 3))])
+
+    def set_trail(self, quaternions):
+        """
+        Draw the trail through the tip of the trail axis at each orientation, oldest first.
+
+        `quaternions` (k, 4) are (x, y, z, w), body to world: the trail then follows the
+        motion as sampled by whoever calls (every pose received, say), not the frames drawn;
+        it fades towards the oldest as :meth:`show`'s does.
+        """
+        tips = np.array([axis_endpoints(quaternion, self.axis_length)[self.trail_axis]
+                         for quaternion in np.asarray(quaternions, dtype=float)]).reshape(-1, 3)
+        self.trail_points = list(tips[-_TRAIL_FRAMES:])
+        if len(tips) < 2:
+            self.trail.set_segments([np.zeros((2, 3))])
+            return
+        self.trail.set_segments(np.stack([tips[:-1], tips[1:]], axis=1))
+        base = np.array(self.trail.get_edgecolor()[0][:3])
+        self.trail.set_color([(*base, alpha) for alpha in np.linspace(0.05, 0.9,
+                                                                      len(tips) - 1)])
