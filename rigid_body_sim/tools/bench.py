@@ -169,6 +169,8 @@ def _tolerance_sweep_part(args: argparse.Namespace) -> _Part:
     from ..work_precision.tolerance_sweep import SWEEP_SPAN
     from ..work_precision.tolerance_sweep import TOLERANCES
 
+    tolerances: tuple[float, ...]
+    substeps: tuple[int, ...]
     if args.quick:
         names = args.scenes or ['van_zon', 'heavy_top']
         span, tolerances, substeps = 2.0, (1e-3, 1e-5, 1e-7), (1, 2, 4, 8)
@@ -307,7 +309,7 @@ def _run_on_engine(args: argparse.Namespace, parts: list[_Part],
 def _ran_on(engine_words: str,
             placements: list[tuple[str, str, str]]) -> dict[str, Any]:
     """Return the machine info's 'cells_ran_on' from (worker, host, CPU) of each cell."""
-    hosts = {}
+    hosts: dict[str, dict[str, Any]] = {}
     for worker, host, model in placements:
         entry = hosts.setdefault(host, {'host': host, 'cpu_model': model, 'workers': set(),
                                         'cells': 0})

@@ -17,8 +17,8 @@ from .report import case_panels
 from .report import cost_to_reach
 from .report import SATURATION
 from .report import save_figure
-from .report import write_records_csv
 from .report import workers_line
+from .report import write_records_csv
 
 __all__ = ['control_goal_table', 'sweep_markdown', 'tolerance_figure', 'write_sweep_outputs',
            'CONTROL_LEVELS', 'GOAL_RATIO']
