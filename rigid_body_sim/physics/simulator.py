@@ -6,11 +6,17 @@ owns the only mutable thing, the current state and time; bodies, states and inte
 values and pure functions.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
 import math
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from . import error_control
+from .body import RigidBody
 from .effects.registry import Effect
 from .integrators import get_integrator
 from .kernels import interpreting
@@ -26,7 +32,7 @@ from .kernels.model import new_model
 from .stability import stiffness_problem
 from .state import State
 
-__all__ = ['Simulator', 'DivergedError', 'unresolved_rotation', 'RESOLVED_ROTATION']
+__all__ = ['Simulator', 'DivergedError', 'unresolved_rotation', 'RESOLVED_ROTATION', 'Wrench']
 
 RESOLVED_ROTATION = 0.5
 """The largest rotation (rad) per integrator step that the steps resolve: beyond it every
@@ -41,6 +47,9 @@ _FRAMES = ('world', 'body')
 # Steps per kernel call when a progress callback wants to hear about a long run.
 _PROGRESS_CHUNK = 20000
 
+Wrench = tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]
+"""A wrench as (force N, torque N m), world frame, each an array (3,)."""
+
 # What takes the steps (Simulator.path).
 COMPILED = 'compiled'  # the integrator's kernel, every effect compiled (kernels/model.py)
 INTERPRETED = 'interpreted'  # the kernels' own source, interpreted (kernels/interpreted.py)
@@ -54,7 +63,7 @@ class DivergedError(ValueError):
     integrator, the step, the effects and the held wrench) and what to change.
     """
 
-    def __init__(self, message, time):
+    def __init__(self, message: str, time: float) -> None:
         super().__init__(message)
         self.time = time
 
@@ -118,7 +127,9 @@ class Simulator:
 
     """
 
-    def __init__(self, body, state, integrator='buss', effects=(), tolerance=None, substeps=1):
+    def __init__(self, body: RigidBody, state: State, integrator: str = 'buss',
+                 effects: Iterable[Any] = (), tolerance: float | None = None,
+                 substeps: int = 1) -> None:
         if not isinstance(state, State):
             raise ValueError(f'state must be a State; got {type(state).__name__}')
         self._body = body
@@ -131,9 +142,11 @@ class Simulator:
         self._sort_effects()
         # The error controller's state (error_control.new_control).
         self._control = error_control.new_control(2)
-        self._tolerance = None
-        # The integrated state, packed [q, x, p, L].
+        self._tolerance: float | None = None
+        # The integrated state, packed [q, x, p, L], and the States made of it when read.
         self._values = np.zeros(STATE_SIZE)
+        self._state: State | None = None
+        self._integrated: State | None = None
         self.state = state
         self._interpreted = interpreting()
         # The last finite packed state (restored if a step turns the state non-finite), and
@@ -186,17 +199,17 @@ class Simulator:
     # -- configuration
 
     @property
-    def body(self):
+    def body(self) -> RigidBody:
         """Get the simulated RigidBody."""
         return self._body
 
     @property
-    def effects(self):
+    def effects(self) -> tuple[Any, ...]:
         """Get the effects evaluated every step (a tuple)."""
         return self._effects
 
     @property
-    def path(self):
+    def path(self) -> str:
         """
         Get what takes the steps: 'compiled' (the kernels) or 'interpreted'.
 
@@ -205,7 +218,7 @@ class Simulator:
         return INTERPRETED if self._interpreted else COMPILED
 
     @property
-    def interpreted(self):
+    def interpreted(self) -> bool:
         """
         Whether the kernels run as their Python source instead of compiled (settable).
 
@@ -217,7 +230,7 @@ class Simulator:
         return self._interpreted
 
     @interpreted.setter
-    def interpreted(self, interpreted):
+    def interpreted(self, interpreted: bool) -> None:
         interpreted = bool(interpreted)
         if interpreted != self._interpreted:
             self._interpreted = interpreted
@@ -225,12 +238,12 @@ class Simulator:
             self._run = None
 
     @property
-    def integrator(self):
+    def integrator(self) -> str:
         """Name of the integrator in use; settable, an unknown name is a ValueError."""
         return self._integrator.name
 
     @integrator.setter
-    def integrator(self, name):
+    def integrator(self, name: str) -> None:
         self._integrator = get_integrator(name)
         # Its compiled run kernel, fetched on the first compiled step (compiled or loaded).
         self._run = None
@@ -253,7 +266,7 @@ class Simulator:
         error_control.set_order(self._control, order)
 
     @property
-    def tolerance(self):
+    def tolerance(self) -> float | None:
         """
         Error control: rad per simulated second, or None (off: fixed `substeps`).
 
@@ -263,7 +276,7 @@ class Simulator:
         return self._tolerance
 
     @tolerance.setter
-    def tolerance(self, tolerance):
+    def tolerance(self, tolerance: float | None) -> None:
         if tolerance is not None:
             try:
                 tolerance = float(tolerance)
@@ -280,7 +293,7 @@ class Simulator:
             error_control.set_tolerance(self._control, tolerance)
 
     @property
-    def substeps(self):
+    def substeps(self) -> int:
         """
         Get the steps per outer step without a tolerance, the least with one (int >= 1).
 
@@ -289,7 +302,7 @@ class Simulator:
         return self._substeps
 
     @substeps.setter
-    def substeps(self, substeps):
+    def substeps(self, substeps: int) -> None:
         if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) \
                 or substeps < 1:
             raise ValueError(f'substeps must be a whole number >= 1; got {substeps!r}')
@@ -297,7 +310,7 @@ class Simulator:
         error_control.set_bounds(self._control, self._substeps)
         self._control_floor = self._substeps
 
-    def substep_statistics(self, reset=False):
+    def substep_statistics(self, reset: bool = False) -> dict[str, Any]:
         """
         Return the substeps and the error estimates since the last reset, as a dict.
 
@@ -319,7 +332,8 @@ class Simulator:
             error_control.reset_statistics(self._control)
         return figures
 
-    def set_wrench(self, force=None, torque=None, frame='world'):
+    def set_wrench(self, force: npt.ArrayLike | None = None, torque: npt.ArrayLike | None = None,
+                   frame: str = 'world') -> None:
         """
         Hold a force through the COM (N) and a torque about it (N m) until changed.
 
@@ -336,8 +350,10 @@ class Simulator:
         else:
             self._hold(None, None, force, torque)
 
-    def hold_wrench(self, force_world=None, torque_world=None, force_body=None,
-                    torque_body=None):
+    def hold_wrench(self, force_world: npt.ArrayLike | None = None,
+                    torque_world: npt.ArrayLike | None = None,
+                    force_body: npt.ArrayLike | None = None,
+                    torque_body: npt.ArrayLike | None = None) -> None:
         """
         Hold world-fixed and body-fixed parts of the wrench at once (N, N m).
 
@@ -358,24 +374,26 @@ class Simulator:
         self._plan()
 
     @property
-    def held_wrench(self):
+    def held_wrench(self) -> tuple[npt.NDArray[np.float64], ...]:
         """Get the held wrench: (force_world, torque_world, force_body, torque_body)."""
         return tuple(self._held[row].copy() for row in range(4))
 
     # -- state
 
     @property
-    def state(self):
+    def state(self) -> State:
         """Get the current State (world frame)."""
-        if self._state is None:
+        state = self._state
+        if state is None:
             if self._constraint is None:
-                self._state = self._integrated_state()
+                state = self._integrated_state()
             else:
-                self._state = State._from_values(self._constraint.expand_values(self._values))
-        return self._state
+                state = State._from_values(self._constraint.expand_values(self._values))
+            self._state = state
+        return state
 
     @state.setter
-    def state(self, state):
+    def state(self, state: State) -> None:
         if not isinstance(state, State):
             raise ValueError(f'state must be a State; got {type(state).__name__}')
         if self._constraint is None:
@@ -401,11 +419,11 @@ class Simulator:
         return self._integrated
 
     @property
-    def time(self):
+    def time(self) -> float:
         """Get the simulated time in s since the start."""
         return self._time
 
-    def reset(self, state, time=0.0):
+    def reset(self, state: State, time: float = 0.0) -> None:
         """Set the state and the time (s, finite)."""
         try:
             time = float(time)
@@ -417,7 +435,7 @@ class Simulator:
         self._time = time
         self._time_compensation = 0.0
 
-    def energy(self):
+    def energy(self) -> float:
         """Return the total energy in J: kinetic plus the effects' potential energies."""
         state = self.state
         energy = state.kinetic_energy(self._body)
@@ -427,7 +445,7 @@ class Simulator:
                 energy += potential(self._body, state)
         return energy
 
-    def applied_wrench(self):
+    def applied_wrench(self) -> Wrench:
         """
         Return (force N, torque N m) applied now: held plus effects, about the COM (world).
 
@@ -438,7 +456,7 @@ class Simulator:
         wrench = applied(values, self._time, self._model)
         return np.array(wrench[:3]), np.array(wrench[3:])
 
-    def wrench_function(self):
+    def wrench_function(self) -> Callable[[State, float], Wrench] | None:
         """
         Return the total wrench as ``wrench(state, time)``, or None when nothing pushes.
 
@@ -453,7 +471,7 @@ class Simulator:
         force_world, torque_world, force_body, torque_body = self.held_wrench
         body = self._body
 
-        def wrench(state, time):
+        def wrench(state: State, time: float) -> Wrench:
             force = force_world + state.rotation @ force_body
             torque = torque_world + state.rotation @ torque_body
             for effect in effects:
@@ -462,12 +480,13 @@ class Simulator:
                 torque = torque + effect_torque
             return force, torque
 
-        wrench.momentum_dependent = any(effect.momentum_dependent for effect in effects)
+        wrench.momentum_dependent = any(  # type: ignore[attr-defined]
+            effect.momentum_dependent for effect in effects)
         return wrench
 
     # -- time stepping
 
-    def step(self, dt):
+    def step(self, dt: float) -> State:
         """
         Advance one outer step of dt s; return the new State.
 
@@ -487,7 +506,8 @@ class Simulator:
             self._advance(self._substeps, dt / self._substeps, dt)
         return self.state
 
-    def run(self, duration, dt, progress=None):
+    def run(self, duration: float, dt: float,
+            progress: Callable[[float], Any] | None = None) -> State:
         """
         Advance by `duration` s in outer steps of dt s; return the final State.
 
@@ -621,21 +641,29 @@ class Simulator:
         self._checkpoint[:] = values
         if self._run is None:
             self._load_kernels()
-        finite = self._controller(self._controlled_run, values, self._model,
-                                  self._integrator.method, tick, ticks, self._time,
-                                  self._control) >= 0
-        self._advanced(ticks * tick, finite and _all_finite(values))
+        # The controller tests the state it leaves (error_control.py): -1 if not finite.
+        finite = self._controlled_kernel(self._controller, values, self._model,
+                                         self._integrator.method, tick, ticks, self._time,
+                                         self._control) >= 0
+        self._advanced(ticks * tick, finite)
 
     def _load_kernels(self):
-        """Fetch the run kernel and the controller, compiled or interpreted; return the run."""
+        """
+        Fetch the run kernel and the controller, compiled or interpreted; return the run.
+
+        Once per integrator (and per switch of :attr:`interpreted`): the Controller holding
+        the run is built here, so that no step pays for handing the run to the controller.
+        """
+        run_kernel = self._integrator.run_kernel
+        # Interpreted, the controller calls the run as it is (an error ends the whole call:
+        # -1).
+        self._controller = error_control.new_controller(run_kernel, self._interpreted)
         if self._interpreted:
-            # The controller calls the run as it is (an error ends the whole call: -1).
-            self._controlled_run = self._integrator.run_kernel.source
-            self._run = _interpreted(self._controlled_run)
-            self._controller = _interpreted(error_control.controlled.source)
+            self._run = _interpreted(run_kernel.source)
+            self._controlled_kernel = _interpreted(error_control.controlled.source)
         else:
-            self._run = self._controlled_run = self._integrator.run
-            self._controller = error_control.controlled.dispatcher
+            self._run = self._integrator.run
+            self._controlled_kernel = error_control.controlled.dispatcher
         return self._run
 
     def _add_time(self, increment):
@@ -657,15 +685,8 @@ def _interpreted(function):
     return guarded
 
 
-def _all_finite(values):
-    """Return whether every entry of a float array is finite."""
-    # The sum of the values as Python floats is finite when they all are, in a tenth of the
-    # time of np.isfinite (a step() per tick); only a sum overflowed by finite values near
-    # 1e308 needs the exact test.
-    return math.isfinite(sum(values.tolist())) or bool(np.isfinite(values).all())
-
-
-def unresolved_rotation(body, state, period, substeps=1, tolerance=None):
+def unresolved_rotation(body: RigidBody, state: State, period: float, substeps: int = 1,
+                        tolerance: float | None = None) -> str | None:
     """
     Return a one-line warning if a tick's steps turn the body too far, else None.
 
