@@ -8,20 +8,17 @@ values and pure functions.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 import math
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike
-from numpy.typing import NDArray
+import numpy.typing as npt
 
 from . import error_control
 from .body import RigidBody
 from .effects.registry import Effect
 from .integrators import get_integrator
-from .integrators import Integrator
 from .kernels import interpreting
 from .kernels.interpreted import ARITHMETIC_ERRORS
 from .kernels.layout import body_values
@@ -35,7 +32,7 @@ from .kernels.model import new_model
 from .stability import stiffness_problem
 from .state import State
 
-__all__ = ['Simulator', 'DivergedError', 'unresolved_rotation', 'RESOLVED_ROTATION']
+__all__ = ['Simulator', 'DivergedError', 'unresolved_rotation', 'RESOLVED_ROTATION', 'Wrench']
 
 RESOLVED_ROTATION = 0.5
 """The largest rotation (rad) per integrator step that the steps resolve: beyond it every
@@ -49,6 +46,9 @@ at ~0.05 us per step it would run for days)."""
 _FRAMES = ('world', 'body')
 # Steps per kernel call when a progress callback wants to hear about a long run.
 _PROGRESS_CHUNK = 20000
+
+Wrench = tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]
+"""A wrench as (force N, torque N m), world frame, each an array (3,)."""
 
 # What takes the steps (Simulator.path).
 COMPILED = 'compiled'  # the integrator's kernel, every effect compiled (kernels/model.py)
@@ -68,7 +68,7 @@ class DivergedError(ValueError):
         self.time = time
 
 
-def _checked_vector(value: Any, name: str) -> NDArray[np.float64]:
+def _checked_vector(value, name):
     array = np.zeros(3) if value is None else np.array(value, dtype=float).reshape(-1)
     if array.shape != (3,):
         raise ValueError(f'{name} must be a 3-vector; got shape {np.shape(value)}')
@@ -77,7 +77,7 @@ def _checked_vector(value: Any, name: str) -> NDArray[np.float64]:
     return array
 
 
-def _checked_positive(value: Any, name: str) -> float:
+def _checked_positive(value, name):
     try:
         number = float(value)
     except (TypeError, ValueError):
@@ -127,18 +127,8 @@ class Simulator:
 
     """
 
-    # The types of attributes that __init__ does not set, or sets to None.
-    _tolerance: float | None
-    _state: State | None
-    _integrated: State | None
-    _checked: tuple[float, int, Integrator, float | None] | None
-    _run: Callable[..., int] | None
-    _controlled_run: Callable[..., int]
-    _controller: Callable[..., int]
-    _model_arguments: dict[str, Any]
-
     def __init__(self, body: RigidBody, state: State, integrator: str = 'buss',
-                 effects: Iterable[Effect] = (), tolerance: float | None = None,
+                 effects: Iterable[Any] = (), tolerance: float | None = None,
                  substeps: int = 1) -> None:
         if not isinstance(state, State):
             raise ValueError(f'state must be a State; got {type(state).__name__}')
@@ -152,9 +142,11 @@ class Simulator:
         self._sort_effects()
         # The error controller's state (error_control.new_control).
         self._control = error_control.new_control(2)
-        self._tolerance = None
-        # The integrated state, packed [q, x, p, L].
+        self._tolerance: float | None = None
+        # The integrated state, packed [q, x, p, L], and the States made of it when read.
         self._values = np.zeros(STATE_SIZE)
+        self._state: State | None = None
+        self._integrated: State | None = None
         self.state = state
         self._interpreted = interpreting()
         # The last finite packed state (restored if a step turns the state non-finite), and
@@ -165,7 +157,7 @@ class Simulator:
         self.substeps = substeps
         self.tolerance = tolerance
 
-    def _sort_effects(self) -> None:
+    def _sort_effects(self):
         """Sort the effects by what they do and build the compiled model, once."""
         wrenches, flows, constraints = [], [], []
         for effect in self._effects:
@@ -212,7 +204,7 @@ class Simulator:
         return self._body
 
     @property
-    def effects(self) -> tuple[Effect, ...]:
+    def effects(self) -> tuple[Any, ...]:
         """Get the effects evaluated every step (a tuple)."""
         return self._effects
 
@@ -258,7 +250,7 @@ class Simulator:
         self._set_order()
         self._plan()
 
-    def _set_order(self) -> None:
+    def _set_order(self):
         """
         Give the controller the order of the steps as taken.
 
@@ -318,7 +310,7 @@ class Simulator:
         error_control.set_bounds(self._control, self._substeps)
         self._control_floor = self._substeps
 
-    def substep_statistics(self, reset: bool = False) -> dict[str, float | None]:
+    def substep_statistics(self, reset: bool = False) -> dict[str, Any]:
         """
         Return the substeps and the error estimates since the last reset, as a dict.
 
@@ -340,7 +332,7 @@ class Simulator:
             error_control.reset_statistics(self._control)
         return figures
 
-    def set_wrench(self, force: ArrayLike | None = None, torque: ArrayLike | None = None,
+    def set_wrench(self, force: npt.ArrayLike | None = None, torque: npt.ArrayLike | None = None,
                    frame: str = 'world') -> None:
         """
         Hold a force through the COM (N) and a torque about it (N m) until changed.
@@ -358,9 +350,10 @@ class Simulator:
         else:
             self._hold(None, None, force, torque)
 
-    def hold_wrench(self, force_world: ArrayLike | None = None,
-                    torque_world: ArrayLike | None = None, force_body: ArrayLike | None = None,
-                    torque_body: ArrayLike | None = None) -> None:
+    def hold_wrench(self, force_world: npt.ArrayLike | None = None,
+                    torque_world: npt.ArrayLike | None = None,
+                    force_body: npt.ArrayLike | None = None,
+                    torque_body: npt.ArrayLike | None = None) -> None:
         """
         Hold world-fixed and body-fixed parts of the wrench at once (N, N m).
 
@@ -373,9 +366,7 @@ class Simulator:
                    _checked_vector(force_body, 'force_body'),
                    _checked_vector(torque_body, 'torque_body'))
 
-    def _hold(self, force_world: NDArray[np.float64] | None,
-              torque_world: NDArray[np.float64] | None, force_body: NDArray[np.float64] | None,
-              torque_body: NDArray[np.float64] | None) -> None:
+    def _hold(self, force_world, torque_world, force_body, torque_body):
         # Written in place: the compiled model holds this very array.
         for row, part in ((HELD_FORCE_WORLD, force_world), (HELD_TORQUE_WORLD, torque_world),
                           (HELD_FORCE_BODY, force_body), (HELD_TORQUE_BODY, torque_body)):
@@ -383,7 +374,7 @@ class Simulator:
         self._plan()
 
     @property
-    def held_wrench(self) -> tuple[NDArray[np.float64], ...]:
+    def held_wrench(self) -> tuple[npt.NDArray[np.float64], ...]:
         """Get the held wrench: (force_world, torque_world, force_body, torque_body)."""
         return tuple(self._held[row].copy() for row in range(4))
 
@@ -392,12 +383,14 @@ class Simulator:
     @property
     def state(self) -> State:
         """Get the current State (world frame)."""
-        if self._state is None:
+        state = self._state
+        if state is None:
             if self._constraint is None:
-                self._state = self._integrated_state()
+                state = self._integrated_state()
             else:
-                self._state = State._from_values(self._constraint.expand_values(self._values))
-        return self._state
+                state = State._from_values(self._constraint.expand_values(self._values))
+            self._state = state
+        return state
 
     @state.setter
     def state(self, state: State) -> None:
@@ -413,13 +406,13 @@ class Simulator:
         # A new state: estimate at the next outer step, from scratch.
         error_control.changed(self._control, forget=True)
 
-    def _store(self, integrated: State) -> None:
+    def _store(self, integrated):
         """Make `integrated` (a State of the integrated system) the current one."""
         np.concatenate(integrated._fields(), out=self._values)
         self._integrated = integrated
         self._state = None
 
-    def _integrated_state(self) -> State:
+    def _integrated_state(self):
         """Return the State of the integrated system (the pivot system under a pivot)."""
         if self._integrated is None:
             self._integrated = State._from_values(self._values)
@@ -452,7 +445,7 @@ class Simulator:
                 energy += potential(self._body, state)
         return energy
 
-    def applied_wrench(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    def applied_wrench(self) -> Wrench:
         """
         Return (force N, torque N m) applied now: held plus effects, about the COM (world).
 
@@ -463,9 +456,7 @@ class Simulator:
         wrench = applied(values, self._time, self._model)
         return np.array(wrench[:3]), np.array(wrench[3:])
 
-    def wrench_function(
-            self) -> Callable[[State, float],
-                              tuple[NDArray[np.float64], NDArray[np.float64]]] | None:
+    def wrench_function(self) -> Callable[[State, float], Wrench] | None:
         """
         Return the total wrench as ``wrench(state, time)``, or None when nothing pushes.
 
@@ -480,7 +471,7 @@ class Simulator:
         force_world, torque_world, force_body, torque_body = self.held_wrench
         body = self._body
 
-        def wrench(state: State, time: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        def wrench(state: State, time: float) -> Wrench:
             force = force_world + state.rotation @ force_body
             torque = torque_world + state.rotation @ torque_body
             for effect in effects:
@@ -489,7 +480,8 @@ class Simulator:
                 torque = torque + effect_torque
             return force, torque
 
-        wrench.momentum_dependent = any(effect.momentum_dependent for effect in effects)
+        wrench.momentum_dependent = any(  # type: ignore[attr-defined]
+            effect.momentum_dependent for effect in effects)
         return wrench
 
     # -- time stepping
@@ -515,7 +507,7 @@ class Simulator:
         return self.state
 
     def run(self, duration: float, dt: float,
-            progress: Callable[[float], object] | None = None) -> State:
+            progress: Callable[[float], Any] | None = None) -> State:
         """
         Advance by `duration` s in outer steps of dt s; return the final State.
 
@@ -566,7 +558,7 @@ class Simulator:
             progress(1.0)
         return self.state
 
-    def _plan(self) -> None:
+    def _plan(self):
         """Tell the error controller the configuration changed, and if it is torque-free."""
         held = self._held
         torque_free = not (self._flows or np.any(held[HELD_TORQUE_WORLD])
@@ -578,7 +570,7 @@ class Simulator:
         error_control.set_torque_free(self._control, torque_free)
         error_control.changed(self._control)
 
-    def _check_stiffness(self, dt: float) -> None:
+    def _check_stiffness(self, dt):
         """
         Refuse a fixed step too long for a stiff effect; under error control, bound it.
 
@@ -595,7 +587,7 @@ class Simulator:
             error_control.set_bounds(self._control, floor)
             self._control_floor = floor
 
-    def _advanced(self, duration: float, finite: bool) -> None:
+    def _advanced(self, duration, finite):
         """
         Take the state a kernel left after `duration` s: finite, or the last one restored.
 
@@ -609,7 +601,7 @@ class Simulator:
             raise DivergedError(self._divergence(duration), self._time)
         self._add_time(duration)
 
-    def _divergence(self, duration: float) -> str:
+    def _divergence(self, duration):
         """Return the one-line message of a state that turned non-finite."""
         acting = [repr(effect) for effect in self._effects
                   if getattr(effect, 'compiled_wrench', None) is not None
@@ -627,7 +619,7 @@ class Simulator:
                 f't = {self._time:.9g} s: a shorter step (rate, substeps) or smaller '
                 'coefficients or inputs keep it finite')
 
-    def _advance(self, steps: int, dt: float, duration: float | None = None) -> None:
+    def _advance(self, steps, dt, duration=None):
         """Take `steps` steps of dt s; the clock moves by `duration` (default steps x dt)."""
         # Called once a tick by the node: no closure, no call more than needed.
         values = self._values
@@ -639,7 +631,7 @@ class Simulator:
         finite = run(values, self._model, self._integrator.method, dt, steps, self._time) >= 0
         self._advanced(steps * dt if duration is None else duration, finite)
 
-    def _controlled(self, tick: float, ticks: int) -> None:
+    def _controlled(self, tick, ticks):
         """
         Take `ticks` outer steps of `tick` s under error control (error_control.py).
 
@@ -649,24 +641,32 @@ class Simulator:
         self._checkpoint[:] = values
         if self._run is None:
             self._load_kernels()
-        finite = self._controller(self._controlled_run, values, self._model,
-                                  self._integrator.method, tick, ticks, self._time,
-                                  self._control) >= 0
-        self._advanced(ticks * tick, finite and _all_finite(values))
+        # The controller tests the state it leaves (error_control.py): -1 if not finite.
+        finite = self._controlled_kernel(self._controller, values, self._model,
+                                         self._integrator.method, tick, ticks, self._time,
+                                         self._control) >= 0
+        self._advanced(ticks * tick, finite)
 
-    def _load_kernels(self) -> Callable[..., int]:
-        """Fetch the run kernel and the controller, compiled or interpreted; return the run."""
+    def _load_kernels(self):
+        """
+        Fetch the run kernel and the controller, compiled or interpreted; return the run.
+
+        Once per integrator (and per switch of :attr:`interpreted`): the Controller holding
+        the run is built here, so that no step pays for handing the run to the controller.
+        """
+        run_kernel = self._integrator.run_kernel
+        # Interpreted, the controller calls the run as it is (an error ends the whole call:
+        # -1).
+        self._controller = error_control.new_controller(run_kernel, self._interpreted)
         if self._interpreted:
-            # The controller calls the run as it is (an error ends the whole call: -1).
-            self._controlled_run = self._integrator.run_kernel.source
-            self._run = _interpreted(self._controlled_run)
-            self._controller = _interpreted(error_control.controlled.source)
+            self._run = _interpreted(run_kernel.source)
+            self._controlled_kernel = _interpreted(error_control.controlled.source)
         else:
-            self._run = self._controlled_run = self._integrator.run
-            self._controller = error_control.controlled.dispatcher
+            self._run = self._integrator.run
+            self._controlled_kernel = error_control.controlled.dispatcher
         return self._run
 
-    def _add_time(self, increment: float) -> None:
+    def _add_time(self, increment):
         # Kahan summation: keeps the clock exact to round-off over millions of ticks, where a
         # plain running sum would drift by ~steps * eps * time.
         y = increment - self._time_compensation
@@ -675,22 +675,14 @@ class Simulator:
         self._time = total
 
 
-def _interpreted(function: Callable[..., int]) -> Callable[..., int]:
+def _interpreted(function):
     """Return an interpreted kernel that says -1 (not finite) where Python's math raises."""
-    def guarded(*arguments: Any) -> int:
+    def guarded(*arguments):
         try:
             return function(*arguments)
         except ARITHMETIC_ERRORS:
             return -1
     return guarded
-
-
-def _all_finite(values: NDArray[np.float64]) -> bool:
-    """Return whether every entry of a float array is finite."""
-    # The sum of the values as Python floats is finite when they all are, in a tenth of the
-    # time of np.isfinite (a step() per tick); only a sum overflowed by finite values near
-    # 1e308 needs the exact test.
-    return math.isfinite(sum(values.tolist())) or bool(np.isfinite(values).all())
 
 
 def unresolved_rotation(body: RigidBody, state: State, period: float, substeps: int = 1,

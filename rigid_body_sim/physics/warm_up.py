@@ -6,7 +6,8 @@ of :func:`compile_job`, so that the ``compile`` command can take them in paralle
 
 - ``shared``: what every scene uses whatever the integrator: the Model, the effects' terms,
   flows and constraint, the IMU, the derived quantities the messages are made of;
-- ``controller``: the error controller (error_control.controlled), one for every method;
+- ``controller``: the error controller (error_control.controlled) and the constructor of
+  the structure that hands it a run kernel, one for every method;
 - ``run-<module>``: a method's run kernel (``run-buss`` serves buss and buss_plain,
   ``run-splitting`` splitting and splitting4).
 
@@ -105,7 +106,8 @@ def missing(names: Iterable[str] | None = None) -> list[str]:
 
 def declared_seconds() -> dict[str, float]:
     """Return {job: the CPU seconds declared with its kernels} for every job."""
-    declared = {SHARED: SHARED_SECONDS, CONTROLLER: error_control.controlled.compile_seconds}
+    declared = {SHARED: SHARED_SECONDS, CONTROLLER: sum(
+        kernel.compile_seconds for kernel in error_control.CONTROLLER_KERNELS)}
     for integrator in INTEGRATORS.values():
         declared[integrator.compile_job] = integrator.compile_seconds
     # Every run kernel and the controller declare theirs (kernels/loop.py's run_kernel).
@@ -174,7 +176,8 @@ def compile_job(job: str) -> float:
     if job == SHARED:
         _shared()
     elif job == CONTROLLER:
-        error_control.controlled.dispatcher
+        for kernel in error_control.CONTROLLER_KERNELS:
+            kernel.dispatcher
     else:
         kernels = {integrator.compile_job: integrator.run_kernel
                    for integrator in INTEGRATORS.values()}
