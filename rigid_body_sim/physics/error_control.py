@@ -81,7 +81,8 @@ from __future__ import annotations
 
 import collections
 import math
-from typing import Any, Callable
+from typing import Any
+from typing import Callable
 
 from numba import types
 from numba.experimental import structref
@@ -101,6 +102,7 @@ from .kernels.layout import inverse_inertia_times
 from .kernels.layout import STATE_SIZE
 from .kernels.loop import METHOD_TYPE
 from .kernels.loop import RUN_SIGNATURE
+from .kernels.model import Array
 from .kernels.model import Model
 from .kernels.model import MODEL_TYPE
 
@@ -337,7 +339,7 @@ def turning_points(state: npt.NDArray[np.float64],
 
 
 @helper
-def _turn_rate(state, body):
+def _turn_rate(state: Array, body: Array) -> float:
     """Return |Omega| (rad/s) of a packed state: |I_b^-1 R^T L|."""
     ox, oy, oz = inverse_inertia_times(body, rotate_back(
         (state[0], state[1], state[2], state[3]), (state[10], state[11], state[12])))
@@ -345,7 +347,7 @@ def _turn_rate(state, body):
 
 
 @helper
-def _ticks_between_estimates(substeps, tick, turn_rate):
+def _ticks_between_estimates(substeps: int, tick: float, turn_rate: float) -> float:
     """Return the ticks to take without an estimate after one (see OVERHEAD, MAX_TURN)."""
     extra = (1.0 if substeps >= 2 else 2.0) + ESTIMATE_WORK
     by_cost = math.ceil(extra / (OVERHEAD * substeps)) - 1.0
@@ -355,7 +357,7 @@ def _ticks_between_estimates(substeps, tick, turn_rate):
 
 
 @helper
-def _record(control, substeps, steps, ticks=1):
+def _record(control: Array, substeps: int, steps: int, ticks: int = 1) -> None:
     """Note `ticks` ticks of `substeps` substeps each that took `steps` integrator steps."""
     control[LAST] = substeps
     control[LOWEST] = min(control[LOWEST], substeps)
@@ -369,7 +371,7 @@ def _record(control, substeps, steps, ticks=1):
 class ControllerType(types.StructRef):
     """numba's type of a :class:`Controller`."""
 
-    def preprocess_fields(self, fields):
+    def preprocess_fields(self, fields: Any) -> tuple[Any, ...]:
         """Drop literal types: every Controller has the one type."""
         return tuple((name, types.unliteral(kind)) for name, kind in fields)
 
@@ -394,7 +396,7 @@ CONTROLLER_TYPE = ControllerType([('run', _RUN_FUNCTION)])
 """numba's type of every Controller: one type, so the controller compiles once."""
 
 
-def _controller_of(run):
+def _controller_of(run: Callable[..., int]) -> Controller:
     return Controller(run)
 
 

@@ -8,7 +8,8 @@ values and pure functions.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
+from collections.abc import Iterable
 import math
 from typing import Any
 
@@ -19,6 +20,7 @@ from . import error_control
 from .body import RigidBody
 from .effects.registry import Effect
 from .integrators import get_integrator
+from .integrators import Integrator
 from .kernels import interpreting
 from .kernels.interpreted import ARITHMETIC_ERRORS
 from .kernels.layout import body_values
@@ -68,7 +70,7 @@ class DivergedError(ValueError):
         self.time = time
 
 
-def _checked_vector(value, name):
+def _checked_vector(value: Any, name: str) -> npt.NDArray[np.float64]:
     array = np.zeros(3) if value is None else np.array(value, dtype=float).reshape(-1)
     if array.shape != (3,):
         raise ValueError(f'{name} must be a 3-vector; got shape {np.shape(value)}')
@@ -77,7 +79,7 @@ def _checked_vector(value, name):
     return array
 
 
-def _checked_positive(value, name):
+def _checked_positive(value: Any, name: str) -> float:
     try:
         number = float(value)
     except (TypeError, ValueError):
@@ -152,12 +154,12 @@ class Simulator:
         # The last finite packed state (restored if a step turns the state non-finite), and
         # the configuration whose steps were last checked against the stiff effects.
         self._checkpoint = np.zeros(STATE_SIZE)
-        self._checked = None
+        self._checked: tuple[float, int, Integrator, float | None] | None = None
         self.integrator = integrator
         self.substeps = substeps
         self.tolerance = tolerance
 
-    def _sort_effects(self):
+    def _sort_effects(self) -> None:
         """Sort the effects by what they do and build the compiled model, once."""
         wrenches, flows, constraints = [], [], []
         for effect in self._effects:
@@ -183,7 +185,7 @@ class Simulator:
                                  else self._constraint.body)
         body = self._integrated_body
         constraint = self._constraint
-        self._model_arguments = {
+        self._model_arguments: dict[str, Any] = {
             'body': body_values(body.inertia, body.inertia_inverse, body.mass),
             'held': self._held,
             'terms': [(effect.compiled_wrench, effect.wrench_parameters(self._body))
@@ -235,7 +237,7 @@ class Simulator:
         if interpreted != self._interpreted:
             self._interpreted = interpreted
             self._model = new_model(**self._model_arguments, interpreted=interpreted)
-            self._run = None
+            self._run: Callable[..., int] | None = None
 
     @property
     def integrator(self) -> str:
@@ -250,7 +252,7 @@ class Simulator:
         self._set_order()
         self._plan()
 
-    def _set_order(self):
+    def _set_order(self) -> None:
         """
         Give the controller the order of the steps as taken.
 
@@ -366,7 +368,10 @@ class Simulator:
                    _checked_vector(force_body, 'force_body'),
                    _checked_vector(torque_body, 'torque_body'))
 
-    def _hold(self, force_world, torque_world, force_body, torque_body):
+    def _hold(self, force_world: npt.NDArray[np.float64] | None,
+              torque_world: npt.NDArray[np.float64] | None,
+              force_body: npt.NDArray[np.float64] | None,
+              torque_body: npt.NDArray[np.float64] | None) -> None:
         # Written in place: the compiled model holds this very array.
         for row, part in ((HELD_FORCE_WORLD, force_world), (HELD_TORQUE_WORLD, torque_world),
                           (HELD_FORCE_BODY, force_body), (HELD_TORQUE_BODY, torque_body)):
@@ -406,13 +411,13 @@ class Simulator:
         # A new state: estimate at the next outer step, from scratch.
         error_control.changed(self._control, forget=True)
 
-    def _store(self, integrated):
+    def _store(self, integrated: State) -> None:
         """Make `integrated` (a State of the integrated system) the current one."""
         np.concatenate(integrated._fields(), out=self._values)
         self._integrated = integrated
         self._state = None
 
-    def _integrated_state(self):
+    def _integrated_state(self) -> State:
         """Return the State of the integrated system (the pivot system under a pivot)."""
         if self._integrated is None:
             self._integrated = State._from_values(self._values)
@@ -480,7 +485,7 @@ class Simulator:
                 torque = torque + effect_torque
             return force, torque
 
-        wrench.momentum_dependent = any(  # type: ignore[attr-defined]
+        wrench.momentum_dependent = any(
             effect.momentum_dependent for effect in effects)
         return wrench
 
@@ -558,7 +563,7 @@ class Simulator:
             progress(1.0)
         return self.state
 
-    def _plan(self):
+    def _plan(self) -> None:
         """Tell the error controller the configuration changed, and if it is torque-free."""
         held = self._held
         torque_free = not (self._flows or np.any(held[HELD_TORQUE_WORLD])
@@ -570,7 +575,7 @@ class Simulator:
         error_control.set_torque_free(self._control, torque_free)
         error_control.changed(self._control)
 
-    def _check_stiffness(self, dt):
+    def _check_stiffness(self, dt: float) -> None:
         """
         Refuse a fixed step too long for a stiff effect; under error control, bound it.
 
@@ -587,7 +592,7 @@ class Simulator:
             error_control.set_bounds(self._control, floor)
             self._control_floor = floor
 
-    def _advanced(self, duration, finite):
+    def _advanced(self, duration: float, finite: bool) -> None:
         """
         Take the state a kernel left after `duration` s: finite, or the last one restored.
 
@@ -601,7 +606,7 @@ class Simulator:
             raise DivergedError(self._divergence(duration), self._time)
         self._add_time(duration)
 
-    def _divergence(self, duration):
+    def _divergence(self, duration: float) -> str:
         """Return the one-line message of a state that turned non-finite."""
         acting = [repr(effect) for effect in self._effects
                   if getattr(effect, 'compiled_wrench', None) is not None
@@ -619,7 +624,7 @@ class Simulator:
                 f't = {self._time:.9g} s: a shorter step (rate, substeps) or smaller '
                 'coefficients or inputs keep it finite')
 
-    def _advance(self, steps, dt, duration=None):
+    def _advance(self, steps: int, dt: float, duration: float | None = None) -> None:
         """Take `steps` steps of dt s; the clock moves by `duration` (default steps x dt)."""
         # Called once a tick by the node: no closure, no call more than needed.
         values = self._values
@@ -631,7 +636,7 @@ class Simulator:
         finite = run(values, self._model, self._integrator.method, dt, steps, self._time) >= 0
         self._advanced(steps * dt if duration is None else duration, finite)
 
-    def _controlled(self, tick, ticks):
+    def _controlled(self, tick: float, ticks: int) -> None:
         """
         Take `ticks` outer steps of `tick` s under error control (error_control.py).
 
@@ -647,7 +652,7 @@ class Simulator:
                                          self._control) >= 0
         self._advanced(ticks * tick, finite)
 
-    def _load_kernels(self):
+    def _load_kernels(self) -> Callable[..., int]:
         """
         Fetch the run kernel and the controller, compiled or interpreted; return the run.
 
@@ -666,7 +671,7 @@ class Simulator:
             self._controlled_kernel = error_control.controlled.dispatcher
         return self._run
 
-    def _add_time(self, increment):
+    def _add_time(self, increment: float) -> None:
         # Kahan summation: keeps the clock exact to round-off over millions of ticks, where a
         # plain running sum would drift by ~steps * eps * time.
         y = increment - self._time_compensation
@@ -675,9 +680,9 @@ class Simulator:
         self._time = total
 
 
-def _interpreted(function):
+def _interpreted(function: Callable[..., int]) -> Callable[..., int]:
     """Return an interpreted kernel that says -1 (not finite) where Python's math raises."""
-    def guarded(*arguments):
+    def guarded(*arguments: Any) -> int:
         try:
             return function(*arguments)
         except ARITHMETIC_ERRORS:

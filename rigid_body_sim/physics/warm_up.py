@@ -106,12 +106,18 @@ def missing(names: Iterable[str] | None = None) -> list[str]:
 
 def declared_seconds() -> dict[str, float]:
     """Return {job: the CPU seconds declared with its kernels} for every job."""
-    declared = {SHARED: SHARED_SECONDS, CONTROLLER: sum(
-        kernel.compile_seconds for kernel in error_control.CONTROLLER_KERNELS)}
-    for integrator in INTEGRATORS.values():
-        declared[integrator.compile_job] = integrator.compile_seconds
     # Every run kernel and the controller declare theirs (kernels/loop.py's run_kernel).
-    return declared  # type: ignore[return-value]
+    def declared_by(owner: object) -> float:
+        seconds = getattr(owner, 'compile_seconds', None)
+        if seconds is None:
+            raise ValueError(f'{owner!r} declares no compile_seconds')
+        return float(seconds)
+
+    declared = {SHARED: SHARED_SECONDS, CONTROLLER: sum(
+        declared_by(kernel) for kernel in error_control.CONTROLLER_KERNELS)}
+    for integrator in INTEGRATORS.values():
+        declared[integrator.compile_job] = declared_by(integrator)
+    return declared
 
 
 def job_estimate(job: str) -> float:
