@@ -31,13 +31,13 @@ orientation error later, and this counts its first step of that.
 
 Where the count is set.  Error per step is what the estimate measures, but not what a long
 run's error follows: measured on the built-in scenes, a count that followed the local error
-along the orbit (n ~ sqrt(r), the textbook controller) was 2-8x dearer than a fixed step at
-the same error after 60 s, for two reasons.  Near the separatrix (the T-handle, the tennis
-racket, van Zon's body) an error made next to the unstable axis, where Buss's local error
-all but vanishes, is amplified most: it shifts every later flip.  And a geometric
-integrator's errors stay small over long runs at a constant step, while a varying one
-lets them drift (the heavy top, whose local error varies 5x over each nutation: 2.5x the
-error of a fixed step at the same mean count).  So the count is held at what the worst
+along the orbit (n ~ sqrt(r), the textbook controller) was several times dearer than a fixed
+step at the same error after 60 s, for two reasons.  Near the separatrix (the T-handle, the
+tennis racket, van Zon's body) an error made next to the unstable axis, where Buss's local
+error all but vanishes, is amplified most: it shifts every later flip.  And a geometric
+integrator's errors stay small over long runs at a constant step, while a varying one lets
+them drift (the heavy top, whose local error varies several-fold over each nutation: more
+error than a fixed step at the same mean count).  So the count is held at what the worst
 point of the motion needs, and changed seldom:
 
 - torque-free (no torque, no dissipation: :func:`set_torque_free`), the error constant
@@ -46,7 +46,7 @@ point of the motion needs, and changed seldom:
   estimates), so that from the first tick the count covers the whole orbit, the flips
   included, not just where the body is.  Under a torque or a flow the polhode is not the
   body's future, and only the body's own estimates count (measured on flat_spin: its
-  polhode widens as it dissipates, and the turning points asked 2x the substeps that
+  polhode widens as it dissipates, and the turning points asked for substeps that
   bought nothing, the error being made before the separatrix crossing);
 - the decision uses the largest C seen, decaying with the time constant HOLD (simulated s):
   C_held = max(C, C_held exp(-dt / HOLD)), and the count n* = T (C_held / (SAFETY tol))^(1/q)
@@ -130,7 +130,7 @@ OVERHEAD = 1.0 / 16.0
 """Most of the substeps' cost spent on estimates (one extra step per estimate, two at n=1)."""
 ESTIMATE_WORK = 2.0
 """An estimate's work besides its extra steps, in steps: its two more calls of the
-integrator's run (~40 ns each, about a compiled Buss step's 50 ns), the difference and
+integrator's run (each about what a compiled Buss step costs), the difference and
 the decision.  Counted with the extra steps against OVERHEAD."""
 MAX_TURN = 1.0
 """Longest turn of the body (rad) between two estimates: the error rate follows the state."""

@@ -43,7 +43,7 @@ method's error per step is O(1) (the Taylor and Magnus series the methods trunca
 
 MAX_STEPS_PER_RUN = 10 ** 12
 """The most outer steps one :meth:`Simulator.run` takes (duration / dt beyond it is refused:
-at ~0.05 us per step it would run for days)."""
+at a compiled step's cost it would run for days)."""
 
 _FRAMES = ('world', 'body')
 # Steps per kernel call when a progress callback wants to hear about a long run.
@@ -224,8 +224,9 @@ class Simulator:
         """
         Whether the kernels run as their Python source instead of compiled (settable).
 
-        The same steps, ~1000x slower, with nothing to compile (kernels/interpreted.py): what
-        a process that must not wait runs while the kernels compile elsewhere.  Defaults to
+        The same steps, orders of magnitude slower, with nothing to compile
+        (kernels/interpreted.py): what a process that must not wait runs while the kernels
+        compile elsewhere.  Defaults to
         kernels.interpreting() when the Simulator is made; set it False once they are
         compiled, and the next step loads them (the state is kept).
         """

@@ -44,8 +44,8 @@ _MARKER = 'visualization_msgs/msg/Marker'
 _DISCOVERY_PERIOD = 0.5
 # A watched node absent from the graph this long is gone (the graph lags a little).
 _GONE_AFTER = 3.0
-# The largest serialised message (bytes) taken per topic: the node's are under a tenth of
-# these (a report of ~40 values is ~3 kB); a larger one is a peer's, dropped unread.
+# The largest serialised message (bytes) taken per topic: the node's are far smaller (a
+# report holds some forty short values); a larger one is a peer's, dropped unread.
 _STATE_BYTES = 16 * 1024
 _REPORT_BYTES = 64 * 1024
 # Keep-last depth of the shared topics' subscriptions: the node's report comes once a second,
