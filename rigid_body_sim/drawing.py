@@ -424,9 +424,12 @@ class BodyView:
         motion as sampled by whoever calls (every pose received, say), not the frames drawn;
         it fades towards the oldest as :meth:`show`'s does.
         """
-        tips = np.array([axis_endpoints(quaternion, self.axis_length)[self.trail_axis]
-                         for quaternion in np.asarray(quaternions, dtype=float)]).reshape(-1, 3)
-        self.trail_points = list(tips[-_TRAIL_FRAMES:])
+        direction = np.asarray(self.trail_axis.direction, dtype=float)
+        units = np.array([matrix_from_quaternion(quaternion) @ direction
+                          for quaternion in np.asarray(quaternions, dtype=float)]).reshape(-1, 3)
+        # show() keeps unit directions in trail_points and scales them when it draws.
+        self.trail_points = [units[-_TRAIL_FRAMES:]]
+        tips = self.axis_length * units
         if len(tips) < 2:
             self.trail.set_segments([np.zeros((2, 3))])
             return

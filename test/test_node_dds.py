@@ -421,9 +421,11 @@ def test_rejection_warnings_are_throttled_to_one_a_second(sim):
         sim.publish_torque([0.0, 0.0, 1.0], 'odom')
         time.sleep(0.01)  # waits-for: pace of twenty publications
     elapsed = time.monotonic() - start
-    # Until the node has taken all twenty (its count of rejections) and logged for them.
-    sim.wait_for(lambda: rejected_inputs(sim, since) >= rejected_before + 20,
-                 DISCOVERY_TIMEOUT, 'twenty rejections in /diagnostics')
+    # Until the node has rejected them: it reads the latest input of a topic at each tick,
+    # so inputs that arrive between two ticks supersede one another unread (a busy machine
+    # delivers several at once); at least one is read and rejected.
+    sim.wait_for(lambda: rejected_inputs(sim, since) >= rejected_before + 1,
+                 DISCOVERY_TIMEOUT, 'the rejections in /diagnostics')
     warnings = sim.process.output().count(reason) - before
     # One warning per second at most; the twenty inputs spanned `elapsed` s.
     assert 1 <= warnings <= 1 + int(elapsed), (warnings, elapsed)
