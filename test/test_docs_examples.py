@@ -2,7 +2,10 @@
 Every shell and Python example of the README and docs/ runs as written, so no page goes stale.
 
 The examples are the ```sh and ```python blocks of README.md and docs/*.md, taken from the
-pages at test time.  Each shell command runs verbatim with bash in a scratch copy of the
+pages at test time, and the file blocks: a ```python, ```yaml or ```toml block whose first
+line is ``# file: PATH`` is a file the page has the reader write (a plugin, a scene), written
+to PATH in the working directory before each later block of its page runs, and checked to
+parse.  Each shell command runs verbatim with bash in a scratch copy of the
 places the pages write to (the working directory: a fresh clone's root with .venv, config,
 benchmarks and a copy of docs/), after the one activation step the README states
 (``. .venv/bin/activate``); each Python block runs whole.  A command that cannot run here
@@ -37,7 +40,8 @@ from rigid_body_sim.cli import build_parser
 ROOT = Path(__file__).resolve().parent.parent
 PAGES = [ROOT / 'README.md', *sorted((ROOT / 'docs').glob('*.md'))]
 VENV = ROOT / '.venv'
-_BLOCK = re.compile(r'```(sh|python)\n(.*?)```', re.S)
+_BLOCK = re.compile(r'```(sh|python|yaml|toml)\n(.*?)```', re.S)
+_FILE = re.compile(r'# file: (\S+)\n')
 # Shell commands of the pages whose run would take too long, need a running node or would
 # never end; their arguments are parsed instead, by the tool's own parser.
 _PARSED_ONLY = {
@@ -48,10 +52,34 @@ _PARSED_ONLY = {
 
 
 def _examples():
-    """Yield (page, index, language, text) of every example block."""
+    """Yield (page, index, language, text) of every example block (yaml, toml: files only)."""
     for page in PAGES:
         for index, match in enumerate(_BLOCK.finditer(page.read_text()), 1):
-            yield page.relative_to(ROOT), index, match.group(1), match.group(2)
+            language, text = match.group(1), match.group(2)
+            if language in ('sh', 'python') or _FILE.match(text):
+                yield page.relative_to(ROOT), index, language, text
+
+
+def _write_files(directory, page, before):
+    """Write the file blocks of `page` that come before block `before` into `directory`."""
+    for other, index, _, text in EXAMPLES:
+        found = _FILE.match(text)
+        if other == page and index < before and found:
+            path = directory / found.group(1)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(text)
+
+
+def _check_file_block(language, name, text):
+    """Fail unless a file block parses as its language."""
+    if language == 'python':
+        compile(text, name, 'exec')
+    elif language == 'yaml':
+        import yaml
+        assert isinstance(yaml.safe_load(text), dict), name
+    else:
+        import tomllib
+        tomllib.loads(text)
 
 
 EXAMPLES = list(_examples())
@@ -114,6 +142,11 @@ def scratch(tmp_path_factory):
 @pytest.mark.parametrize('page, index, language, text', EXAMPLES,
                          ids=[f'{page}#{index}' for page, index, _, _ in EXAMPLES])
 def test_every_example_of_the_pages_runs_as_written(scratch, page, index, language, text):
+    _write_files(scratch, page, index)
+    found = _FILE.match(text)
+    if found:
+        _check_file_block(language, found.group(1), text)
+        return
     if language == 'python':
         result = subprocess.run([str(VENV / 'bin' / 'python'), '-c', text], cwd=scratch,
                                 capture_output=True, text=True, timeout=600)
@@ -183,7 +216,7 @@ def test_the_node_help_lists_every_published_topic():
     from rigid_body_sim.node.help_text import help_text
     text = help_text()
     for topic in ('pose', 'twist', 'angular_momentum', 'odom', 'marker', 'imu',
-                  '/diagnostics', '/clock'):
+                  '/tf', '/diagnostics', '/clock'):
         assert re.search(rf'^  {re.escape(topic)} ', text, re.M), topic
 
 

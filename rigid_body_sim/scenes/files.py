@@ -80,7 +80,7 @@ def load_scene(name_or_path=DEFAULT_SCENE):
     except UnicodeDecodeError as error:
         raise ValueError(f'{source}: not UTF-8 text: byte {error.object[error.start]:#04x} at '
                          f'offset {error.start}') from None
-    return parse_scene(data, source)
+    return parse_scene(data, source, path.parent)
 
 
 def default_body():
