@@ -319,3 +319,75 @@ def test_an_empty_bag_path_is_one_line_saying_so(capsys):
     assert main(['simulate', '--duration', '0.05', '--quiet', '--bag', '']) == 2
     error = capsys.readouterr().err
     assert error.count('\n') == 1 and '--bag is empty' in error, error
+
+
+# -- the docs as a new user read them (issue 32)
+
+def _page_file(page, name):
+    """Return the text of the file block `name` of `page` (docs/scenes.md's cylinder.yaml)."""
+    for other, _, _, text in EXAMPLES:
+        found = _FILE.match(text)
+        if other == Path(page) and found and found.group(1) == name:
+            return text
+    raise AssertionError(f'{page} has no file block {name}')
+
+
+def test_every_params_file_the_pages_name_is_where_they_say(scratch):
+    # A venv has no install/ tree: a page's --params-file is a path of the source tree, or
+    # the colcon install's, found by `ros2 pkg prefix` (the share/ tree mirrors config/).
+    prefix = '$(ros2 pkg prefix rigid_body_sim)/share/rigid_body_sim/'
+    named = []
+    for page, _, language, text in EXAMPLES:
+        if language != 'sh':
+            continue
+        for command in _commands(text):
+            words = command.split()
+            for index, word in enumerate(words[:-1]):
+                if word == '--params-file':
+                    path = words[index + 1]
+                    named.append(path)
+                    relative = path[len(prefix):] if path.startswith(prefix) else path
+                    assert (scratch / relative).is_file(), f'{page}: {command}'
+    assert any(path.startswith(prefix) for path in named)
+    assert any(not path.startswith(prefix) for path in named)
+
+
+def test_record_records_by_default_every_topic_simulate_writes(tmp_path):
+    from rigid_body_sim.cli import main
+    from rigid_body_sim.tools.record import default_record_topics
+    from rosbags.rosbag2 import Reader
+    bag = tmp_path / 'bag'
+    assert main(['simulate', '--duration', '0.05', '--quiet', '--bag', str(bag)]) == 0
+    with Reader(bag) as reader:
+        written = {connection.topic for connection in reader.connections}
+    from rigid_body_sim.messages.tf import transform_message_class
+    if transform_message_class()[0] is not None:
+        assert {'/tf', '/tf_static'} <= written
+    assert written <= set(default_record_topics('')), written - set(default_record_topics(''))
+
+
+def test_scenes_effects_gives_every_built_in_parameter_its_unit(capsys):
+    from rigid_body_sim.cli import main
+    from rigid_body_sim.physics.effects import effect_parameters
+    from rigid_body_sim.physics.effects import EFFECTS
+    assert main(['scenes', '--effects']) == 0
+    shown = capsys.readouterr().out
+    built_in = [name for name in EFFECTS
+                if EFFECTS[name].__module__.startswith('rigid_body_sim.physics.effects.')]
+    assert len(built_in) >= 6
+    for name in built_in:
+        for key in effect_parameters(name):
+            unit = EFFECTS[name].units[key]
+            assert re.search(rf'^    {key} \({re.escape(unit)}; (default .*|required)\)$',
+                             shown, re.M), (name, key)
+
+
+def test_scenes_shows_a_cylinders_moments_about_its_own_axes(tmp_path, capsys):
+    # Sorted, a cylinder's moments along z read as if its axis were x.
+    from rigid_body_sim.cli import main
+    path = tmp_path / 'cylinder.yaml'
+    path.write_text(_page_file('docs/scenes.md', 'cylinder.yaml'))
+    assert main(['scenes', str(path)]) == 0
+    shown = capsys.readouterr().out
+    # m = 0.4 kg, r = 0.05 m, h = 0.3 m: I_x = I_y = m (3 r^2 + h^2) / 12, I_z = m r^2 / 2.
+    assert 'moments about body x, y, z [0.00325, 0.00325, 0.0005 ] kg m^2' in shown, shown

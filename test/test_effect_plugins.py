@@ -64,14 +64,14 @@ class Spring(Effect):
         return np.array([self.stiffness])
 '''
 
-SCENE = '''\
+SCENE = """\
 name: spring_box
 description: a box on a spring to the origin
 {plugins}body: {{mass: 1.0, shape: box, size: [0.3, 0.2, 0.1]}}
 initial: {{position: [1.0, 0.0, 0.0], angular_velocity_body: [0.1, 3.0, 0.1]}}
 effects:
   - {name}: {{stiffness: 4.0}}
-'''
+"""
 STIFFNESS = 4.0  # N/m, on 1 kg: w = 2 rad/s
 
 
@@ -168,7 +168,8 @@ def test_a_scene_with_a_plugin_file_loads_it_once_and_keeps_it_through_overrides
 
 
 BROKEN_FILES = {
-    'an import error': ({}, ('import numpy as np\n', 'import numpy as np\nimport no_such_module\n'),
+    'an import error': ({}, ('import numpy as np\n',
+                             'import numpy as np\nimport no_such_module\n'),
                         "cannot import it: ModuleNotFoundError: No module named 'no_such_module'"),
     'a wrong signature': ({}, ('def spring(state, time, parameters):',
                                'def spring(state, parameters):'),
@@ -218,7 +219,7 @@ def test_a_broken_plugin_file_refuses_its_scene_in_simulate_with_one_line(tmp_pa
 @pytest.fixture
 def site(tmp_path):
     """
-    A folder of installed distributions: one good plugin, three broken ones.
+    Return a folder of installed distributions: one good plugin, three broken ones.
 
     The good one is a package whose wrench term calls a helper of its own (another module
     of the package).
@@ -299,9 +300,9 @@ def test_a_scene_naming_a_broken_installed_plugin_is_refused_with_its_line(site,
     result = run_cli(['scenes', str(scene)], site)
     assert result.returncode == 2
     assert result.stderr.splitlines() == [
-        f"rigid-body-sim scenes: error: {scene}: effects[0].missing_spring: unknown effect "
+        f'rigid-body-sim scenes: error: {scene}: effects[0]: unknown effect '
         "'missing_spring': effect plugin 'missing_spring' (missing_plugin:Spring of "
-        "missing-plugin 1.0): cannot import it: ModuleNotFoundError: No module named "
+        'missing-plugin 1.0): cannot import it: ModuleNotFoundError: No module named '
         "'no_such_module'"]
 
 

@@ -41,8 +41,8 @@ import sys
 import numpy as np
 
 from .registry import create_effect
-from .registry import EFFECTS
 from .registry import Effect
+from .registry import EFFECTS
 from ..body import RigidBody
 from ..kernels import LazyKernel
 from ..kernels.model import FLOW_SIGNATURE

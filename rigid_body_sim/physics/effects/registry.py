@@ -72,6 +72,7 @@ __all__ = [
     'unknown_effect',
 ]
 
+
 class EffectRegistry(MutableMapping):
     """
     Effect name -> effect class: the built-in effects and the plugins found so far.
