@@ -114,7 +114,8 @@ def _reason_not_run(command):
         return 'talks to a running node (the ros2 CLI is here, no node is)', False
     if program == 'make':
         return 'make run starts the node until Ctrl-C; make test is this suite', False
-    if program in ('rigid_body_node', 'angular_momentum_arrow') and '--help' not in words:
+    if Path(program).name in ('rigid_body_node', 'angular_momentum_arrow') \
+            and '--help' not in words:
         return 'runs until Ctrl-C (test_launch.py starts it)', False
     if program in ('mkdir', 'cd', 'colcon', 'source', 'git') or '~/ros2_ws' in command:
         return 'sets up a ROS 2 workspace (test_colcon_build.py builds the package)', False
@@ -341,13 +342,11 @@ def test_every_params_file_the_pages_name_is_where_they_say(scratch):
         if language != 'sh':
             continue
         for command in _commands(text):
-            words = command.split()
-            for index, word in enumerate(words[:-1]):
-                if word == '--params-file':
-                    path = words[index + 1]
-                    named.append(path)
-                    relative = path[len(prefix):] if path.startswith(prefix) else path
-                    assert (scratch / relative).is_file(), f'{page}: {command}'
+            for path in re.findall(r'--params-file (\$\(ros2 pkg prefix [^)]*\)\S*|\S+)',
+                                   command):
+                named.append(path)
+                relative = path[len(prefix):] if path.startswith(prefix) else path
+                assert (scratch / relative).is_file(), f'{page}: {command}'
     assert any(path.startswith(prefix) for path in named)
     assert any(not path.startswith(prefix) for path in named)
 

@@ -25,7 +25,8 @@ again; an effect's code may inline the toolkit (in ``<sources>``) and its own fi
 An effect plugin's functions (a file outside the package: :func:`claim_file`) go to
 ``plugins/<its sources>/``, where ``<its sources>`` is the SHA-256 of the plugin's own
 sources (:func:`plugin_source_key`: every ``*.py`` file of its top-level package, or the
-module file alone), so that a changed plugin, or a helper it inlines from its own package,
+module file alone) and of the name its module was imported as (numba's cached code imports
+its module by name), so that a changed plugin, or a helper it inlines from its own package,
 is compiled again and two versions of one plugin never share a file.  They are not sealed:
 any process compiles a plugin when it first uses it, after the compile that sealed the
 folder (numba writes each file whole and checks the plugin's file by its content).
@@ -206,12 +207,19 @@ def plugin_source_key(path):
     return digest.hexdigest(), path.parent.relative_to(root)
 
 
-def _plugin_folder(real):
-    """Return the folder (relative to the kernel folder) of the claimed file `real`."""
+def _plugin_folder(real, module):
+    """
+    Return the folder (relative to the kernel folder) of the claimed file `real`.
+
+    Keyed by the plugin's sources and the name its module was imported as: numba's cached
+    code imports its module by that name when it loads, so a file imported under two names
+    (a scene's plugin file, then ``import`` of the same file) keeps two caches.
+    """
     if _claimed.get(real) is None:
-        key, relative = plugin_source_key(real)
-        _claimed[real] = Path(PLUGINS_FOLDER) / key[:20] / relative
-    return _claimed[real]
+        _claimed[real] = plugin_source_key(real)
+    key, relative = _claimed[real]
+    named = hashlib.sha256(f'{key}\0{module}'.encode()).hexdigest()
+    return Path(PLUGINS_FOLDER) / named[:20] / relative
 
 
 class KernelCacheLocator(caching.InTreeCacheLocator):
@@ -232,7 +240,7 @@ class KernelCacheLocator(caching.InTreeCacheLocator):
         try:
             relative = path.parent.relative_to(PHYSICS_ROOT)
         except ValueError:
-            relative = _plugin_folder(real)
+            relative = _plugin_folder(real, getattr(py_func, '__module__', None))
         self._kernel_folder = str(kernel_dir() / relative)
 
     def get_cache_path(self):
