@@ -27,6 +27,7 @@ import numpy as np
 import pytest
 from rigid_body_sim.physics.effects import EFFECTS
 from rigid_body_sim.physics.kernels import cache
+from rigid_body_sim.recording.motion import conserved_quantities
 from rigid_body_sim.recording.motion import read_motion
 from rigid_body_sim.scenes import load_scene
 
@@ -148,7 +149,10 @@ def test_a_scene_names_a_plugin_file_beside_it_and_simulate_runs_its_effect(tmp_
                       '--quiet'])
     assert result.returncode == 0, result.stderr
     assert_spring_motion(bag, 2.0)
-    # The plot learns what the plugin's effect conserves from the plugin itself.
+    # The plot learns what the plugin's effect conserves from the plugin itself (the file
+    # the bag records): a force through the COM keeps T_rot and |L|.
+    title, _ = conserved_quantities(read_motion(bag))
+    assert title.startswith('Conserved without torque about the COM'), title
     plot = run_cli(['plot', str(bag), '--out', str(tmp_path / 'plot.png')])
     assert plot.returncode == 0, plot.stderr
     assert (tmp_path / 'plot.png').stat().st_size > 0
