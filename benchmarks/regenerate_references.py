@@ -18,10 +18,9 @@ the exact doubles of the body and its initial state, at exactly N x dt s.  A pro
 keyed by those doubles, so a changed body or scene finds no committed value (the benchmark
 then solves it at run time and caches it): regenerate its set and commit the files.
 
-Time: pure-Python decimal arithmetic on one core, about 70 CPU s in all on the 2-core build
-machine: 31 s for the 5 bodies, 36 s for the 5 distinct problems of the torque-free scenes,
-1 to 17 s per problem (3 minutes of wall time while the machine was busy).  ``--only`` takes
-the named ones and keeps the rest of the file.
+Time: pure-Python decimal arithmetic on one core; each problem's line says the CPU seconds
+it took, so a run with ``--only`` one problem shows what the rest will take.  ``--only``
+takes the named ones and keeps the rest of the file.
 """
 
 import argparse

@@ -8,9 +8,10 @@ rationals.  Two ways to step: one run of 2e5 steps (Simulator.run: one compiled 
 simulate and bench do), and tick by tick (Simulator.step per step, as the node does).
 
 Before the fix (rigid_body_sim e7bc82a..7c19d5d), splitting4 kicked the momenta and moved the
-COM stage by stage (five stages, one negative): 3.2e-7 m and 3.9e-9 kg m/s off either way,
-9x rk4.  Since: each step's kicks and displacement are summed apart and added once (one
-rounding per step, as rk4), compensated (Kahan) across the steps of one run.
+COM stage by stage (five stages, one negative), each add rounded.  Since: each step's kicks
+and displacement are summed apart and added once (one rounding per step, as rk4),
+compensated (Kahan) across the steps of one run.  The figures, before and after, are in
+docs/benchmark.md ("Round-off under a held force").
 
 Usage: .venv/bin/python benchmarks/splitting4_round_off.py [--steps N]
 """

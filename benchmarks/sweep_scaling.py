@@ -28,7 +28,10 @@ after it, since the figures mean little on a loaded machine:
    on a machine whose cores all run workers, this is what it takes from them).
 
 At the end: the figures the projection of docs/sweep.md rests on (per-run cost, per-task
-overhead, driver CPU per row, worker start), as JSON with --json.
+overhead, driver CPU per row, worker start), as JSON with --json, and the two blocks of text
+to paste into the docs as they are: the Scale section of docs/sweep.md (the measured figures
+and the projected wall time of a 100,000-run sweep on 100 machines, with the assumption each
+term rests on) and the measured bullet of Dask's entry in docs/dependencies.md.
 """
 
 import argparse
@@ -37,10 +40,12 @@ import json
 import multiprocessing
 import os
 from pathlib import Path
+import platform
 import statistics
 import subprocess
 import sys
 import tempfile
+import textwrap
 import time
 
 
@@ -140,6 +145,9 @@ def measure_sweep(spec, workers, folder):
         cpu = time.process_time()
         result = run_sweep(spec, folder, engine=engine)
         driver_cpu = time.process_time() - cpu
+    bags = Path(folder) / 'bags'
+    bag_bytes = sum(path.stat().st_size for path in bags.rglob('*') if path.is_file()) \
+        if bags.is_dir() else 0
     table = read_table(folder, ['wall_seconds', 'cpu_seconds', 'status'])
     walls = table.column('wall_seconds').to_pylist()
     cpus = table.column('cpu_seconds').to_pylist()
@@ -149,7 +157,130 @@ def measure_sweep(spec, workers, folder):
             'throughput': result.done / result.seconds, 'start_seconds': start_seconds,
             'run_wall_mean': statistics.fmean(walls), 'run_cpu_mean': statistics.fmean(cpus),
             'driver_cpu_per_run': driver_cpu / result.done,
-            'load': (load_before, _load())}
+            'bag_bytes_per_run': bag_bytes / result.done, 'load': (load_before, _load())}
+
+
+def _cpu_name():
+    try:
+        with open('/proc/cpuinfo') as cpuinfo:
+            for line in cpuinfo:
+                if line.startswith('model name'):
+                    return line.partition(':')[2].strip()
+    except OSError:
+        pass
+    return platform.processor() or 'unknown CPU'
+
+
+def _wrap(text, indent=''):
+    """Return `text` wrapped at 95 columns; a list item's lines go under its first word."""
+    words = ' '.join(text.split())
+    under = indent + ('  ' if words.startswith('- ') else '')
+    return textwrap.fill(words, 95, initial_indent=indent, subsequent_indent=under,
+                         break_on_hyphens=False)
+
+
+def _duration(seconds):
+    if seconds >= 3600:
+        return f'{seconds / 3600:.1f} h'
+    return f'{seconds / 60:.0f} min' if seconds >= 120 else f'{seconds:.0f} s'
+
+
+def scale_block(figures, args, started_load, revision, date):
+    """Return the Scale section's text for docs/sweep.md (replacing its placeholder)."""
+    summary = figures['summary']
+    first, second = args.workers
+    throughput = summary['throughput']
+    ones = [s for s in figures['sweeps'] if s['workers'] == first]
+    run_wall, run_cpu = summary['run_wall'], summary['run_cpu']
+    noop = figures['noop'].get(second) or figures['noop'].get(first) or {}
+    per_task = noop.get('engine run_each', 0.0)
+    runs, machines, workers = 100_000, 100, os.cpu_count()
+    runs_per_task = max(1, int(1.0 / run_wall))  # as the engine sizes its tasks
+    compute = runs * run_wall / (machines * workers)
+    scheduling = runs / runs_per_task * per_task
+    driver = runs * summary['driver_cpu_per_run']
+    start = summary['start_seconds']
+    tail = runs_per_task * run_wall
+    wall = start + max(compute, scheduling, driver) + tail
+    bag_bytes = statistics.median(s['bag_bytes_per_run'] for s in figures['sweeps'])
+    bags = 'rows only' if args.no_bags else f'each writing its bag ({bag_bytes / 1e6:.2f} MB)'
+    loads = [load for s in figures['sweeps'] for load in s['load']]
+    lines = [
+        _wrap(f'Measured by `.venv/bin/python benchmarks/sweep_scaling.py'
+              f'{"" if args.runs == 200 else f" --runs {args.runs}"}` (git {revision}, {date}, '
+              f'{_cpu_name()}, {os.cpu_count()} cores; load average {started_load:.2f} at the '
+              f'start, {min(loads):.2f} to {max(loads):.2f} during the sweeps): {args.runs} runs '
+              f'of `{args.scene}` for {args.duration:g} simulated s, {bags}, each distinct (a '
+              f'random initial spin), on a local cluster of {first} and of {second} worker '
+              f'processes, alternated {", ".join(str(s["workers"]) for s in figures["sweeps"])} '
+              f'(ABBA), each from its first task to its last row.'),
+        '',
+        f'| workers | runs/s (median of {len(ones)}) | speed-up |',
+        '| --- | --- | --- |',
+        f'| {first} | {throughput[first]:.2f} | 1 |',
+        f'| {second} | {throughput[second]:.2f} | {summary["speedup"]:.2f}x (goal: at least '
+        '1.8x) |',
+        '',
+        _wrap(f'- A run costs {run_wall * 1e3:.0f} ms wall, {run_cpu * 1e3:.0f} ms CPU on its '
+              'worker (scene, simulation, bag, row).'),
+        _wrap(f'- The overhead of the engine per run, with {first} worker: the wall time of '
+              'the sweep per run less the wall time of the run on its worker (scheduling, '
+              f'transfer, the row of the table), {summary["overhead_per_run"] * 1e3:.1f} ms, '
+              f'{100 * summary["overhead_share"]:.1f} % of a run (goal: at most 5 %); the '
+              'driver (client, local scheduler, table writer) spends '
+              f'{summary["driver_cpu_per_run"] * 1e3:.2f} ms of CPU per row.'),
+        _wrap(f'- The cost per task, {args.noop_tasks:,} no-op tasks on {second} workers '
+              '(median of 3): ' + ', '.join(f'{name} {seconds * 1e3:.2f} ms'
+                                            for name, seconds in noop.items()) + '.'),
+        _wrap(f'- A local cluster starts with its kernels loaded in {start:.1f} s (median; '
+              'the machine has the kernels compiled: a new machine compiles them once first, '
+              'see [Kernels on the workers](#kernels-on-the-workers)).'),
+        '',
+        _wrap(f'Projected: {runs:,} such runs on {machines} machines like this one, '
+              f'{workers} single-threaded workers each ({machines * workers} workers), one '
+              f'scheduler, one driver: about **{_duration(wall)}**, the largest of three '
+              'rates plus the start and the last task:'),
+        '',
+        _wrap(f'- compute, {runs:,} x {run_wall * 1e3:.0f} ms / {machines * workers} workers = '
+              f'{_duration(compute)}: each worker as fast as here and busy throughout (tasks '
+              'are sized to about 1 s, two out per worker thread, so a worker waits for no '
+              'round trip);'),
+        _wrap(f'- the scheduler, {runs // runs_per_task:,} tasks of {runs_per_task} runs (1 s '
+              f'/ {run_wall * 1e3:.0f} ms) x {per_task * 1e3:.2f} ms = '
+              f'{_duration(scheduling)}: its cost per task as measured on the local cluster '
+              '(no network; the network round trip of a task overlaps the work of the next), '
+              'the same with 200 workers (the scheduler of Dask handles tasks one at a time);'),
+        _wrap(f'- the driver, {runs:,} rows x {summary["driver_cpu_per_run"] * 1e3:.2f} ms = '
+              f'{_duration(driver)}: every row reaches one driver, which writes the table '
+              '(measured with the local scheduler in the same process, so an upper bound);'),
+        _wrap(f'- plus the start, {start:.0f} s (the workers start in parallel, on machines '
+              f'whose kernels are compiled), and the last task, {tail:.0f} s.'),
+    ]
+    if not args.no_bags:
+        lines.append(_wrap(
+            f'- The bags, {runs:,} x {bag_bytes / 1e6:.2f} MB = {runs * bag_bytes / 1e9:.0f} '
+            f'GB, reach the shared file system at {runs * bag_bytes / wall / 1e6:.0f} MB/s '
+            'over that time: a file system slower than that is the limit instead.'))
+    return '\n'.join(lines)
+
+
+def dask_block(figures, args):
+    """Return the measured bullet of Dask's entry in docs/dependencies.md."""
+    summary = figures['summary']
+    parts = []
+    for workers, noop in figures['noop'].items():
+        parts.append(f'on {workers} worker(s): ' + ', '.join(
+            f'{name} {seconds * 1e3:.2f} ms' for name, seconds in noop.items()))
+    return _wrap(
+        f'- the cost per task, {args.noop_tasks:,} no-op tasks (median of 3), '
+        + '; '.join(parts) + f'; on the {args.runs}-run sweep of {args.duration:g}-s runs the '
+        f'whole overhead of the engine is {summary["overhead_per_run"] * 1e3:.1f} ms per run, '
+        f'{100 * summary["overhead_share"]:.1f} % of a run, and {args.workers[1]} workers give '
+        f'{summary["speedup"]:.2f}x the throughput of {args.workers[0]}'
+        + (': the lower cost per task of the pools buys nothing that shows at tasks of a second;'
+           if summary['overhead_share'] <= 0.05 else
+           ': more overhead than the 5 % of a run the engine is allowed (docs/sweep.md, Scale);'),
+        '  ')
 
 
 def main():
@@ -170,7 +301,10 @@ def main():
     parser.add_argument('--json', help='also write the figures to this JSON file')
     args = parser.parse_args()
 
-    print(f'git {_git_revision()}, {os.cpu_count()} cores, load average {_load():.2f} at '
+    started_load = _load()
+    revision = _git_revision()
+    date = time.strftime('%Y-%m-%d', time.gmtime())
+    print(f'git {revision}, {os.cpu_count()} cores, load average {started_load:.2f} at '
           'start', flush=True)
     figures = {'noop': {}, 'sweeps': []}
     if args.noop_tasks:
@@ -221,6 +355,12 @@ def main():
           f'{100 * summary["overhead_share"]:.1f} % of a run ({run_wall * 1e3:.0f} ms on its '
           f'worker); driver CPU {summary["driver_cpu_per_run"] * 1e3:.2f} ms per run')
     print(f'load average {_load():.2f} at the end')
+    print('\n---- docs/sweep.md: in place of the placeholder SCALE_FIGURES ----')
+    print(scale_block(figures, args, started_load, revision, date))
+    if args.noop_tasks:
+        print('\n---- docs/dependencies.md: in place of the placeholder DASK_FIGURES ----')
+        print(dask_block(figures, args))
+    print('---- end ----')
     if args.json:
         Path(args.json).write_text(json.dumps(figures, indent=1) + '\n')
     return 0

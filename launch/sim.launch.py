@@ -15,7 +15,9 @@ What starts:
   a labelled arrow marker.
 
 All three share ``namespace``: the RViz config names its topics relatively (``marker``,
-``odom``, ...), so an RViz started in the node's namespace shows that node; TF is global.
+``odom``, ...), so an RViz started in the node's namespace shows that node.  TF is global,
+and the node's frames follow the namespace (its ``frame_prefix``, by default ``sat1/`` in
+``/sat1``): RViz's fixed frame is the node's world frame, ``sat1/world`` there.
 
 The executables are looked up in the package (``lib/rigid_body_sim``, as ``ros2 run`` does)
 when the ament index knows it (a sourced colcon workspace), else on PATH (a venv whose
@@ -48,7 +50,12 @@ ARGUMENTS = (
      "'default'."),
     ('namespace', '',
      'Namespace of the node, of RViz and of the arrow helper (e.g. /sat1): the topics become '
-     '/sat1/pose, /sat1/marker, ...  Empty: the root namespace.'),
+     '/sat1/pose, /sat1/marker, ... and the frames sat1/world, sat1/body (see frame_prefix).  '
+     'Empty: the root namespace.'),
+    ('frame_prefix', '',
+     "The node's frame_prefix, put before its frame names verbatim (robot_state_publisher's "
+     "rule): 'robot_a/' gives robot_a/world -> robot_a/body; '/' none.  Empty: the node's "
+     "default, the namespace ('sat1/' in /sat1, none at the root)."),
     ('rate', '',
      'Tick rate of the node in Hz (0.1 to 10000); each tick advances the simulation by '
      "1/rate s.  Empty: the scene's."),
@@ -68,8 +75,10 @@ ARGUMENTS = (
      "true: start RViz (rviz2, from a ROS 2 installation) with the package's config."),
     ('rviz_config', str(RVIZ_CONFIG),
      'The RViz config file RViz starts with.'),
-    ('fixed_frame', 'world',
-     "RViz's fixed frame: the node's world_frame parameter (default world)."),
+    ('fixed_frame', '',
+     "RViz's fixed frame.  Empty: the node's world frame, frame_prefix + world (sat1/world in "
+     '/sat1); give it when a params_file renames world_frame (config/rep105.yaml: '
+     '<prefix>odom).'),
     ('momentum_arrow', LaunchConfiguration('rviz'),
      'true: start angular_momentum_arrow, which draws the angular momentum L (the '
      'angular_momentum topic) as a labelled arrow (marker array angular_momentum_arrow).  '
@@ -145,6 +154,15 @@ def _scene(context):
     return scene
 
 
+def _frame_prefix(context, namespace):
+    """Return the node's frame_prefix: the argument's, else the namespace's (as the node's)."""
+    prefix = LaunchConfiguration('frame_prefix').perform(context).strip()
+    if prefix:
+        return prefix
+    path = namespace.strip('/')  # rigid_body_sim.messages.frames.default_frame_prefix
+    return f'{path}/' if path else ''
+
+
 def _actions(context):
     """Return the node, and RViz and the arrow helper if asked, from the arguments' values."""
     namespace = LaunchConfiguration('namespace').perform(context).strip()
@@ -159,6 +177,8 @@ def _actions(context):
     if integrator:
         overrides['integrator'] = integrator
     overrides['publish_clock'] = _flag(context, 'publish_clock')
+    if LaunchConfiguration('frame_prefix').perform(context).strip():
+        overrides['frame_prefix'] = _frame_prefix(context, namespace)
     use_sim_time = _flag(context, 'use_sim_time')
     parameters = []
     params_file = LaunchConfiguration('params_file').perform(context).strip()
@@ -183,7 +203,8 @@ def _actions(context):
                                    'it'))
         else:
             config = LaunchConfiguration('rviz_config').perform(context)
-            frame = LaunchConfiguration('fixed_frame').perform(context)
+            frame = LaunchConfiguration('fixed_frame').perform(context).strip() or (
+                _frame_prefix(context, namespace) + 'world').lstrip('/')
             actions.append(Node(package='rviz2', executable='rviz2', name='rviz2',
                                 namespace=namespace, arguments=['-d', config, '-f', frame],
                                 parameters=[{'use_sim_time': use_sim_time}],

@@ -6,7 +6,10 @@ Each tool is a module in :mod:`rigid_body_sim.tools` with ``add_arguments(parser
 is one module and one line in :data:`TOOLS`.
 """
 
+from __future__ import annotations
+
 import argparse
+from collections.abc import Sequence
 import importlib
 import os
 import signal
@@ -37,7 +40,7 @@ examples:
 """
 
 
-def build_parser():
+def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser with every tool's subcommand."""
     parser = argparse.ArgumentParser(
         prog='rigid-body-sim',
@@ -58,7 +61,7 @@ def build_parser():
     return parser
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """
     Run the command line; return the exit code.
 

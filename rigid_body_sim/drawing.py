@@ -19,9 +19,11 @@ from .messages.marker import inertia_equivalent_box
 from .messages.marker import visible_equivalent_box
 from .physics import matrix_from_quaternion
 from .physics import RigidBody
+from .physics.principal_frame import principal_frame
 
-__all__ = ['AXIS_COLOURS', 'BodyShape', 'BodyView', 'axis_endpoints', 'equivalent_box_shape',
-           'is_equivalent_box', 'shape_from_marker', 'trail_axis']
+__all__ = ['AXIS_COLOURS', 'BodyShape', 'BodyView', 'TrailAxis', 'axis_endpoints',
+           'equivalent_box_shape', 'is_equivalent_box', 'middle_axis', 'shape_from_marker',
+           'trail_axis', 'trail_points']
 
 AXIS_COLOURS = ('tab:red', 'tab:green', 'tab:blue')
 """The colours of the body axes x, y, z (and of what is drawn per axis) in every figure."""
@@ -29,6 +31,15 @@ AXIS_COLOURS = ('tab:red', 'tab:green', 'tab:blue')
 _SHAPE_NAMES = {Marker.CUBE: 'box', Marker.SPHERE: 'ellipsoid', Marker.CYLINDER: 'cylinder'}
 # Frames of trail behind the current one, and its alpha at the head.
 _TRAIL_FRAMES = 45
+# The trail's points: none closer than the first (rad on the unit sphere: a 1 kHz bag draws
+# no more points than the eye resolves), none farther apart than the second (a fast spin
+# sampled at 100 Hz turns 7 degrees a tick, which drew as corners: stars and squares).
+_TRAIL_FINEST = 0.005
+_TRAIL_COARSEST = 0.02
+# A unit direction within this of a body axis is that axis (its colour, its name).
+_ALIGNED = 1e-9
+# The colour of a trail along no body axis (a principal axis of a non-diagonal inertia).
+_OFF_AXIS_COLOUR = 'tab:purple'
 
 
 @dataclass(eq=False)
@@ -181,11 +192,118 @@ def axis_endpoints(quaternion, length):
 
 
 def trail_axis(quaternions):
-    """Return the body axis (0, 1, 2) whose world direction varies most over the motion."""
+    """
+    Return the body axis (0, 1, 2) whose world direction varies most over the motion.
+
+    For a motion whose inertia is not known (:func:`middle_axis` is the axis that flips).
+    """
     rotations = np.array([matrix_from_quaternion(q) for q in quaternions[::max(1, len(
         quaternions) // 400)]])
     # Column i of R is body axis i in the world; its spread is 1 - |mean direction|.
     return int(np.argmax(1.0 - np.linalg.norm(rotations.mean(axis=0), axis=0)))
+
+
+@dataclass(frozen=True)
+class TrailAxis:
+    """
+    The body direction whose tip leaves the trail, and what it is, for the caption.
+
+    Attributes
+    ----------
+    direction : ndarray (3,)
+        Unit vector in the body frame.
+    name : str
+        What it is, e.g. 'body y: the middle principal axis, which flips' (a legend's
+        lines).
+    flips : bool
+        Whether it is the middle axis of three distinct moments: the one that flips.
+
+    """
+
+    direction: np.ndarray
+    name: str
+    flips: bool = False
+
+    @property
+    def body_axis(self):
+        """Return the body axis (0, 1, 2) the direction lies along, or None."""
+        direction = np.asarray(self.direction, dtype=float)
+        index = int(np.argmax(np.abs(direction)))
+        return index if abs(direction[index]) >= 1.0 - _ALIGNED else None
+
+    @property
+    def colour(self):
+        """Return the colour of its trail: its body axis's, else one of its own."""
+        index = self.body_axis
+        return _OFF_AXIS_COLOUR if index is None else AXIS_COLOURS[index]
+
+
+def middle_axis(inertia):
+    """
+    Return the :class:`TrailAxis` of the middle principal axis of an inertia (3, 3), kg m^2.
+
+    The spin about the middle axis is the unstable one: it is the axis that flips over (a
+    T-handle, a tennis racket), as ``watch`` counts and traces it.  Body frame.  For a body
+    with two equal moments no axis flips, and the caption says the axis is one of two.
+    """
+    frame = principal_frame(np.asarray(inertia, dtype=float))
+    direction = np.array(frame.axes[:, 1])
+    index = int(np.argmax(np.abs(direction)))
+    if abs(direction[index]) >= 1.0 - _ALIGNED:
+        direction = np.eye(3)[index]
+        where = f'body {"xyz"[index]}'
+    else:
+        where = 'body (' + ', '.join(f'{value:.2f}' for value in direction) + ')'
+    low, middle, high = frame.moments
+    if middle - low <= 1e-9 * high or high - middle <= 1e-9 * high:
+        return TrailAxis(direction, f'{where}: a middle principal\naxis (two moments equal)')
+    return TrailAxis(direction, f'{where}: the middle\nprincipal axis, which flips', True)
+
+
+def trail_points(rotations, direction):
+    """
+    Return the tips (m, 3) of a body direction in the world frame along a motion, unit length.
+
+    `rotations` (n, 3, 3): R, body to world, of every sample in time order; `direction`:
+    unit vector, body frame.  Every sample's tip is taken, thinned where samples lie closer
+    than the eye resolves, and between two samples farther apart than a hundredth of a turn
+    points are added along the rotation that takes the one to the other at a constant rate
+    (the motion between two samples at a constant angular velocity): a fast spin draws as a
+    smooth curve, not as the polygon of its samples.
+    """
+    rotations = np.asarray(rotations, dtype=float).reshape(-1, 3, 3)
+    direction = np.asarray(direction, dtype=float)
+    tips = rotations @ direction
+    if len(tips) < 2:
+        return tips
+    # R_k^T R_k+1: the turn from one sample to the next, in sample k's body frame.
+    turns = np.einsum('nji,njk->nik', rotations[:-1], rotations[1:])
+    cosine = np.clip(0.5 * (np.trace(turns, axis1=1, axis2=2) - 1.0), -1.0, 1.0)
+    angles = np.arccos(cosine)
+    pieces = np.maximum(1, np.ceil(angles / _TRAIL_COARSEST)).astype(int)
+    if np.any(pieces > 1):
+        axes = np.stack([turns[:, 2, 1] - turns[:, 1, 2], turns[:, 0, 2] - turns[:, 2, 0],
+                         turns[:, 1, 0] - turns[:, 0, 1]], axis=1)
+        norms = np.linalg.norm(axes, axis=1, keepdims=True)
+        axes = np.divide(axes, norms, out=np.zeros_like(axes), where=norms > 0.0)
+        # Each interval k gives its start and pieces[k] - 1 points inside.
+        interval = np.repeat(np.arange(len(turns)), pieces)
+        fraction = (np.arange(len(interval)) - np.repeat(np.cumsum(pieces) - pieces, pieces)) \
+            / pieces[interval]
+        angle = fraction * angles[interval]
+        axis = axes[interval]
+        # Rodrigues' formula: the direction turned by `angle` about `axis` (body frame).
+        along = np.sum(axis * direction, axis=1, keepdims=True)
+        turned = (direction * np.cos(angle)[:, None]
+                  + np.cross(axis, direction) * np.sin(angle)[:, None]
+                  + axis * along * (1.0 - np.cos(angle))[:, None])
+        tips = np.vstack([np.einsum('nij,nj->ni', rotations[interval], turned), tips[-1:]])
+    travelled = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(tips, axis=0),
+                                                                axis=1))])
+    keep = np.ones(len(tips), dtype=bool)
+    keep[1:] = np.diff(np.floor(travelled / _TRAIL_FINEST)) > 0
+    keep[-1] = True
+    return tips[keep]
 
 
 class BodyView:
@@ -194,8 +312,8 @@ class BodyView:
 
     Draws the shape, the body axes x, y, z (red, green, blue) reaching past the shape, the
     direction of the world angular momentum L (dashed black) and a fading trail of the tip
-    of one body axis.  ``rigid-body-sim animate`` draws each frame with it, and
-    ``rigid-body-sim watch`` its live window.
+    of one body direction over the last frames.  ``rigid-body-sim animate`` draws each
+    frame with it, and ``rigid-body-sim watch`` its live window.
 
     Parameters
     ----------
@@ -203,8 +321,9 @@ class BodyView:
         Where to draw; its limits, projection and view are set here.
     shape : BodyShape
         The shape, in the body frame.
-    trail_axis : int
-        The body axis (0, 1, 2) whose tip leaves the trail.
+    trail_axis : int or TrailAxis
+        The body axis (0, 1, 2), or the body direction, whose tip leaves the trail.  A
+        :class:`TrailAxis` is named in the legend.
     font_size : float
         Points, of the tick and legend labels.
 
@@ -248,14 +367,27 @@ class BodyView:
         self.momentum_line = axes.plot([0, 0], [0, 0], [0, 0], color='black',
                                        linewidth=1.5, linestyle='--',
                                        label='L (world)')[0]
+        if not isinstance(trail_axis, TrailAxis):
+            trail_axis = TrailAxis(np.eye(3)[trail_axis], f'body {"xyz"[trail_axis]}')
+        else:
+            # Named in the legend, which says which axis the trail is.
+            axes.plot([], [], [], color=trail_axis.colour, linewidth=1.2,
+                      label=f'trail: tip of {trail_axis.name}')
         self.trail_axis = trail_axis
-        self.trail = Line3DCollection([np.zeros((2, 3))], colors=AXIS_COLOURS[trail_axis],
+        self.trail = Line3DCollection([np.zeros((2, 3))], colors=trail_axis.colour,
                                       linewidths=1.2)
         axes.add_collection3d(self.trail, autolim=False)
+        # The trail's points (unit vectors, world frame) of each of the last frames.
         self.trail_points = []
 
-    def show(self, quaternion, angular_momentum):
-        """Draw the body at `quaternion` (x, y, z, w) with L (world frame); extend the trail."""
+    def show(self, quaternion, angular_momentum, trail=None):
+        """
+        Draw the body at `quaternion` (x, y, z, w) with L (world frame); extend the trail.
+
+        `trail` (k, 3): the trail's points since the last frame up to this one
+        (:func:`trail_points` of every sample between them: unit vectors, world frame);
+        without it, this frame's tip alone.
+        """
         rotation = matrix_from_quaternion(quaternion)
         self.polygons.set_verts([face @ rotation.T for face in self.body_faces])
         tips = axis_endpoints(quaternion, self.axis_length)
@@ -266,9 +398,11 @@ class BodyView:
         direction = momentum / size * self.axis_length if size > 0.0 else np.zeros(3)
         self.momentum_line.set_data_3d([0.0, direction[0]], [0.0, direction[1]],
                                        [0.0, direction[2]])
-        self.trail_points.append(tips[self.trail_axis])
+        if trail is None:
+            trail = (rotation @ np.asarray(self.trail_axis.direction, dtype=float))[None, :]
+        self.trail_points.append(np.asarray(trail, dtype=float).reshape(-1, 3))
         del self.trail_points[:-_TRAIL_FRAMES]
-        points = np.array(self.trail_points)
+        points = self.axis_length * np.vstack(self.trail_points)
         if len(points) > 1:
             segments = np.stack([points[:-1], points[1:]], axis=1)
             self.trail.set_segments(segments)
@@ -281,3 +415,22 @@ class BodyView:
         """Forget the trail (after a reset: the body jumps back to its start)."""
         self.trail_points.clear()
         self.trail.set_segments([np.zeros((2, 3))])
+
+    def set_trail(self, quaternions):
+        """
+        Draw the trail through the tip of the trail axis at each orientation, oldest first.
+
+        `quaternions` (k, 4) are (x, y, z, w), body to world: the trail then follows the
+        motion as sampled by whoever calls (every pose received, say), not the frames drawn;
+        it fades towards the oldest as :meth:`show`'s does.
+        """
+        tips = np.array([axis_endpoints(quaternion, self.axis_length)[self.trail_axis]
+                         for quaternion in np.asarray(quaternions, dtype=float)]).reshape(-1, 3)
+        self.trail_points = list(tips[-_TRAIL_FRAMES:])
+        if len(tips) < 2:
+            self.trail.set_segments([np.zeros((2, 3))])
+            return
+        self.trail.set_segments(np.stack([tips[:-1], tips[1:]], axis=1))
+        base = np.array(self.trail.get_edgecolor()[0][:3])
+        self.trail.set_color([(*base, alpha) for alpha in np.linspace(0.05, 0.9,
+                                                                      len(tips) - 1)])

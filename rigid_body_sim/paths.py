@@ -12,13 +12,15 @@ The configuration (``config/*.yaml`` and ``config/scenes/*.yaml``, and the RViz 
    package into a virtual environment.
 """
 
+from __future__ import annotations
+
 from pathlib import Path
 import sys
 
 PACKAGE_NAME = 'rigid_body_sim'
 
 
-def _ament_share_dir():
+def _ament_share_dir() -> Path | None:
     """
     Return the share directory the ament index knows for this package.
 
@@ -37,7 +39,7 @@ def _ament_share_dir():
     return share if share.is_dir() else None
 
 
-def _source_share_dir():
+def _source_share_dir() -> Path | None:
     """
     Return the source tree's root when it holds a ``config/`` directory.
 
@@ -51,7 +53,7 @@ def _source_share_dir():
     return None
 
 
-def share_dir():
+def share_dir() -> Path:
     """
     Return the directory that holds this package's ``config/`` directory.
 
@@ -64,7 +66,7 @@ def share_dir():
     return Path(sys.prefix) / 'share' / PACKAGE_NAME
 
 
-def config_dir():
+def config_dir() -> Path:
     """
     Return the directory of the package's configuration files.
 
@@ -73,7 +75,7 @@ def config_dir():
     return share_dir() / 'config'
 
 
-def scenes_dir():
+def scenes_dir() -> Path:
     """
     Return the directory of the scene files.
 
@@ -82,7 +84,7 @@ def scenes_dir():
     return config_dir() / 'scenes'
 
 
-def rviz_config():
+def rviz_config() -> Path:
     """
     Return the package's RViz config, for ``rviz2 -d`` (sim.launch.py starts RViz with it).
 

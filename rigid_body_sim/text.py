@@ -15,7 +15,12 @@ log nor let an escape sequence through.
   out, and escapes it: for the node's warnings and replies that quote what a peer sent.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable
 import functools
+from typing import ParamSpec
+from typing import TypeVar
 
 __all__ = ['MAX_ECHOED', 'MESSAGE_LIMIT', 'one_line', 'one_line_errors', 'shortened']
 
@@ -27,9 +32,12 @@ MAX_ECHOED = 200
 """Most characters of a peer's string that :func:`shortened` quotes (the rest is counted)."""
 
 _TAIL = 120
+# A decorated function keeps its parameters and result (one_line_errors).
+_Parameters = ParamSpec('_Parameters')
+_Result = TypeVar('_Result')
 
 
-def one_line(text, limit=MESSAGE_LIMIT):
+def one_line(text: object, limit: int = MESSAGE_LIMIT) -> str:
     """
     Return `text` as one line of at most `limit` printable characters.
 
@@ -51,20 +59,20 @@ def one_line(text, limit=MESSAGE_LIMIT):
     return head[:head_size] + note + _escaped(text[-tail_size:])[-tail_size:]
 
 
-def _escaped(text):
+def _escaped(text: str) -> str:
     if text.isprintable():
         return text
     return ''.join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
-def one_line_errors(function):
+def one_line_errors(function: Callable[_Parameters, _Result]) -> Callable[_Parameters, _Result]:
     """
     Return `function` with every ValueError it raises made :func:`one_line`.
 
     An error that already is such a line is raised as it is (its type and traceback kept).
     """
     @functools.wraps(function)
-    def checked(*args, **kwargs):
+    def checked(*args: _Parameters.args, **kwargs: _Parameters.kwargs) -> _Result:
         try:
             return function(*args, **kwargs)
         except ValueError as error:
@@ -76,7 +84,7 @@ def one_line_errors(function):
     return checked
 
 
-def shortened(text, limit=MAX_ECHOED):
+def shortened(text: object, limit: int = MAX_ECHOED) -> str:
     """
     Return `text` cut to `limit` characters, saying how many were left out, and escaped.
 

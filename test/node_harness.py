@@ -27,6 +27,8 @@ from rcl_interfaces.srv import SetParameters
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
+from rigid_body_sim.messages.frames import as_tf2_reads
+from rigid_body_sim.messages.frames import default_frame_prefix
 from rigid_body_sim.messages.qos import STATE_QOS
 from std_srvs.srv import SetBool
 from std_srvs.srv import Trigger
@@ -207,6 +209,15 @@ class Client:
         if any(status.hardware_id == f'{self.namespace}/{NODE_NAME}'
                for status in message.status):
             self._record('/diagnostics', message)
+
+    def frame(self, name):
+        """
+        Return the frame id the node publishes for frame `name` (``world``, ``body``, ``imu``).
+
+        The node's default frame_prefix is its namespace: ``body`` of a node in ``/test_1_0``
+        is ``test_1_0/body``.
+        """
+        return as_tf2_reads(default_frame_prefix(self.namespace or '/') + name)
 
     def close(self):
         """Stop spinning and release the context."""

@@ -15,9 +15,11 @@ import numpy as np
 from PIL import Image
 import pytest
 from rigid_body_sim.cli import main as cli_main
+from rigid_body_sim.drawing import trail_points
 from rigid_body_sim.recording.animate import _Scene3D
 from rigid_body_sim.recording.animate import plan_frames
 from rigid_body_sim.recording.animate import read_shape
+from rigid_body_sim.recording.animate import read_trail_axis
 from rigid_body_sim.recording.motion import read_motion
 from rigid_body_sim.recording.simulate import simulate_to_bag
 from rigid_body_sim.scenes import load_scene
@@ -212,3 +214,87 @@ def test_simulate_animate_writes_the_bag_and_its_gif(tmp_path):
     gif = Path(str(bag) + '.gif')
     with Image.open(gif) as image:
         assert image.n_frames == plan_frames(read_motion(bag).time, 10.0, 2.0).frames
+
+
+@pytest.fixture(scope='module')
+def box_bag(tmp_path_factory):
+    """Half a second of thrown_box: a body given as a box, drawn as its own box."""
+    bag = tmp_path_factory.mktemp('animate') / 'box'
+    simulate_to_bag(load_scene('thrown_box'), bag, 0.5)
+    return bag
+
+
+def test_a_box_body_is_labelled_as_the_box_it_is(box_bag):
+    """
+    A box body's marker is its box, not an inertia-equivalent stand-in.
+
+    A box has the moments of its own equivalent box, so the edges alone once labelled
+    thrown_box "inertia-equivalent box ... (the body's moments, not its shape)".
+    """
+    motion = read_motion(box_bag)
+    shape = read_shape(box_bag, motion)
+    assert motion.body_shape == 'box'
+    assert shape.origin == 'marker' and not shape.equivalent
+    assert shape.label == 'body: box 0.15 x 0.075 x 0.01 m'
+
+
+def test_the_trail_is_the_tip_of_the_middle_axis_at_every_tick(flip_bag):
+    """
+    The trail follows the middle principal axis (body y of I = (1, 2, 3)), tick by tick.
+
+    The trail once followed the axis that moved most, sampled at frames only: the spin
+    axis of a fast spin, drawn as stars.  Here each frame's trail ends at the drawn tip of
+    body y, and between two frames it passes through each tick's tip.
+    """
+    motion = read_motion(flip_bag)
+    shape = read_shape(flip_bag, motion)
+    scene = _Scene3D(shape, motion, 'test', pixels=200)
+    try:
+        assert np.array_equal(scene.view.trail_axis.direction, [0.0, 1.0, 0.0])
+        assert 'middle' in scene.view.trail_axis.name
+        labels = [text.get_text() for text in scene.axes.get_legend().get_texts()]
+        assert any(label.startswith('trail: tip of body y: the middle') for label in labels)
+        first, second = 40, 60
+        scene.draw(first, motion.time[first])
+        scene.draw(second, motion.time[second])
+        segments = scene.axis_length * np.vstack(scene.view.trail_points)
+        tips = scene.axis_length * Rotation.from_quat(
+            motion.quaternion[first:second + 1]).as_matrix()[:, :, 1]
+        distance = np.min(np.linalg.norm(segments[None, :, :] - tips[:, None, :], axis=2),
+                          axis=1)
+        # Ticks closer than 0.005 rad to the last point kept are thinned out, no farther.
+        assert distance.max() <= 0.005 * scene.axis_length
+        np.testing.assert_allclose(segments[-1], tips[-1], atol=1e-12 * scene.axis_length)
+    finally:
+        scene.close()
+
+
+def test_a_live_bag_trails_the_middle_axis_its_motion_shows(flip_bag, tmp_path):
+    """A bag naming no inertia: L = I Omega over its ticks gives it, and its middle axis."""
+    live = tmp_path / 'live'
+    _copy_without_marker(flip_bag, live, keep_custom_data=False)
+    motion = read_motion(live)
+    assert motion.inertia is None
+    np.testing.assert_allclose(motion.inertia_seen(), np.diag([1.0, 2.0, 3.0]), rtol=1e-9,
+                               atol=1e-9)
+    assert np.array_equal(read_trail_axis(motion).direction, [0.0, 1.0, 0.0])
+
+
+def test_a_fast_spin_trail_is_a_smooth_curve_on_its_true_path():
+    """
+    A spin of 40 rad/s sampled at 100 Hz (0.4 rad a tick) trails in steps of 0.02 rad at most.
+
+    Each added point lies on the tip's true path, the cone about the spin axis: the
+    samples' polygon drew a fast spin as stars and squares.
+    """
+    rate, spin = 100.0, 40.0
+    times = np.arange(0.0, 0.5, 1.0 / rate)
+    rotations = Rotation.from_rotvec(np.outer(times * spin, [0.0, 0.0, 1.0])).as_matrix()
+    direction = np.array([np.sin(0.3), 0.0, np.cos(0.3)])
+    points = trail_points(rotations, direction)
+    assert len(points) >= spin * times[-1] / 0.02
+    steps = np.arccos(np.clip(np.einsum('ni,ni->n', points[:-1], points[1:]), -1.0, 1.0))
+    assert steps.max() <= 0.02 + 1e-12
+    np.testing.assert_allclose(np.linalg.norm(points, axis=1), 1.0, rtol=1e-12)
+    np.testing.assert_allclose(points[:, 2], np.cos(0.3), rtol=1e-12)
+    np.testing.assert_allclose(points[-1], rotations[-1] @ direction, atol=1e-15)

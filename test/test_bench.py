@@ -4,6 +4,10 @@ The work-precision benchmark: `rigid-body-sim bench --quick` runs and its measur
 - The quick benchmark writes the markdown table and the PNG plots, with a row for every
   registered integrator and, when mujoco imports, for MuJoCo's integrators, and a goal
   table at both horizons.
+- Where the cells run changes no error: the quick benchmark on a local Dask cluster (the
+  default) gives every error of every part exactly as it is in one process, and so does the
+  forced part on a cluster given by its scheduler's address; each report names the machine
+  and the workers that ran its cells.
 - The orientation error measure returns the angle of a known rotation to round-off.
 - The ODE reference and the extended-precision (decimal Taylor) reference match the
   closed-form motion of a free symmetric top, the latter to 1e-28 rad; the committed
@@ -24,6 +28,8 @@ import decimal
 from decimal import Decimal
 import json
 import math
+import os
+import socket
 
 import numpy as np
 import pytest
@@ -60,10 +66,39 @@ from rigid_body_sim.work_precision.report import verdict
 EPS = np.finfo(float).eps
 
 
-def test_bench_quick_writes_a_table_and_a_plot_with_every_integrator(tmp_path, capsys):
-    """`bench --quick` exits 0 and writes results.md (all methods) and PNG plots."""
-    out = tmp_path / 'bench'
+# The figures of a cell that do not depend on where it ran (its CPU times do), per part.
+ERROR_FIELDS = {
+    'results.json': ('error_short', 'error_long', 'max_energy_error',
+                     'max_momentum_magnitude_error', 'max_world_momentum_error', 'diverged'),
+    'tolerance_sweep.json': ('error', 'steps_per_tick', 'substeps_min', 'substeps_max'),
+    'forces.json': ('error', 'diverged'),
+}
+
+
+@pytest.fixture(scope='module')
+def quick_on_a_local_cluster(tmp_path_factory):
+    """Run `bench --quick` as a user does (a local cluster, a worker per core); its folder."""
+    out = tmp_path_factory.mktemp('bench') / 'quick'
     assert cli.main(['bench', '--quick', '--out', str(out)]) == 0
+    return out
+
+
+def _errors(out, name):
+    """Return [(the cell, its error figures)] of one part's results, in the report's order."""
+    result = json.loads((out / name).read_text())
+    return [((r['case'], r['method'], r['dt'] if 'dt' in r else None, r.get('tolerance'),
+              r.get('substeps')), tuple(r[field] for field in ERROR_FIELDS[name]))
+            for r in result['records']]
+
+
+def _ran_on(out, name):
+    return json.loads((out / name).read_text())['machine']['cells_ran_on']
+
+
+@pytest.mark.xdist_group('bench_cluster')
+def test_bench_quick_writes_a_table_and_a_plot_with_every_integrator(quick_on_a_local_cluster):
+    """`bench --quick` exits 0 and writes results.md (all methods) and PNG plots."""
+    out = quick_on_a_local_cluster
     table = (out / 'results.md').read_text()
     short, long = QUICK.horizons
     for name in ('work_precision.png', f'work_precision_{long:g}s.png'):
@@ -91,6 +126,52 @@ def test_bench_quick_writes_a_table_and_a_plot_with_every_integrator(tmp_path, c
     for method in methods:
         assert f'\n| {method} | 0.1 |' in table, f'no row for {method}'
         assert f'\n| {method} | 0.01 |' in table, f'no row for {method}'
+
+
+@pytest.mark.xdist_group('bench_cluster')
+def test_cells_on_a_local_cluster_give_the_errors_they_give_in_one_process(
+        quick_on_a_local_cluster, tmp_path):
+    """Every error of the three parts is the same, bit for bit; the reports name the workers."""
+    here = tmp_path / 'in_process'
+    assert cli.main(['bench', '--quick', '--in-process', '--out', str(here)]) == 0
+    for name in ERROR_FIELDS:
+        on_cluster = _errors(quick_on_a_local_cluster, name)
+        assert len(on_cluster) > 10
+        assert on_cluster == _errors(here, name), f'{name}: an error depends on where it ran'
+        ran_on = _ran_on(quick_on_a_local_cluster, name)
+        cores = len(os.sched_getaffinity(0))
+        assert ran_on['engine'] == 'a local Dask cluster' and ran_on['workers'] <= cores
+        [host] = ran_on['hosts']
+        assert host['host'] == socket.gethostname() and host['cpu_model']
+        # Every record's cell, and each case's reference (forces: and its check), ran there.
+        references = len(json.loads((here / name).read_text())['references'])
+        cells = len({cell for cell, _ in on_cluster}) if name != 'tolerance_sweep.json' else \
+            len({cell[:2] for cell, _ in on_cluster})
+        assert host['cells'] == cells + references * (2 if name == 'forces.json' else 1)
+        assert 'cells_ran_on' not in json.loads((here / name).read_text())['machine']
+    table = (quick_on_a_local_cluster / 'results.md').read_text()
+    assert (f'Cells ran on a local Dask cluster, {ran_on["workers"]} worker process(es)'
+            in table and f'{socket.gethostname()} (' in table)
+    assert 'Cells ran in this process' in (here / 'results.md').read_text()
+
+
+@pytest.mark.xdist_group('bench_cluster')
+def test_cells_on_a_cluster_given_by_its_address_give_the_same_errors(
+        quick_on_a_local_cluster, tmp_path):
+    """`bench --forces --quick --scheduler ADDRESS`: a user's cluster, one worker here."""
+    from distributed import LocalCluster
+
+    out = tmp_path / 'remote'
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster:
+        assert cli.main(['bench', '--forces', '--quick', '--scheduler',
+                         cluster.scheduler_address, '--out', str(out)]) == 0
+    assert _errors(out, 'forces.json') == _errors(quick_on_a_local_cluster, 'forces.json')
+    ran_on = _ran_on(out, 'forces.json')
+    assert ran_on['engine'] == f'the Dask cluster at {cluster.scheduler_address}'
+    assert ran_on['workers'] == 1 and ran_on['hosts'][0]['host'] == socket.gethostname()
+    assert f'Cells ran on the Dask cluster at {cluster.scheduler_address}' in \
+        (out / 'forces.md').read_text()
 
 
 @pytest.mark.parametrize('angle', [0.0, 1e-14, 1e-9, 1e-3, 0.5, 2.0, math.pi - 1e-7])

@@ -229,6 +229,14 @@ def test_colcon_install_ships_the_committed_benchmark_references(colcon_install)
     assert int(problems) > 0
 
 
+def test_colcon_install_ships_the_py_typed_marker_beside_the_package(colcon_install):
+    """The installed package carries py.typed (PEP 561): a type checker reads its annotations."""
+    site = colcon_install / PACKAGE_NAME / 'lib'
+    markers = [path for path in site.rglob('py.typed') if path.parent.name == PACKAGE_NAME]
+    assert len(markers) == 1, markers
+    assert (markers[0].parent / '__init__.py').is_file(), markers[0]
+
+
 def test_colcon_install_finds_the_kernels_the_checkout_compiled(colcon_install):
     """
     The install is another copy of the same sources: its kernels are compiled already.

@@ -34,9 +34,9 @@ from visualization_msgs.msg import MarkerArray
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGE = 'rigid_body_sim'
 # The arguments sim.launch.py declares, each with a description (--show-args prints them).
-ARGUMENTS = ('scene', 'namespace', 'rate', 'integrator', 'publish_clock', 'use_sim_time',
-             'params_file', 'rviz', 'rviz_config', 'fixed_frame', 'momentum_arrow',
-             'momentum_scale')
+ARGUMENTS = ('scene', 'namespace', 'frame_prefix', 'rate', 'integrator', 'publish_clock',
+             'use_sim_time', 'params_file', 'rviz', 'rviz_config', 'fixed_frame',
+             'momentum_arrow', 'momentum_scale')
 # A stop on SIGINT: the node's teardown takes ~0.1 s, launch's own shutdown a few s.
 STOP_TIMEOUT = 60.0
 
@@ -134,16 +134,18 @@ def _arrow_topic():
     return {'angular_momentum_arrow': (MarkerArray, QoSProfile(depth=10))}
 
 
-def _assert_started_and_stops_cleanly(launch, namespace, scene_line):
+def _assert_started_and_stops_cleanly(launch, namespace, scene_line, world_frame=None):
     """
     Check the node publishes in `namespace`, the arrow follows L; Ctrl-C ends all with 0.
+
+    The poses are in `world_frame` (default: the node's, its namespace as frame prefix).
 
     :returns: {executable: the path it ran from} of the node and the arrow helper.
     """
     client = Client(namespace, extra_topics=_arrow_topic())
     try:
         poses = client.wait_for_messages('pose', 1, timeout=DISCOVERY_TIMEOUT)
-        assert poses[0].header.frame_id == 'world'
+        assert poses[0].header.frame_id == (world_frame or client.frame('world'))
         arrays = client.wait_for_messages('angular_momentum_arrow', 1)
         momenta = client.wait_for_messages('angular_momentum', 1)
     finally:
@@ -226,11 +228,14 @@ def test_the_launch_file_by_path_finds_the_executables_on_path_and_says_rviz_is_
     # "simulating scene 'my_top'" says it read that file.
     namespace = unique_namespace()
     launch_file = install / 'share' / PACKAGE / 'launch' / 'sim.launch.py'
+    # frame_prefix passed through to the node, verbatim.
+    prefix = namespace.strip('/') + '_robot/'
     command = (f'exec ros2 launch {launch_file} scene:=my_top.yaml rviz:=true '
-               f'namespace:={namespace}')
+               f'namespace:={namespace} frame_prefix:={prefix}')
     launch = Launch(command, env, tmp_path, tmp_path / 'launch.log')
     try:
-        paths = _assert_started_and_stops_cleanly(launch, namespace, "simulating scene 'my_top'")
+        paths = _assert_started_and_stops_cleanly(launch, namespace, "simulating scene 'my_top'",
+                                                  world_frame=prefix + 'world')
     finally:
         launch.close()
     assert paths == {name: str(bin_dir / name) for name in paths}

@@ -88,10 +88,19 @@ def wait_until_started(client, node, gates, name):
 
 def latest_status(client, since):
     """Return (message, values) of our node's next /diagnostics status after `since`."""
-    message = client.wait_for_messages('/diagnostics', 1, since=since)[-1]
-    status = next(s for s in message.status
-                  if s.hardware_id == f'{client.namespace}/{NODE_NAME}')
+    status = _latest(client, since)
     return status.message, {kv.key: kv.value for kv in status.values}
+
+
+def latest_level(client, since):
+    """Return the level (OK, WARN, ...) of our node's next /diagnostics status after `since`."""
+    status = _latest(client, since)
+    return {status.OK: 'OK', status.WARN: 'WARN', status.ERROR: 'ERROR'}[status.level]
+
+
+def _latest(client, since):
+    message = client.wait_for_messages('/diagnostics', 1, since=since)[-1]
+    return next(s for s in message.status if s.hardware_id == f'{client.namespace}/{NODE_NAME}')
 
 
 def integrator_parameter(client):
@@ -108,8 +117,10 @@ def test_the_node_integrates_interpreted_while_its_kernels_compile_and_switches_
     Start-up with the scene's integrator (buss) not compiled: the state comes from the first
     ticks, the kernels' source interpreted ('kernels: interpreted' in /diagnostics, which says
     the compile runs), then the compiled kernels once the compile is done; then a switch to
-    rk4, not compiled: accepted at once, buss goes on ticking compiled (its name in
-    /diagnostics) while rk4 compiles, then rk4 runs.
+    rk4, not compiled: accepted at once, its reply saying that the switch waits for the
+    compile and how long that takes, buss goes on ticking compiled (its name in /diagnostics)
+    while rk4 compiles, then rk4 runs.  /diagnostics is WARN while a compile keeps what was
+    asked for from running (buss interpreted, then buss in rk4's place), OK once it runs.
     """
     node, client, gates = start(tmp_path, ['buss', 'rk4'])
     try:
@@ -127,6 +138,7 @@ def test_the_node_integrates_interpreted_while_its_kernels_compile_and_switches_
         assert values['kernels'] == 'interpreted', values
         assert 'compiling the kernels of buss in the background' in message, message
         assert 'buss interpreted until then' in message, message
+        assert latest_level(client, since=0.0) == 'WARN'
         assert node.output().count('compiling them in the background') == 1, node.output()
         open_gate(gates / 'buss', 'ok')
         client.wait_for(lambda: 'integrator is now buss (its kernels compiled in' in
@@ -135,15 +147,24 @@ def test_the_node_integrates_interpreted_while_its_kernels_compile_and_switches_
         client.wait_for_messages('pose', 5, since=since)
         _, values = latest_status(client, since)
         assert values['kernels'] == 'compiled', values
+        assert latest_level(client, since) == 'OK'
 
         result = client.set_parameter('integrator', 'rk4')
         assert result.successful, result.reason
+        assert result.reason.startswith('rk4 compiling in the background (about '), result.reason
+        assert "s from the registry's compile estimate); buss runs until then" in result.reason
         wait_until_started(client, node, gates, 'rk4')
         since = client.received('pose')[-1][0]
         client.wait_for_messages('pose', 20, since=since)
         message, values = latest_status(client, since)
         assert values['integrator'] == 'buss', values
+        assert 'the switch to rk4 is pending' in message, message
         assert 'compiling the kernels of rk4 in the background' in message, message
+        assert latest_level(client, since) == 'WARN'
+        # Asked again while it compiles: the reply says so, with the time so far.
+        again = client.set_parameter('integrator', 'rk4')
+        assert again.successful and 'rk4 compiling in the background already' in again.reason
+        assert 's so far); buss runs until then' in again.reason, again.reason
         assert client.reset().success
         open_gate(gates / 'rk4', 'ok')
         client.wait_for(lambda: 'integrator is now rk4' in node.output(), DISCOVERY_TIMEOUT,
@@ -152,7 +173,36 @@ def test_the_node_integrates_interpreted_while_its_kernels_compile_and_switches_
         client.wait_for_messages('pose', 1, since=since)
         _, values = latest_status(client, since)
         assert values['integrator'] == 'rk4', values
+        assert latest_level(client, since) == 'OK'
         assert integrator_parameter(client) == 'rk4'
+        # Compiled (not under the test hook): a switch acts at once, the reply adds nothing.
+        assert client.set_parameter('integrator', 'splitting').reason == ''
+    except AssertionError as error:
+        raise AssertionError(f'{error}\nnode output:\n{node.output()}') from None
+    finally:
+        client.close()
+        assert node.stop() == 0, node.output()
+
+
+def test_a_switch_while_interpreted_acts_at_once_and_its_reply_says_interpreted(tmp_path):
+    """Nothing compiled runs yet: rk4 runs at once from its source; the reply says so."""
+    node, client, gates = start(tmp_path, ['buss', 'rk4'])
+    try:
+        wait_until_started(client, node, gates, 'buss')
+        client.wait_for(lambda: client.parameters_client.service_is_ready(),
+                        DISCOVERY_TIMEOUT, 'the parameter services while buss compiles')
+        result = client.set_parameter('integrator', 'rk4')
+        assert result.successful, result.reason
+        assert result.reason.startswith('rk4 runs at once from its source, interpreted (the '
+                                        'same steps, slower), while its kernels compile in the '
+                                        'background (about '), result.reason
+        wait_until_started(client, node, gates, 'rk4')
+        client.wait_for_messages('pose', 1)
+        since = client.received('pose')[-1][0]
+        message, values = latest_status(client, since)
+        assert values['integrator'] == 'rk4' and values['kernels'] == 'interpreted', values
+        assert 'rk4 interpreted until then' in message, message
+        assert latest_level(client, since) == 'WARN'
     except AssertionError as error:
         raise AssertionError(f'{error}\nnode output:\n{node.output()}') from None
     finally:

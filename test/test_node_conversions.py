@@ -232,6 +232,21 @@ def test_input_frame_follows_the_header(frame_id, frame):
     np.testing.assert_array_equal(torque.force, 0.0)
 
 
+@pytest.mark.parametrize('frame_id, frame', [
+    ('', 'world'), ('sat1/odom', 'world'), ('/sat1/odom', 'world'),
+    ('sat1/base_link', 'body'), ('/sat1/base_link', 'body'), ('base_link', None),
+    ('odom', None), ('//sat1/base_link', None)])
+def test_input_frames_are_read_as_tf2_reads_them(frame_id, frame):
+    """The node's prefixed frames, with or without the leading '/' tf2 drops; no other."""
+    message = torque_message((1.0, 0.0, 0.0), frame_id)
+    if frame is None:
+        with pytest.raises(RejectedInput, match="accepted frame ids: 'sat1/odom' or empty"):
+            wrench_input_from_message(message, 'sat1/odom', 'sat1/base_link', 100.0)
+    else:
+        assert wrench_input_from_message(message, 'sat1/odom', 'sat1/base_link',
+                                         100.0).frame == frame
+
+
 @pytest.mark.parametrize('message, kind, words', [
     (torque_message((math.nan, 0.0, 0.0)), 'non-finite', 'non-finite torque'),
     (wrench_message((0.0, -math.inf, 0.0), (0.0, 0.0, 0.0)), 'non-finite', 'non-finite force'),

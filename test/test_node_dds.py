@@ -173,11 +173,14 @@ def test_every_topic_has_its_type_frame_and_rate(sim):
     assert abs(measured['/diagnostics'] - 1.0) <= 0.1, measured
 
     pose = sim.messages('pose')[-1]
-    assert pose.header.frame_id == 'world'
-    assert sim.messages('angular_momentum')[-1].header.frame_id == 'world'
-    assert sim.messages('marker')[-1].header.frame_id == 'world'
+    # Frames follow the namespace: the default frame_prefix is the node's namespace.
+    world, body = sim.frame('world'), sim.frame('body')
+    assert world == sim.namespace.strip('/') + '/world'
+    assert pose.header.frame_id == world
+    assert sim.messages('angular_momentum')[-1].header.frame_id == world
+    assert sim.messages('marker')[-1].header.frame_id == world
     odom = sim.messages('odom')[-1]
-    assert (odom.header.frame_id, odom.child_frame_id) == ('world', 'body')
+    assert (odom.header.frame_id, odom.child_frame_id) == (world, body)
     # Stamps come from the node's clock (system time here), not from simulated time.
     assert abs(stamp_of(pose) - time.time()) < 5.0
 
@@ -185,7 +188,7 @@ def test_every_topic_has_its_type_frame_and_rate(sim):
 def test_odometry_twist_is_the_world_twist_seen_from_the_body(sim):
     """The odom twist is in the body frame: R^T v and R^T omega of the world-frame twist."""
     since = fresh_start(sim)
-    sim.publish_wrench([0.2, -0.1, 0.3], [0.0, 0.0, 0.0], 'world')  # a velocity to see
+    sim.publish_wrench([0.2, -0.1, 0.3], [0.0, 0.0, 0.0], sim.frame('world'))  # a velocity to see
     sim.wait_for(lambda: len([t for t in sim.messages('twist', since)
                               if np.any(vector(t.linear) != 0.0)]) >= 10,
                  DISCOVERY_TIMEOUT, 'ten ticks of the force')
@@ -236,7 +239,7 @@ def test_world_torque_changes_angular_momentum_by_its_integral(sim):
     """A world-fixed torque adds tau h per tick: L - L0 = tau k h for k whole ticks."""
     torque = np.array([0.3, -0.2, 0.1])
     since = fresh_start(sim)
-    sim.publish_torque(torque, 'world')
+    sim.publish_torque(torque, sim.frame('world'))
     wait_until_expired(sim, since)
     # Starting from the known L0: the first message after `since` may already show the
     # first kick.  A message the client missed merges two ticks into one change, so each
@@ -255,7 +258,7 @@ def test_body_torque_turns_with_the_body(sim):
     """A body-fixed torque adds h/2 (R_before + R_after) tau_body per tick (world frame)."""
     torque_body = np.array([0.0, 0.0, 0.5])
     since = fresh_start(sim)
-    sim.publish_torque(torque_body, 'body')
+    sim.publish_torque(torque_body, sim.frame('body'))
     wait_until_expired(sim, since)
     momenta = angular_momenta(sim, since)
     rotations = rotations_by_stamp(sim, since)
@@ -281,7 +284,7 @@ def test_wrench_force_changes_linear_momentum_by_its_integral(sim):
     """A wrench's force adds F h per tick to p = m v (read from twist)."""
     force = np.array([0.5, 0.0, -0.25])
     since = fresh_start(sim)
-    sim.publish_wrench(force, [0.0, 0.0, 0.0], 'world')
+    sim.publish_wrench(force, [0.0, 0.0, 0.0], sim.frame('world'))
     wait_until_expired(sim, since, 'velocity')
     momenta = [(None, np.zeros(3))] + [
         (None, BODY.mass * vector(t.linear)) for t in sim.messages('twist', since)]
@@ -299,7 +302,7 @@ def test_body_force_turns_with_the_body(sim):
     """A body-fixed force adds h/2 (R_before + R_after) F_body to p per tick (world frame)."""
     force_body = np.array([0.4, 0.0, 0.0])
     since = fresh_start(sim)
-    sim.publish_wrench(force_body, [0.0, 0.0, 0.0], 'body')
+    sim.publish_wrench(force_body, [0.0, 0.0, 0.0], sim.frame('body'))
     wait_until_expired(sim, since, 'velocity')
     odoms = sim.messages('odom', since)
     matched = 0
@@ -325,8 +328,8 @@ def test_torque_and_wrench_inputs_add_up(sim):
     torque_world = np.array([0.0, 0.4, 0.0])
     torque_body = np.array([0.3, 0.0, 0.0])
     since = fresh_start(sim)
-    sim.publish_torque(torque_world, 'world')
-    sim.publish_wrench([0.0, 0.0, 0.0], torque_body, 'body')
+    sim.publish_torque(torque_world, sim.frame('world'))
+    sim.publish_wrench([0.0, 0.0, 0.0], torque_body, sim.frame('body'))
     wait_until_expired(sim, since)
     momenta = angular_momenta(sim, since)
     rotations = rotations_by_stamp(sim, since)
@@ -348,9 +351,9 @@ def test_an_input_expires_after_the_input_timeout(sim, topic):
     since = fresh_start(sim)
     sent = time.time()
     if topic == 'torque':
-        sim.publish_torque([0.0, 0.0, 1.0], 'world')
+        sim.publish_torque([0.0, 0.0, 1.0], sim.frame('world'))
     else:
-        sim.publish_wrench([0.0, 0.0, 0.0], [0.0, 0.0, 1.0], 'world')
+        sim.publish_wrench([0.0, 0.0, 0.0], [0.0, 0.0, 1.0], sim.frame('world'))
     wait_until_expired(sim, since, quiet=3 * SETTLE)
     momenta = angular_momenta(sim, since)
     changed = [stamp for stamp, delta in _increments(momenta) if np.any(delta != 0.0)]
@@ -371,17 +374,20 @@ def test_an_input_expires_after_the_input_timeout(sim, topic):
     np.testing.assert_array_equal(last[1], momenta[-2][1])
 
 
+# '{world}', '{body}': the node's frames (prefixed with its namespace), filled in by the test.
 @pytest.mark.parametrize('topic, values, frame_id, reason', [
-    ('torque', ([math.nan, 0.0, 0.0],), 'world', 'non-finite torque'),
-    ('wrench', ([0.0, math.inf, 0.0], [0.0, 0.0, 0.0]), 'world', 'non-finite force'),
-    ('torque', ([0.0, 0.0, 2.0 * MAX_WRENCH],), 'world', 'above max_wrench'),
-    ('wrench', ([0.0, 2.0 * MAX_WRENCH, 0.0], [0.0, 0.0, 0.0]), 'body', 'above max_wrench'),
+    ('torque', ([math.nan, 0.0, 0.0],), '{world}', 'non-finite torque'),
+    ('wrench', ([0.0, math.inf, 0.0], [0.0, 0.0, 0.0]), '{world}', 'non-finite force'),
+    ('torque', ([0.0, 0.0, 2.0 * MAX_WRENCH],), '{world}', 'above max_wrench'),
+    ('wrench', ([0.0, 2.0 * MAX_WRENCH, 0.0], [0.0, 0.0, 0.0]), '{body}', 'above max_wrench'),
     ('wrench', ([0.0, 0.0, 0.0], [0.0, 1.0, 0.0]), 'map',
-     "unknown frame_id 'map'; accepted frame ids: 'world' or empty (world-fixed), 'body' "
+     "unknown frame_id 'map'; accepted frame ids: '{world}' or empty (world-fixed), '{body}' "
      '(body-fixed)'),
 ])
 def test_a_rejected_input_leaves_the_state_untouched(sim, topic, values, frame_id, reason):
     """NaN, inf, too large, unknown frame: warned with the reason; the node runs on."""
+    frames = {'world': sim.frame('world'), 'body': sim.frame('body')}
+    frame_id, reason = frame_id.format(**frames), reason.format(**frames)
     since = fresh_start(sim)
     before = rejected_inputs(sim, since)
     if topic == 'torque':
@@ -568,7 +574,7 @@ def test_read_only_parameters_cannot_change_at_run_time(sim):
 def test_reset_returns_to_the_initial_state(sim):
     """After reset the state is the initial one advanced by at most a few ticks."""
     fresh_start(sim)
-    sim.publish_wrench([1.0, 0.0, 0.0], [0.0, 0.0, 1.0], 'world')
+    sim.publish_wrench([1.0, 0.0, 0.0], [0.0, 0.0, 1.0], sim.frame('world'))
     # 1 N m about z adds 0.1 kg m^2/s in 10 ticks.
     sim.wait_for(lambda: np.linalg.norm(angular_momenta(sim, 0.0)[-1][1] - L0) > 0.1,
                  DISCOVERY_TIMEOUT, 'the wrench to change L by 0.1')
@@ -642,18 +648,18 @@ def test_tf_carries_the_pose_bit_for_bit_at_the_same_stamp_and_the_imu_mount_is_
     """
     Over DDS: every /tf transform world -> body equals the pose of its stamp, exactly.
 
-    A node of its own with a body frame no other test node uses (/tf is a global topic);
-    /tf_static (transient local) reaches a subscriber that comes after it was published.
+    A node of its own, whose frames no other test node names (/tf is a global topic; the
+    frames carry the node's namespace); /tf_static (transient local) reaches a subscriber
+    that comes after it was published.
     """
     from rigid_body_sim.messages.qos import TF_QOS
     from rigid_body_sim.messages.qos import TF_STATIC_QOS
     from tf2_msgs.msg import TFMessage
     namespace = unique_namespace()
-    body_frame = f'body_{namespace.strip("/")}'
-    node = NodeProcess(tmp_path / 'node.log', namespace=namespace,
-                       parameters={'rate': RATE, 'body_frame': body_frame})
+    node = NodeProcess(tmp_path / 'node.log', namespace=namespace, parameters={'rate': RATE})
     client = Client(namespace, extra_topics={'/tf': (TFMessage, TF_QOS),
                                              '/tf_static': (TFMessage, TF_STATIC_QOS)})
+    body_frame = client.frame('body')
     try:
         client.wait_until_connected()
 
@@ -667,7 +673,7 @@ def test_tf_carries_the_pose_bit_for_bit_at_the_same_stamp_and_the_imu_mount_is_
         compared = 0
         for transform in ours('/tf'):
             assert (transform.header.frame_id, transform.child_frame_id) == (
-                'world', body_frame)
+                client.frame('world'), body_frame)
             pose = poses.get((transform.header.stamp.sec, transform.header.stamp.nanosec))
             if pose is None:
                 continue  # that tick's pose was not (yet) received here
@@ -678,7 +684,8 @@ def test_tf_carries_the_pose_bit_for_bit_at_the_same_stamp_and_the_imu_mount_is_
             compared += 1
         assert compared >= 150, compared
         (mount,) = ours('/tf_static')
-        assert (mount.header.frame_id, mount.child_frame_id) == (body_frame, 'imu')
+        assert (mount.header.frame_id, mount.child_frame_id) == (body_frame,
+                                                                 client.frame('imu'))
     except AssertionError as error:
         raise AssertionError(f'{error}\nnode output:\n{node.output()}') from None
     finally:

@@ -59,7 +59,7 @@ def test_a_noiseless_imu_at_the_com_reads_the_bodys_rotation_and_no_force(tmp_pa
     momentum = np.linalg.norm(scene.state.angular_momentum)
     matched = 0
     for message in client.messages('imu'):
-        assert message.header.frame_id == 'imu'
+        assert message.header.frame_id == client.frame('imu')
         acceleration = message.linear_acceleration
         assert (acceleration.x, acceleration.y, acceleration.z) == (0.0, 0.0, 0.0)
         omega = np.array([message.angular_velocity.x, message.angular_velocity.y,
@@ -91,8 +91,8 @@ def test_a_hanging_imu_with_noise_reads_g_up_with_its_covariances(tmp_path):
     sigma = density * math.sqrt(rate)
     assert abs(readings[:, 2].mean() + 9.81) < 5 * sigma / math.sqrt(len(readings))
     assert np.std(readings[:, 0]) == pytest.approx(sigma, rel=0.25)
-    assert messages[0].header.frame_id == 'top_imu'
+    assert messages[0].header.frame_id == client.frame('top_imu')
     covariance = messages[0].linear_acceleration_covariance
     assert covariance[0] == covariance[4] == covariance[8] == pytest.approx(sigma ** 2)
     assert not any(messages[0].angular_velocity_covariance)  # the gyro has no noise
-    assert "imu in frame 'top_imu' (noise seed 5)" in node.output()
+    assert f"imu in frame '{client.frame('top_imu')}' (noise seed 5)" in node.output()

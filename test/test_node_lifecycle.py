@@ -247,12 +247,14 @@ def test_a_params_file_configures_a_namespaced_node(tmp_path):
 
     def check(client):
         marker = client.wait_for_messages('marker', 1)[-1]
-        assert marker.header.frame_id == 'map'
+        # The frames carry the namespace (frame_prefix's default).
+        assert marker.header.frame_id == client.frame('map')
         assert marker.type == Marker.CUBE
         np.testing.assert_array_equal([marker.scale.x, marker.scale.y, marker.scale.z],
                                       [0.5, 1.0, 2.0])
         odom = client.wait_for_messages('odom', 1)[-1]
-        assert (odom.header.frame_id, odom.child_frame_id) == ('map', 'satellite')
+        assert (odom.header.frame_id, odom.child_frame_id) == (client.frame('map'),
+                                                               client.frame('satellite'))
 
     run_with_client(node, check)
     assert 'unknown parameter' not in node.output()
@@ -288,7 +290,7 @@ def test_colcon_built_executable_starts_and_publishes(colcon_install, tmp_path):
 
     def check(client):
         poses = client.wait_for_messages('pose', 10)
-        assert poses[-1].header.frame_id == 'world'
+        assert poses[-1].header.frame_id == client.frame('world')
 
     run_with_client(node, check)
 

@@ -22,6 +22,7 @@ from rigid_body_sim.node.parameters import DEFAULTS
 from rigid_body_sim.node.parameters import effective_values
 from rigid_body_sim.node.parameters import given_overrides
 from rigid_body_sim.node.parameters import imu_model_from_parameters
+from rigid_body_sim.node.parameters import NAMESPACE_VALUE
 from rigid_body_sim.node.parameters import NOT_SET
 from rigid_body_sim.node.parameters import parameter_descriptor
 from rigid_body_sim.node.parameters import PARAMETERS
@@ -36,7 +37,10 @@ import yaml
 CONFIG = Path(__file__).resolve().parent.parent / 'config' / 'rigid_body_sim.yaml'
 RUNTIME_SETTABLE = {'integrator', 'substeps', 'tolerance', 'input_timeout', 'max_wrench',
                     'real_time_factor'}
-SCENE_DEPENDENT = {spec.name for spec in PARAMETERS if spec.name not in DEFAULTS}
+# Without a fixed default: the scene's value, or (frame_prefix) the node's namespace's.
+SCENE_DEPENDENT = {spec.name for spec in PARAMETERS
+                   if spec.name not in DEFAULTS and spec.default is not NAMESPACE_VALUE}
+NAMESPACE_DEPENDENT = {spec.name for spec in PARAMETERS if spec.default is NAMESPACE_VALUE}
 TYPES = {bool: ParameterType.PARAMETER_BOOL, int: ParameterType.PARAMETER_INTEGER,
          float: ParameterType.PARAMETER_DOUBLE, str: ParameterType.PARAMETER_STRING,
          list: ParameterType.PARAMETER_DOUBLE_ARRAY}
@@ -95,7 +99,7 @@ def test_config_file_lists_every_parameter_with_its_default():
     examples = '\n'.join(line.replace('# ', '', 1) for line in body.splitlines()
                          if re.match(r'^\s*#\s*[a-z_]+:', line))
     commented = flatten(yaml.safe_load(examples))
-    assert set(commented) == SCENE_DEPENDENT
+    assert set(commented) == SCENE_DEPENDENT | NAMESPACE_DEPENDENT
     kinds = {spec.name: spec.kind for spec in PARAMETERS}
     for name, value in commented.items():
         assert isinstance(value, kinds[name]), name
@@ -115,6 +119,9 @@ def test_every_parameter_has_a_typed_documented_descriptor():
         assert descriptor.read_only == (spec.name not in RUNTIME_SETTABLE), spec.name
         if spec.default in (NOT_SET, SCENE_VALUE):
             assert "the scene's" in descriptor.description, spec.name
+            continue
+        if spec.default is NAMESPACE_VALUE:
+            assert "the node's namespace" in descriptor.description, spec.name
             continue
         assert isinstance(spec.default, spec.kind), spec.name
         for value_range in list(descriptor.floating_point_range) + \

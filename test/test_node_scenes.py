@@ -174,8 +174,8 @@ def test_an_input_beyond_the_scenes_limits_is_scaled_down_to_them(tmp_path):
     client = connected(node, inputs=True)
     try:
         since = time.monotonic()
-        client.publish_torque([0.0, 1.2, 1.6], 'world')  # |tau| = 2 N m
-        client.publish_wrench([0.0, 0.0, 8.0], [0.0, 0.0, 0.0], 'world')
+        client.publish_torque([0.0, 1.2, 1.6], client.frame('world'))  # |tau| = 2 N m
+        client.publish_wrench([0.0, 0.0, 8.0], [0.0, 0.0, 0.0], client.frame('world'))
         client.wait_for(lambda: 'scaled a torque input down' in node.output()
                         and 'scaled a wrench input down' in node.output(), DISCOVERY_TIMEOUT,
                         'both inputs to be scaled down')

@@ -29,9 +29,9 @@ KEYS = {
     'dask': 'python3-dask-pip', 'distributed': 'python3-distributed-pip',
     'pyarrow': 'python3-pyarrow-pip',
 }
-# Run by the tests as programs, not imported: colcon (test_colcon_build.py) and pytest-xdist
-# (make test's `pytest -n 2`).
-TEST_TOOLS = {'python3-colcon-common-extensions', 'python3-pytest-xdist'}
+# Run by the tests as programs, not imported: colcon (test_colcon_build.py), mypy
+# (test_types.py) and pytest-xdist (make test's `pytest -n 2`).
+TEST_TOOLS = {'python3-colcon-common-extensions', 'python3-mypy', 'python3-pytest-xdist'}
 # package.xml key -> the distribution pinned in the requirements files (a ROS package
 # <name> comes as the wheel ros-<name>).
 DISTRIBUTIONS = {
@@ -43,7 +43,7 @@ DISTRIBUTIONS = {
     'python3-pytest': 'pytest', 'python3-hypothesis': 'hypothesis',
     'python3-mujoco-pip': 'mujoco', 'mcap-ros2-support': 'mcap-ros2-support',
     'python3-colcon-common-extensions': 'colcon-common-extensions',
-    'python3-pytest-xdist': 'pytest-xdist',
+    'python3-pytest-xdist': 'pytest-xdist', 'python3-mypy': 'mypy',
     'python3-dask-pip': 'dask', 'python3-distributed-pip': 'distributed',
     'python3-pyarrow-pip': 'pyarrow',
 }

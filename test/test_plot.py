@@ -11,6 +11,7 @@ import dataclasses
 import shutil
 
 import matplotlib.image
+import matplotlib.pyplot
 import numpy as np
 import pytest
 from rigid_body_sim.cli import main as cli_main
@@ -19,6 +20,7 @@ from rigid_body_sim.recording.motion import BagMotion
 from rigid_body_sim.recording.motion import conserved_quantities
 from rigid_body_sim.recording.motion import read_motion
 from rigid_body_sim.recording.motion import symmetry_axis
+from rigid_body_sim.recording.plot import _orientation_panel
 from rigid_body_sim.recording.plot import apex_index
 from rigid_body_sim.recording.plot import com_moves
 from rigid_body_sim.recording.plot import oscillations
@@ -266,6 +268,40 @@ def test_cli_plots_and_reports_bags_it_cannot_plot(tmp_path, van_zon, capsys):
     assert 'rigid-body-sim record --recover' in capsys.readouterr().err
 
 
+def test_plot_of_a_folder_that_is_no_bag_says_so_and_suggests_no_recovery(tmp_path, van_zon,
+                                                                          capsys):
+    """
+    A photo album, an empty folder, a text file: "is not a bag", in one line.
+
+    A folder with a metadata.yaml that is not rosbag2's once got "try: rigid-body-sim
+    record --recover", which suits only a killed recorder's storage file without its
+    metadata.yaml: that one still gets it.
+    """
+    album = tmp_path / 'album'
+    album.mkdir()
+    (album / 'metadata.yaml').write_text('title: my photo album\n')
+    (album / 'IMG_0001.jpg').write_bytes(b'\xff\xd8\xff')
+    empty = tmp_path / 'empty'
+    empty.mkdir()
+    text = tmp_path / 'notes.txt'
+    text.write_text('notes\n')
+    for path, why in ((album, 'its metadata.yaml is not a rosbag2 one'),
+                      (empty, 'a folder with no metadata.yaml and no .mcap or .db3 file'),
+                      (text, 'a file that is not a storage file of one')):
+        assert cli_main(['plot', str(path)]) == 2
+        error = capsys.readouterr().err
+        assert error.count('\n') == 1 and f'{path} is not a bag: {why}' in error, error
+        assert 'recover' not in error
+    killed = tmp_path / 'killed'
+    killed.mkdir()
+    bag, _ = van_zon
+    (killed / 'van_zon.mcap').write_bytes((bag / 'van_zon.mcap').read_bytes())
+    assert cli_main(['plot', str(killed)]) == 2
+    error = capsys.readouterr().err
+    assert 'has storage files (van_zon.mcap) but no metadata.yaml' in error
+    assert f'try: rigid-body-sim record --recover {killed}' in error
+
+
 def test_the_custom_data_is_that_of_metadata_yaml_in_either_storage(tmp_path, van_zon):
     """rosbag2 keeps it in metadata.yaml; a bag without any (a live one) has none."""
     bag, scene = van_zon
@@ -305,3 +341,17 @@ def test_a_spin_constant_to_many_digits_is_drawn_from_a_round_value():
     from rigid_body_sim.recording.plot import _reference_value
     assert _reference_value(150.0 + np.linspace(1e-7, 5.5e-7, 50)) == 150.0
     assert _reference_value(np.linspace(-2.0, 2.0, 50)) == 0.0
+
+
+def test_the_orientation_panel_names_the_axis_that_flips(van_zon):
+    """Van Zon's body, I = (10, 20, 26): body y is the middle axis, as animate and watch say."""
+    bag, _ = van_zon
+    figure = matplotlib.pyplot.figure()
+    try:
+        axes = figure.add_subplot(projection='3d')
+        _orientation_panel(axes, read_motion(bag))
+        labels = [text.get_text() for text in axes.get_legend().get_texts()]
+        assert labels[1] == 'body y axis (the middle principal axis: it flips)', labels
+        assert 'flips' not in labels[0] + labels[2]
+    finally:
+        matplotlib.pyplot.close(figure)

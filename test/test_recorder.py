@@ -349,7 +349,7 @@ def test_use_sim_time_logs_messages_at_the_simulated_time(tmp_path, node_100_hz)
     assert set(log_times) <= set(clock_times)
     assert np.all(np.diff(log_times) >= 0)
     early = stamps < clock_times[0]
-    said = re.search(r'(\d+) message\(s\) taken before the first /clock are logged at its '
+    said = re.search(r'(\d+) message\(s\) received before the first /clock are logged at its '
                      r'time, (\d+) ns', recorder.output())
     if said is not None:
         assert int(said.group(2)) == clock_times[0], recorder.output()
@@ -565,3 +565,39 @@ def test_a_clock_that_is_not_a_time_moves_no_bag_time_under_use_sim_time():
     recorder._keep(clock, _clock_bytes(-1, 0), {})
     assert recorder.sim_time == 12_000_000_500 and recorder.refused_clocks == 3
     assert len(said) == 1 and 'refused a /clock message' in said[0], said
+
+
+def test_messages_after_a_refused_clock_keep_the_last_valid_time_not_the_first_clocks():
+    """
+    Under use_sim_time a negative /clock leaves the messages after it at the valid time.
+
+    It once made their bag time negative, which marks a message received before the first
+    /clock: the six received after /clock 10 s were logged "before the first /clock".  Only
+    the one message received before any valid /clock is, at the first /clock's time.
+    """
+    recorder = _Recorder.__new__(_Recorder)
+    recorder.use_sim_time = True
+    recorder.sim_time = recorder.first_sim_time = None
+    recorder.refused_clocks = 0
+    recorder.buffer = []
+    recorder.written_until = -math.inf
+    recorder.writer = _ListWriter()
+    said = []
+    recorder.log = said.append
+    clock = types.SimpleNamespace(name='/clock', recorded=False)
+    pose = types.SimpleNamespace(name='/pose', recorded=True, connection='pose',
+                                 last_sequence=None, lost=0, count=0)
+    recorder._keep(clock, _clock_bytes(-5, 0), {})
+    recorder._keep(pose, b'early', {})
+    recorder._keep(clock, _clock_bytes(10, 0), {})
+    for k in range(6):
+        recorder._keep(pose, b'after %d' % k, {})
+    recorder._keep(clock, _clock_bytes(-1, 0), {})
+    recorder._keep(pose, b'after the second refused', {})
+    recorder.write_received()
+    ten = 10_000_000_000
+    assert recorder.writer.written == [(ten, b'early')] + [
+        (ten, b'after %d' % k) for k in range(6)] + [(ten, b'after the second refused')]
+    early = [line for line in said if 'before the first /clock' in line]
+    assert early == [f'1 message(s) received before the first /clock are logged at its '
+                     f'time, {ten} ns'], said

@@ -252,6 +252,34 @@ def test_files_that_are_not_scenes_are_errors_naming_the_file(tmp_path):
         load_scene('nope')
 
 
+def test_a_scene_path_that_is_no_regular_file_says_what_it_is_without_reading_it(tmp_path):
+    """
+    A FIFO, a device, a symlink loop, a broken symlink: one line saying what the path is.
+
+    Each was "does not exist".  The FIFO is given to the command line in a process of its
+    own: opening it would block until a writer came, and the process would not end.
+    """
+    fifo = tmp_path / 'fifo.yaml'
+    os.mkfifo(fifo)
+    done = subprocess.run([sys.executable, '-m', 'rigid_body_sim.cli', 'scenes', str(fifo)],
+                          capture_output=True, text=True, timeout=120,
+                          env=dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path)))
+    assert done.returncode != 0
+    assert done.stderr.strip().splitlines()[-1].endswith(
+        f"scene '{fifo}' is a FIFO (named pipe), not a regular file; give the path of a "
+        '.yaml file'), done.stderr
+    loop = tmp_path / 'loop.yaml'
+    loop.symlink_to(tmp_path / 'other.yaml')
+    (tmp_path / 'other.yaml').symlink_to(loop)
+    dangling = tmp_path / 'dangling.yaml'
+    dangling.symlink_to(tmp_path / 'gone.yaml')
+    for path, kind in (('/dev/zero', 'a character device'), (str(loop), 'a symlink loop'),
+                       (str(dangling), 'a broken symlink')):
+        with pytest.raises(ValueError, match=f'^scene {re.escape(repr(path))} is {kind}, not '
+                                             'a regular file'):
+            load_scene(path)
+
+
 def test_a_scene_file_anywhere_loads_by_path(tmp_path):
     path = tmp_path / 'mine.yaml'
     path.write_text(

@@ -347,13 +347,6 @@ def test_batch_serializer_writes_zeros_in_the_cdr_padding():
 WALL_CLOCK_KEYS = {'achieved rate [Hz]', 'achieved real-time factor',
                    'integration CPU per simulated s [s]', 'step time p50 [ms]',
                    'step time max [ms]', 'tick duration p50 [ms]', 'tick duration p99 [ms]'}
-# Bytes serialised by rclpy outside state_batch.py, whose CDR padding is what rclpy's
-# buffer held: equal in two runs only when the leftover memory happens to be.
-PADDING_NOT_ZEROED = {
-    '/tf': "rigid_body_sim/messages/tf.py: TransformSerializer's template",
-    '/tf_static': 'rigid_body_sim/recording/simulate.py: serialize_message of the transforms',
-    '/imu': "rigid_body_sim/recording/simulate.py: _ImuRows' template",
-}
 
 
 @pytest.fixture(scope='module')
@@ -386,24 +379,25 @@ def _without_wall_clock(diagnostics):
               for pair in status.values]) for status in diagnostics.status]
 
 
-@pytest.mark.parametrize('topic', [
-    pytest.param(topic, marks=pytest.mark.xfail(
-        topic in PADDING_NOT_ZEROED, strict=False,
-        reason=f'CDR padding not zeroed: {PADDING_NOT_ZEROED.get(topic)}'))
-    for topic in TYPE_NAMES])
+@pytest.mark.parametrize('topic', list(TYPE_NAMES))
 def test_two_identical_simulate_runs_write_byte_identical_messages_on_every_topic(
         twin_runs, topic):
     """
     Same command, same bytes: every message's data, log time and order, topic by topic.
 
     /diagnostics excepted, as it reports the run's speed: its messages are compared
-    deserialised, all but the wall-clock values (WALL_CLOCK_KEYS) equal.
+    deserialised, all but the wall-clock values (WALL_CLOCK_KEYS) equal.  Every message's
+    CDR padding is zero (rosbags writes zeros there: its serialisation of the message is
+    the very bytes), which once held what rclpy's buffer held on /tf, /tf_static and /imu.
     """
     first, second = (_raw_messages(bag) for bag in twin_runs)
     assert set(first) == set(second) == set(TYPE_NAMES)
     assert len(first[topic]) == len(second[topic]) > 0
+    store = typestore()
+    name = TYPE_NAMES[topic]
+    for _, data in first[topic] + second[topic]:
+        assert bytes(store.serialize_cdr(store.deserialize_cdr(data, name), name)) == data
     if topic == '/diagnostics':
-        store = typestore()
         for (time_a, a), (time_b, b) in zip(first[topic], second[topic]):
             assert time_a == time_b
             assert _without_wall_clock(store.deserialize_cdr(a, TYPE_NAMES[topic])) == \
@@ -440,6 +434,7 @@ def test_custom_data_names_the_run(van_zon_bag):
     assert float(custom['rigid_body_sim.rate']) == 1000.0
     inertia = np.array(custom['rigid_body_sim.inertia'].split(), dtype=float).reshape(3, 3)
     np.testing.assert_array_equal(inertia, scene.body.inertia)
+    assert custom['rigid_body_sim.body_shape'] == scene.data['body'].get('shape', '')
 
 
 def test_metadata_names_jazzy_as_ros_distro_in_every_place_rosbag2_keeps_it(tmp_path):
@@ -459,7 +454,7 @@ def test_metadata_names_jazzy_as_ros_distro_in_every_place_rosbag2_keeps_it(tmp_
         assert 'ros_distro: jazzy\n' in serialized + '\n' and 'rosbags' not in serialized
 
 
-def test_namespace_moves_the_state_topics_only(tmp_path):
+def test_namespace_moves_the_state_topics_and_the_frames(tmp_path):
     simulate_to_bag(load_scene('default'), tmp_path / 'ns', 0.1, namespace='sat1')
     facts, messages = read_rosbags(tmp_path / 'ns')
     assert set(facts['connections']) == {'/sat1/pose', '/sat1/twist', '/sat1/angular_momentum',
@@ -467,6 +462,10 @@ def test_namespace_moves_the_state_topics_only(tmp_path):
                                          '/diagnostics', '/tf', '/tf_static'}
     assert len(messages['/sat1/pose']) == 10 and '/diagnostics' not in messages
     assert len(messages['/tf']) == 10
+    # The frames follow the namespace, as the node's (frame_prefix's default).
+    assert {m.header.frame_id for _, m in messages['/sat1/pose']} == {'sat1/world'}
+    assert {(t.header.frame_id, t.child_frame_id) for _, m in messages['/tf']
+            for t in m.transforms} == {('sat1/world', 'sat1/body')}
 
 
 def test_cli_writes_a_bag_and_refuses_bad_input(tmp_path, capsys):

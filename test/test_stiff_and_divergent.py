@@ -167,6 +167,26 @@ def test_a_state_turning_non_finite_stops_at_the_last_finite_one_naming_when(nam
     assert np.all(np.isfinite(simulator.state.angular_momentum))
 
 
+@pytest.mark.parametrize('interpreted', [False, True], ids=['compiled', 'interpreted'])
+def test_under_error_control_a_state_turning_non_finite_stops_at_the_last_finite_one(
+        interpreted):
+    # The controller tests the state it leaves (error_control.controlled_ticks), compiled and
+    # as its interpreted source: the Simulator restores the last finite state from it alone.
+    body, state = _issue_box()
+    simulator = Simulator(body, state, effects=[_BlowUp(0.105)], tolerance=1e-3)
+    simulator.interpreted = interpreted
+    for _ in range(10):
+        simulator.step(0.01)
+    kept = simulator.state
+    with pytest.raises(DivergedError) as caught:
+        for _ in range(10):
+            simulator.step(0.01)
+    assert caught.value.time == pytest.approx(0.1)
+    assert 'error control at 0.001 rad/s' in str(caught.value)
+    assert simulator.time == pytest.approx(0.1)
+    assert simulator.state == kept
+
+
 # Values past each bound: the effects refuse them at load, naming the unit.
 BEYOND = [('drag', {'rotational_linear': 1e300}, 'rotational_linear', 'N m s'),
           ('drag', {'linear': 2e6}, 'linear', 'N s/m'),

@@ -25,6 +25,7 @@ import pytest
 from rigid_body_sim.watch.live import DIAGNOSTICS_KEYS
 from rigid_body_sim.watch.live import format_number
 from rigid_body_sim.watch.live import LiveState
+from rigid_body_sim.watch.terminal import render_lines
 
 RATE = 100.0
 PERIOD_NS = 10_000_000
@@ -37,6 +38,15 @@ def _feed(state, stamps, omega=lambda k: (0.0, 2.0, 0.0), moving=True):
         stamp = 1_700_000_000_000_000_000 + k * PERIOD_NS
         state.add_odometry(stamp, quaternion, (0.0, 0.0, 0.0), omega(k))
         state.add_angular_momentum(stamp, (0.0, 4.0, 0.0))
+
+
+def _t_handle_marker(state, k):
+    """Give `state` the marker of a box whose middle edge (and middle moment) is along y."""
+    from visualization_msgs.msg import Marker
+    marker = Marker(type=Marker.CUBE)
+    marker.scale.x, marker.scale.y, marker.scale.z = 0.1, 0.3, 0.5
+    marker.pose.orientation.w = 1.0
+    state.add_marker(1_700_000_000_000_000_000 + k * PERIOD_NS, marker)
 
 
 def _report(state, k, simulated, paused=False, extra=None):
@@ -63,7 +73,9 @@ def test_ticks_get_simulated_time_from_the_report_of_their_tick():
 def test_a_report_behind_the_count_is_a_reset_and_forgets_what_came_before():
     state = LiveState(history=100.0)
     flips = iter([2.0] * 30 + [-2.0] * 40 + [2.0] * 100)
-    _feed(state, range(1, 71), omega=lambda k: (0.0, next(flips), 0.0))
+    _feed(state, range(1, 2), omega=lambda k: (0.0, next(flips), 0.0))
+    _t_handle_marker(state, 1)  # the middle axis is y
+    _feed(state, range(2, 71), omega=lambda k: (0.0, next(flips), 0.0))
     _report(state, 20, 0.2)
     assert state.snapshot().flips == 1
     # Reset at tick 71 (time 0, the state restarts): the report of tick 75 says 0.05 s.
@@ -95,10 +107,107 @@ def test_an_integrator_switch_is_noted_at_its_time():
     assert time_of_switch == pytest.approx(0.2, abs=1e-9)
 
 
+def test_an_integrator_switch_is_one_event_though_the_next_report_says_it_too():
+    state = LiveState(history=100.0)
+    _feed(state, range(1, 21))
+    _report(state, 10, 0.1)
+    state.add_parameter_change('integrator', 'rk4')
+    _feed(state, range(21, 121))
+    _report(state, 110, 1.1, extra={DIAGNOSTICS_KEYS['integrator']: 'rk4'})
+    assert [name for _, name, _ in state.snapshot().events] == ['integrator']
+
+
+def test_a_state_not_finite_or_absurd_never_enters_the_history_and_is_said():
+    state = LiveState(history=100.0)
+    _feed(state, range(1, 21))
+    _report(state, 10, 0.1)
+    _feed(state, range(21, 23))
+    before = state.snapshot()
+    for k, omega in ((23, (float('nan'), 0.0, 0.0)), (24, (1e300, 0.0, 0.0))):
+        _feed(state, [k], omega=lambda k, omega=omega: omega)
+    state.add_odometry(1_700_000_000_000_000_000 + 25 * PERIOD_NS, (0.0, 0.0, 0.0, 0.0),
+                       (0.0, 0.0, 0.0), (0.0, 2.0, 0.0))
+    snapshot = state.snapshot()
+    assert len(snapshot.time) == len(before.time)
+    assert snapshot.latest is before.latest
+    assert np.all(np.isfinite(snapshot.angular_velocity_body))
+    assert snapshot.refused['odom'] == ('absurd', 3)
+    text = '\n'.join(render_lines(snapshot))
+    assert 'odom: 3 (absurd' in text
+    assert format_number(float('nan')) == 'not finite' and format_number(1e300) == 'absurd'
+
+
+def test_report_numbers_not_finite_or_absurd_are_said_and_keep_the_history_bounded():
+    state = LiveState(history=1.0)
+    state.set_node('/rigid_body_sim')
+    _feed(state, range(1, 21))
+    _report(state, 10, 0.1)
+    # A spoofed rate: the ticks keep the last rate the node gave, and old ones are dropped.
+    _report(state, 20, 0.2, extra={DIAGNOSTICS_KEYS['rate']: 'nan'})
+    _feed(state, range(21, 1000))
+    snapshot = state.snapshot()
+    assert snapshot.time[-1] - snapshot.time[0] <= 1.0 + 1e-9
+    _report(state, 999, 9.99, extra={DIAGNOSTICS_KEYS['simulated_time']: '1' + '0' * 308,
+                                     DIAGNOSTICS_KEYS['energy_drift']: 'inf'})
+    _feed(state, range(1000, 1002))
+    text = '\n'.join(render_lines(state.snapshot()))
+    assert '0' * 20 not in text and 'None' not in text
+    assert 'energy drift  not finite' in text
+    assert state.snapshot().current_time == pytest.approx(10.01, abs=1e-9)
+
+
+def test_peer_strings_reach_the_terminal_cut_and_escaped():
+    state = LiveState(history=100.0)
+    _feed(state, range(1, 21))
+    _report(state, 10, 0.1, extra={
+        DIAGNOSTICS_KEYS['status']: '\x1b]0;PWNED-TITLE\x07\x1b[2J',
+        DIAGNOSTICS_KEYS['scene']: 'x' * 5_000_000, 'k' * 100_000: 'v'})
+    _feed(state, range(21, 23))
+    lines = render_lines(state.snapshot())
+    assert not any(c in line for line in lines for c in '\x1b\x07')
+    assert max(len(line) for line in lines) < 600
+    assert 'PWNED-TITLE' in lines[0]
+
+
+def test_flips_count_sign_changes_along_the_middle_axis_only_while_the_body_is_free():
+    state = LiveState(history=100.0)
+    _feed(state, range(1, 2))
+    _t_handle_marker(state, 1)
+    # Pushed, the body turns about z and back: no flips while the input acts.
+    _report(state, 1, 0.01, extra={DIAGNOSTICS_KEYS['wrench_active']: 'True'})
+    swings = iter([(0.0, 2.0, 0.0)] * 10 + [(0.0, -2.0, 0.0)] * 10 + [(0.0, 2.0, 0.0)] * 10)
+    _feed(state, range(2, 32), omega=lambda k: next(swings))
+    assert state.snapshot().flips == 0
+    # Free: each swing of Omega_y through zero is a flip; Omega_z's swings are not.
+    _report(state, 31, 0.31, extra={DIAGNOSTICS_KEYS['wrench_active']: 'False'})
+    swings = iter([(0.0, 2.0, 0.0)] * 10 + [(0.0, -2.0, 0.0)] * 10 + [(0.0, 2.0, 0.0)] * 10
+                  + [(0.0, 0.1, 2.0)] * 10 + [(0.0, 0.1, -2.0)] * 10)
+    _feed(state, range(32, 82), omega=lambda k: next(swings))
+    snapshot = state.snapshot()
+    assert snapshot.flips == 2
+    assert snapshot.flips_since == 'since watch started'
+
+
+def test_the_trail_keeps_a_pose_each_time_the_body_turned_two_degrees():
+    state = LiveState(history=100.0)
+    angles = np.radians(np.arange(0.0, 90.0, 0.5))  # half a degree per tick
+    for k, angle in enumerate(angles):
+        stamp = 1_700_000_000_000_000_000 + k * PERIOD_NS
+        state.add_odometry(stamp, (0.0, 0.0, np.sin(angle / 2), np.cos(angle / 2)),
+                           (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+        state.add_angular_momentum(stamp, (0.0, 0.0, 1.0))
+    trail = state.snapshot().trail
+    turned = np.degrees(2.0 * np.arctan2(trail[:, 2], trail[:, 3]))
+    # Each kept pose at least 2 degrees from the one before, at most one tick more.
+    steps = np.diff(turned)
+    assert np.all(steps > 2.0 - 1e-6) and np.all(steps < 2.5 + 1e-6), steps
+    assert turned[-1] > 89.5 - 2.5
+
+
 # -- over DDS: the node, the watch as a subprocess
 
 
-class _Watch:
+class WatchProcess:
     """`rigid-body-sim watch` as a subprocess; its stdout collected in blocks."""
 
     def __init__(self, arguments, environment=None):
@@ -200,13 +309,15 @@ def _frozen_state(client):
 @pytest.mark.xdist_group('node')
 def test_the_terminal_view_prints_the_nodes_numbers(node):
     since, reports, odom, momentum = _frozen_state(node)
-    watch = _Watch(['--terminal', '--namespace', node.namespace, '--interval', '0.1'])
+    watch = WatchProcess(['--terminal', '--namespace', node.namespace, '--interval', '0.1'])
     try:
         time_text = f'{float(reports[-1]["simulated time [s]"]):.6f} s simulated'
 
         def paused_block(blocks, lines):
+            # (Flips are counted once the marker has told the principal axes.)
             return next((block for block in reversed(blocks) if block[0].endswith('paused')
-                         and _fields(block).get('time') == time_text), None)
+                         and _fields(block).get('time') == time_text
+                         and 'principal axis' in _fields(block).get('flips', '')), None)
         block = watch.wait_for(paused_block, f'block at {time_text}')
         fields = _fields(block)
         angular = odom.twist.twist.angular
@@ -224,7 +335,8 @@ def test_the_terminal_view_prints_the_nodes_numbers(node):
                     and fields['ticks/s'].startswith(report['achieved rate [Hz]'] + ' '))
         node.wait_for(lambda: any(shown(report) for report in _paused_reports(node, since)),
                       DISCOVERY_TIMEOUT, f'a report with the numbers of {fields}')
-        assert fields['flips'].startswith('0 (sign changes of Omega_y)')
+        assert fields['flips'].startswith('0 since watch started (sign changes of Omega along '
+                                          'the middle principal axis')
 
         # A reset shows as time 0 at the next report; a switch of integrator at once.
         node.reset()
@@ -235,7 +347,8 @@ def test_the_terminal_view_prints_the_nodes_numbers(node):
             'changes', ''), 'the switch to rk4')
         node.pause(False)
         watch.wait_for(lambda blocks, lines: blocks[-1][0].endswith(': running')
-                       and 'integrator rk4 at 100 Hz' in blocks[-1][1], 'running under rk4')
+                       and 'integrator rk4 at 100 Hz' in _fields(blocks[-1]).get('scene', ''),
+                       'running under rk4')
     finally:
         code, errors = watch.stop()
         node.pause(False)
@@ -245,7 +358,7 @@ def test_the_terminal_view_prints_the_nodes_numbers(node):
 
 def test_no_node_found_is_said_and_a_timeout_exits_with_1(tmp_path):
     isolate_ros_environment()
-    watch = _Watch(['--terminal', '--namespace', unique_namespace(), '--timeout', '1.5'])
+    watch = WatchProcess(['--terminal', '--namespace', unique_namespace(), '--timeout', '1.5'])
     watch.wait_for(lambda blocks, lines: any('no rigid_body_sim node named' in line
                                              for line in lines), 'no-node message')
     code, errors = watch.stop(signal_number=None, timeout=DISCOVERY_TIMEOUT)
@@ -309,7 +422,7 @@ def test_the_window_shows_the_body_and_both_charts(node, tmp_path):
     pytest.importorskip('tkinter', reason='this Python has no tkinter (the window needs it)')
     from PIL import ImageGrab
     xvfb, display = _start_xvfb()
-    watch = _Watch(['--namespace', node.namespace], environment={'DISPLAY': display})
+    watch = WatchProcess(['--namespace', node.namespace], environment={'DISPLAY': display})
     try:
         watch.wait_for(lambda blocks, lines: any('window shows' in line for line in lines),
                        'window drawn')
@@ -322,6 +435,7 @@ def test_the_window_shows_the_body_and_both_charts(node, tmp_path):
             if _window_drawn(screen) or time.monotonic() > deadline:
                 break
             time.sleep(0.2)  # waits-for: poll interval of the loop waiting for the curves
+        screen = _window_only(screen)
         screen.save(tmp_path / 'watch.png')
     finally:
         code, errors = watch.stop()
@@ -334,3 +448,38 @@ def test_the_window_shows_the_body_and_both_charts(node, tmp_path):
     assert orange > 2000, f'body: {orange} orange pixels ({tmp_path})'
     for name, colour in _CURVES:
         assert near(charts, colour) > 200, f'{name}: {near(charts, colour)} pixels'
+    # The README's picture is this test's, taken afresh each run that passes.
+    screen.save(PACKAGE_ROOT / 'docs' / 'watch_window.png', optimize=True)
+
+
+def _window_only(screen):
+    """Return the screenshot cut to the window (the Xvfb screen around it is black)."""
+    pixels = np.asarray(screen.convert('RGB')).max(axis=2)
+    rows, columns = np.nonzero(pixels > 0)
+    return screen.crop((columns.min(), rows.min(), columns.max() + 1, rows.max() + 1))
+
+
+@pytest.mark.xdist_group('node')
+def test_the_window_draws_peer_text_with_dollars_as_text(tmp_path):
+    # A scene named as mathtext (the scenes command accepts it): every redraw once raised
+    # matplotlib's ParseFatalException, and the window never drew while stdout said it did.
+    pytest.importorskip('tkinter', reason='this Python has no tkinter (the window needs it)')
+    isolate_ros_environment()
+    scene = (PACKAGE_ROOT / 'config' / 'scenes' / 'default.yaml').read_text()
+    path = tmp_path / 'dollars.yaml'
+    path.write_text(scene.replace('name: default', "name: 'spin $\\omega$ and $\\foo$'", 1))
+    namespace = unique_namespace()
+    node = NodeProcess(tmp_path / 'node.log', namespace=namespace,
+                       parameters={'scene': str(path)})
+    xvfb, display = _start_xvfb()
+    watch = WatchProcess(['--namespace', namespace], environment={'DISPLAY': display})
+    try:
+        watch.wait_for(lambda blocks, lines: any('window shows' in line for line in lines),
+                       'window drawn')
+    finally:
+        code, errors = watch.stop()
+        node.stop()
+        xvfb.terminate()
+        xvfb.wait(10.0)
+    assert not any('could not be drawn' in line for line in watch.lines), watch.lines
+    assert code == 128 + signal.SIGINT and 'Traceback' not in errors, errors

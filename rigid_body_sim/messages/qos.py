@@ -5,11 +5,11 @@ State topics: reliable, keep-last 1000, volatile.  A subscriber that keeps up on
 (``ros2 bag record``, a test, a controller) receives every message, and nobody receives
 stale state from before it joined.  The history is a second of ticks at 1 kHz (ten at
 100 Hz) because a reliable writer can resend only what its history still holds: Fast DDS
-delivers over shared memory through a port queue of 512 samples, about 85 ms of the six
-topics at 1 kHz, and a subscriber that stalls for longer (a recorder flushing to a slow
-disk, a scheduler hiccup on a busy machine) had every later message overwritten in a
-keep-last-10 history and lost for good (measured: 214-517 messages per topic for 0.3-0.6 s
-stalls; none with this depth; ``benchmarks/recording_benchmark.py --stalls``).  Keep-last
+delivers over shared memory through a port queue of 512 samples, under a tenth of a second
+of the six topics at 1 kHz, and a subscriber that stalls for longer (a recorder flushing to
+a slow disk, a scheduler hiccup on a busy machine) had every later message overwritten in a
+keep-last-10 history and lost for good; none with this depth (what each depth loses:
+``benchmarks/recording_benchmark.py --stalls``, figures in docs/recording.md).  Keep-last
 never blocks the publisher, and the history costs memory only for messages not yet
 acknowledged.  The inputs and /diagnostics keep the usual depth of 10, and ``/clock`` has
 the QoS every ROS 2 clock publisher and subscriber uses.

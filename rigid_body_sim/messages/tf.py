@@ -17,13 +17,13 @@ import struct
 
 from geometry_msgs.msg import TransformStamped
 import numpy as np
-from rclpy.serialization import serialize_message
 
 from .cdr import byte_order
 from .cdr import column
 from .cdr import offset_of
 from .cdr import rows_of
 from .cdr import sentinels
+from .cdr import serialize_zeroed
 from .cdr import STAMP_SENTINEL
 from .cdr import write_stamps
 
@@ -78,7 +78,8 @@ class TransformSerializer:
     ``serialize(stamp, pose)`` (one tick, the node) and ``serialize_rows(stamps, columns)``
     (many ticks, ``simulate``) write the stamp and the 7 doubles of the pose (position x,
     y, z, quaternion x, y, z, w) into a template serialised once by rclpy, as
-    :class:`~rigid_body_sim.messages.state.StateSerializer` does for the state topics.
+    :class:`~rigid_body_sim.messages.state.StateSerializer` does for the state topics (its
+    padding zeroed: :func:`~rigid_body_sim.messages.cdr.serialize_zeroed`).
     """
 
     def __init__(self, message_class, parent_frame, child_frame):
@@ -86,7 +87,7 @@ class TransformSerializer:
             parent_frame, child_frame, 0, _SENTINELS[:3], _SENTINELS[3:])])
         message.transforms[0].header.stamp.sec, message.transforms[0].header.stamp.nanosec = \
             STAMP_SENTINEL
-        template = bytearray(serialize_message(message))
+        template = bytearray(serialize_zeroed(message))
         order = byte_order(template)
         self._pose_offset = offset_of(template, struct.pack(order + '7d', *_SENTINELS),
                                       'the transform')

@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 
+from .frames import as_tf2_reads
 from ..text import shortened
 
 __all__ = ['RejectedInput', 'WrenchInput', 'frame_from_frame_id', 'wrench_input_from_message']
@@ -59,11 +60,13 @@ def frame_from_frame_id(frame_id, world_frame, body_frame):
     """
     Return 'world' or 'body' for a header frame id; RejectedInput for any other id.
 
-    An empty frame id means the world frame (what ``ros2 topic pub`` sends by default).
+    An empty frame id means the world frame (what ``ros2 topic pub`` sends by default).  The
+    ids are compared as tf2 reads them (:func:`~rigid_body_sim.messages.frames.as_tf2_reads`:
+    ``/sat1/body`` is ``sat1/body``).
     """
-    if frame_id in ('', world_frame):
+    if frame_id == '' or as_tf2_reads(frame_id) == world_frame:
         return 'world'
-    if frame_id == body_frame:
+    if as_tf2_reads(frame_id) == body_frame:
         return 'body'
     # A peer's frame id can be megabytes long or hold control characters: quoted cut and
     # escaped, so the warning (and /rosout) stays one short line.

@@ -28,7 +28,8 @@ from ..physics.warm_up import job_estimate
 from ..physics.warm_up import jobs_of
 from ..text import shortened
 
-__all__ = ['ASSUME_UNCOMPILED', 'BackgroundCompilation', 'kernels_compiled', 'NICENESS']
+__all__ = ['ASSUME_UNCOMPILED', 'BackgroundCompilation', 'compile_seconds', 'kernels_compiled',
+           'NICENESS']
 
 ASSUME_UNCOMPILED = 'RIGID_BODY_SIM_ASSUME_UNCOMPILED'
 """Environment variable (test hook): integrators taken for not compiled, comma-separated."""
@@ -41,6 +42,18 @@ def kernels_compiled(name):
     if name in os.environ.get(ASSUME_UNCOMPILED, '').split(','):
         return False
     return is_compiled(name)
+
+
+def compile_seconds(name):
+    """
+    Return about how many seconds compiling the kernels of integrator `name` takes here.
+
+    The registry's estimate (:func:`~rigid_body_sim.physics.warm_up.compile_estimate`: what
+    each job took here, else its declared time on the reference machine), for this
+    machine's workers; under the test hook (the cache has them) its longest job.
+    """
+    return compile_estimate([name], _workers()) or max(
+        job_estimate(job) for job in jobs_of([name]))
 
 
 def _workers():
@@ -69,15 +82,17 @@ class BackgroundCompilation:
 
     def __init__(self, name):
         self.name = name
-        # (Under the test hook the cache has them: what the jobs took here.)
-        self.estimate = compile_estimate([name], _workers()) or max(
-            job_estimate(job) for job in jobs_of([name]))
+        self.estimate = compile_seconds(name)
         self._started = time.monotonic()
         self._output = tempfile.TemporaryFile()
         self._process = subprocess.Popen(
             [sys.executable, '-m', 'rigid_body_sim.cli', 'compile', name, '--quiet'],
             stdin=subprocess.DEVNULL, stdout=self._output, stderr=subprocess.STDOUT,
             preexec_fn=_lower_priority)
+
+    def elapsed(self):
+        """Return the seconds since it started."""
+        return time.monotonic() - self._started
 
     def poll(self):
         """

@@ -8,6 +8,7 @@ and the built-in scenes, so it cannot fall out of step with what the node declar
 import shutil
 import textwrap
 
+from .parameters import NAMESPACE_VALUE
 from .parameters import NOT_SET
 from .parameters import PARAMETERS
 from .parameters import SCENE_VALUE
@@ -37,12 +38,16 @@ published (relative names; QoS reliable, keep-last 1000 (1 s at 1 kHz), volatile
   /tf_static        tf2_msgs/TFMessage             body_frame -> imu_frame (transient local)
   /diagnostics      diagnostic_msgs/DiagnosticArray  1 Hz: rates, step time, drift
   /clock            rosgraph_msgs/Clock            only with publish_clock:=true
-subscribed (only with external_wrench; frame_id world or empty: world-fixed, body: body-fixed):
+subscribed (only with external_wrench; frame_id world_frame or empty: world-fixed,
+            body_frame: body-fixed):
   torque            geometry_msgs/Vector3Stamped   N m
   wrench            geometry_msgs/WrenchStamped    force through the COM (N), torque (N m)
 services:
   reset             std_srvs/Trigger               back to the initial state at time 0
   pause             std_srvs/SetBool               true: freeze the state, false: resume
+
+frames: frame_prefix (default: the namespace, 'sat1/' in /sat1) + world_frame, body_frame,
+imu_frame; REP 105 names: --params-file config/rep105.yaml (odom, base_link, imu_link).
 
 parameters (ros2 param describe <node> <name> says the same; 'run time' ones can be set
 while it runs):"""
@@ -66,6 +71,8 @@ def _default(spec):
         return "the scene's (shown once running)"
     if spec.default is SCENE_VALUE:
         return "the scene's"
+    if spec.default is NAMESPACE_VALUE:
+        return "the namespace's ('sat1/' in /sat1)"
     return repr(spec.default) if isinstance(spec.default, str) else str(spec.default).lower() \
         if isinstance(spec.default, bool) else str(spec.default)
 

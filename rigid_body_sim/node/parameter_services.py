@@ -17,6 +17,10 @@ so ``ros2 param`` and every parameter client work unchanged:
 - list_parameters: as rclpy;
 - set_parameters: one result per parameter, each set on its own;
 - set_parameters_atomically: all or none, one result.
+
+A successful set's ``reason`` carries what the node's `note` says of the change (rclpy's
+set_parameters_atomically drops the reason of a successful validation): an integrator switch
+that waits for its kernels says so, and when it will act.
 """
 
 from rcl_interfaces.msg import ListParametersResult
@@ -93,11 +97,14 @@ class ParameterServices:
     """
     The parameter services of `node` (created with ``start_parameter_services=False``).
 
-    Every callback answers; see the module docstring.
+    Every callback answers; see the module docstring.  `note` (optional): called with the
+    parameters of a set request before they are set, returns the words ('' for none) the
+    reply's ``reason`` gives if they are set.
     """
 
-    def __init__(self, node, callback_group=None):
+    def __init__(self, node, callback_group=None, note=None):
         self._node = node
+        self._note = note
         for service_type, name, callback in (
                 (DescribeParameters, 'describe_parameters', self._describe_callback),
                 (GetParameters, 'get_parameters', self._get_callback),
@@ -168,8 +175,12 @@ class ParameterServices:
             parameters = [parameter_from_message(message, self._node) for message in messages]
         except RefusedParameter as refusal:
             return _refused(str(refusal))
+        # Read before the change: what it will do depends on the state it finds.
+        note = self._note(parameters) if self._note is not None else ''
         try:
             result = self._node.set_parameters_atomically(parameters)
         except (ParameterException, TypeError, ValueError) as error:
             return _refused(shortened(str(error), limit=1000))
+        if result.successful and note:
+            result.reason = note
         return result

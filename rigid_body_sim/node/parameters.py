@@ -7,6 +7,8 @@ the effects on it, how to draw it, and the default integrator and rate.  The par
 in three kinds, told apart by the ``default`` of their :class:`ParameterSpec`:
 
 - a value: the node's own settings (frames, inputs, sim time), the same for every scene;
+- :data:`NAMESPACE_VALUE`: ``frame_prefix`` is declared with the node's namespace as a
+  frame prefix (``sat1/`` in ``/sat1``), so that nodes in two namespaces name distinct frames;
 - :data:`SCENE_VALUE`: ``integrator``, ``rate`` and ``tolerance`` are declared with the
   scene's values as their defaults, so ``ros2 param get`` shows what runs; a value the user
   gives replaces it;
@@ -45,6 +47,9 @@ from rclpy.exceptions import InvalidParameterValueException
 from rclpy.exceptions import ParameterUninitializedException
 from rclpy.parameter import Parameter
 
+from ..messages.frames import default_frame_prefix
+from ..messages.frames import frame_ids
+from ..messages.frames import MAX_FRAME_ID_LENGTH
 from ..physics import get_integrator
 from ..physics import INTEGRATORS
 from ..physics.imu import ImuModel
@@ -60,6 +65,7 @@ __all__ = [
     'DEFAULTS',
     'NOT_SET',
     'SCENE_VALUE',
+    'NAMESPACE_VALUE',
     'ParameterSpec',
     'declare_scene_parameter',
     'declare_parameters',
@@ -70,6 +76,7 @@ __all__ = [
     'show_effective_values',
     'imu_model_from_parameters',
     'check_integrator',
+    'frame_ids_from_parameters',
 ]
 
 
@@ -88,6 +95,9 @@ NOT_SET = _Placeholder('NOT_SET')
 
 SCENE_VALUE = _Placeholder('SCENE_VALUE')
 """Default of a parameter declared with the scene's value as its default."""
+
+NAMESPACE_VALUE = _Placeholder('NAMESPACE_VALUE')
+"""Default of ``frame_prefix``: the node's namespace as a frame prefix (``/sat1``: ``sat1/``)."""
 
 
 @dataclass(frozen=True)
@@ -123,6 +133,10 @@ class ParameterSpec:
 # A unit quaternion given to 4 decimals is off by up to ~1e-4 in norm; such a slightly
 # unnormalised value is normalised, anything further from 1 is a mistake and is refused.
 _QUATERNION_NORM_TOLERANCE = 1e-3
+_FRAME_CONSTRAINTS = (
+    f'the three different as tf2 reads them (one leading / dropped), non-empty, without '
+    f'whitespace or control characters, at most {MAX_FRAME_ID_LENGTH} characters with the '
+    'prefix')
 _FROM_SCENE = (" Default: the scene's value (the one the simulation runs with); a value equal to "
                'it, or following from the others, overrides nothing.')
 
@@ -170,9 +184,18 @@ PARAMETERS = (
           'not the clock).  Sim-time consumers (use_sim_time:=true, ros2 bag record '
           '--use-sim-time) then follow the simulation.  False: stamps come from the '
           "node's clock."),
-    _spec('world_frame', str, 'world', 'Frame id of the inertial world frame (z up).'),
+    _spec('frame_prefix', str, NAMESPACE_VALUE,
+          'Put in front of every frame id the node publishes (world_frame, body_frame, '
+          "imu_frame), verbatim as robot_state_publisher's frame_prefix: 'sat1/' makes "
+          "'sat1/world' and 'sat1/body'.  Default: the node's namespace ('sat1/' in /sat1, "
+          "none at the root), so that nodes in two namespaces publish distinct frames; '' "
+          'for none.'),
+    _spec('world_frame', str, 'world',
+          'Frame id of the inertial world frame (z up), after frame_prefix (REP 105: odom).',
+          constraints=_FRAME_CONSTRAINTS),
     _spec('body_frame', str, 'body',
-          'Frame id of the body frame (origin at the centre of mass).'),
+          'Frame id of the body frame (origin at the centre of mass), after frame_prefix '
+          '(REP 105: base_link).', constraints=_FRAME_CONSTRAINTS),
     _spec('input_timeout', float, 0.5,
           'A torque or wrench input holds until replaced or until this many seconds of the '
           "node's clock pass without a new one on its topic; 0 holds forever.",
@@ -183,8 +206,9 @@ PARAMETERS = (
           "scene's external_wrench limits, if it has any).",
           read_only=False, value_range=(0.0, 1.0e12)),
     _spec('imu_frame', str, 'imu',
-          "Frame id of the simulated IMU (the imu topic's header): fixed in the body at "
-          'imu.position with orientation imu.orientation.'),
+          "Frame id of the simulated IMU (the imu topic's header), after frame_prefix: fixed "
+          'in the body at imu.position with orientation imu.orientation.',
+          constraints=_FRAME_CONSTRAINTS),
     _spec('imu.position', list, SCENE_VALUE,
           "Where the IMU sits: m from the centre of mass, body frame; default: the scene's "
           '(its imu section), else the COM.'),
@@ -358,6 +382,8 @@ def declare_parameters(node, scene, overrides=None):
             default = spec.default
             if default is SCENE_VALUE:
                 default = scene_values[spec.name]
+            elif default is NAMESPACE_VALUE:
+                default = default_frame_prefix(node.get_namespace())
             _declare(node, spec, default, overrides)
         try:
             values[spec.name] = node.get_parameter(spec.name).value
@@ -387,6 +413,22 @@ def _declare(node, spec, default, overrides):
                 f'{spec.name} is {default!r}: set {spec.name}') from None
         raise ValueError(
             f'parameter {spec.name!r} must be in [{low}, {high}]; got {override!r}') from None
+
+
+@one_line_errors
+def frame_ids_from_parameters(values):
+    """
+    Return {world_frame, body_frame, imu_frame: frame id}: prefixed, as tf2 reads them.
+
+    Raises
+    ------
+    ValueError
+        If one is not a usable frame id or two are one frame, naming the parameter
+        (:func:`rigid_body_sim.messages.frames.frame_ids`).
+
+    """
+    return frame_ids(values['frame_prefix'], {name: values[name] for name in (
+        'world_frame', 'body_frame', 'imu_frame')})
 
 
 def check_integrator(name):

@@ -9,7 +9,7 @@ rclpy is initialised without its own signal handlers, so nothing shuts the conte
 from another thread under the node or the executor.  No KeyboardInterrupt is ever raised:
 one raised inside numba's compiler, in a ctypes callback, was swallowed ("Exception ignored
 on calling ctypes callback function ... KeyboardInterrupt") and the compilation went on
-for 35 s; one raised inside the EventsExecutor's dispatch could leave it holding callbacks
+to its end; one raised inside the EventsExecutor's dispatch could leave it holding callbacks
 of a node about to be destroyed.
 
 Where the process cannot get to such a check (a numba compilation, a step of the
@@ -17,8 +17,7 @@ integration that runs for seconds), a watchdog thread armed by the first signal 
 if :data:`STOP_GRACE` s later the main thread has not noticed the signal, one line says so
 and the process exits with code 0 at once (nothing is lost: the node publishes nothing
 that needs finishing).  What no Python program can cover is the interpreter's own start
-before the entry point's first statement (about 50 ms on the 2-core build machine): a
-signal then takes its default action.
+before the entry point's first statement: a signal then takes its default action.
 
 This module imports nothing heavy at its top (the node and rclpy are imported by
 :func:`run_node`), and it holds the signal state however the node is started
@@ -51,8 +50,8 @@ STOP_GRACE = 1.0
 """Time (s) the main thread has to notice a signal before the watchdog ends the process."""
 EXIT_GRACE = 30.0
 """Longest time (s) the node's teardown (node, context, DDS participant) may take once the
-node is done; see :func:`bound_the_shutdown`.  It takes ~0.1 s; 30 s covers a machine under
-any load seen here."""
+node is done; see :func:`bound_the_shutdown`.  Far above what a teardown takes, so that
+only a hung one meets it, on a machine under any load seen here."""
 
 _TRACE = os.environ.get('RIGID_BODY_SIM_TRACE_START_UP') == '1'
 # The signals that arrived.

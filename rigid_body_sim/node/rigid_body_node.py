@@ -31,7 +31,9 @@ one error line says so, the old integrator stays, and so does the parameter.  At
 the services, parameters and /diagnostics come first and the ticks start once the scene's
 integrator is compiled.
 
-Topics (relative names, so ``--ros-args -r __ns:=/sat1`` namespaces them):
+Topics (relative names, so ``--ros-args -r __ns:=/sat1`` namespaces them; the frame ids
+follow the namespace too: ``frame_prefix``, by default ``sat1/`` there, comes before
+``world_frame``, ``body_frame`` and ``imu_frame``, see :mod:`rigid_body_sim.messages.frames`):
 
 - published: ``pose``, ``twist``, ``angular_momentum``, ``odom``, ``marker`` (see
   :func:`rigid_body_sim.messages.state.state_messages`; the marker is the scene's
@@ -69,12 +71,14 @@ from std_srvs.srv import SetBool
 from std_srvs.srv import Trigger
 
 from .background_compile import BackgroundCompilation
+from .background_compile import compile_seconds
 from .background_compile import kernels_compiled
 from .clock_guard import ClockGuard
 from .parameter_services import ParameterServices
 from .parameters import check_integrator
 from .parameters import declare_parameters
 from .parameters import declare_scene_parameter
+from .parameters import frame_ids_from_parameters
 from .parameters import given_overrides
 from .parameters import imu_model_from_parameters
 from .parameters import PARAMETERS
@@ -126,8 +130,9 @@ _WARNING_PERIOD = 1.0  # s between two warnings of the same kind
 # Ring of the latest tick durations: 65536 ticks is over a minute at 1 kHz, enough for the
 # percentiles in the shutdown summary, and bounded memory for a node that runs for days.
 _HISTORY = 1 << 16
-# Below this fraction of the requested rate the diagnostics report a warning.
-_RATE_WARNING_FRACTION = 0.9
+# Once falling behind, the node keeps up again when a report finds no tick missed and the
+# schedule at most this many seconds behind (a timer callback's usual delay, not a backlog).
+_CAUGHT_UP_LAG = 0.05
 MAX_LAG = 0.5
 """Ticks held up by longer than this (s) are dropped rather than caught up with."""
 WORK_PER_CALLBACK = 0.05
@@ -175,7 +180,7 @@ class RigidBodyNode(Node):
         super().__init__(node_name, start_parameter_services=False, **kwargs)
         self._overrides = given_overrides(self)
         if parameter_services:
-            ParameterServices(self)
+            ParameterServices(self, note=self._parameter_note)
         self._ticks = 0
         self._timer = None
         self._compilation = None  # the integrator's kernels compiling in the background
@@ -206,8 +211,8 @@ class RigidBodyNode(Node):
         self._wall_period = self._period / self._real_time_factor
         kernels_ready = kernels_compiled(scene.integrator)
         if kernels_ready:
-            # The integrator's compiled kernels loaded (~0.5 s) now rather than in the
-            # first tick.
+            # The integrator's compiled kernels loaded now, so that loading them from the cache
+            # does not make the first tick late.
             load_kernels(scene.integrator)
         else:
             # Not compiled on this machine: the kernels' source runs interpreted, nothing
@@ -222,13 +227,11 @@ class RigidBodyNode(Node):
         self._substeps = values['substeps']
         self._input_timeout_ns = int(values['input_timeout'] * 1e9)
         self._max_wrench = values['max_wrench']
-        self._world_frame = values['world_frame']
-        self._body_frame = values['body_frame']
-        imu_frame = values['imu_frame']
-        frames = [self._world_frame, self._body_frame, imu_frame]
-        if len(set(frames)) < 3 or not all(frames):
-            raise ValueError(f'world_frame, body_frame and imu_frame must be three different '
-                             f'non-empty frame ids; got {[shortened(f) for f in frames]}')
+        # Prefixed (frame_prefix, by default the namespace) and as tf2 reads them.
+        frames = frame_ids_from_parameters(values)
+        self._world_frame = frames['world_frame']
+        self._body_frame = frames['body_frame']
+        imu_frame = self._imu_frame = frames['imu_frame']
 
         self._serializer = StateSerializer(
             body, self._world_frame, self._body_frame,
@@ -352,7 +355,7 @@ class RigidBodyNode(Node):
             f'({moments}) kg m^2, effects: {effects}; {self._simulator.integrator} at '
             f'{self._rate:g} Hz x {self._substeps} substep(s){timing}; publishing pose, '
             f'twist, angular_momentum, odom, marker in frame {self._world_frame!r}, imu in '
-            f'frame {values["imu_frame"]!r} ({imu_noise}), {tf_status}; subscribed to '
+            f'frame {self._imu_frame!r} ({imu_noise}), {tf_status}; subscribed to '
             f'{inputs}')
         self.get_logger().info(parameter_sources)
         warning = unresolved_rotation(body, self._simulator.state, self._period,
@@ -684,6 +687,41 @@ class RigidBodyNode(Node):
                 return SetParametersResult(successful=False, reason=reason)
         return SetParametersResult(successful=True)
 
+    def _parameter_note(self, parameters):
+        """Return what a successful set of `parameters` will do beyond setting them ('')."""
+        for parameter in parameters:
+            # (An unknown name is refused by the validation: no note.)
+            if parameter.name == 'integrator' and isinstance(parameter.value, str) and \
+                    check_integrator(parameter.value) is None:
+                return self._switch_note(parameter.value)
+        return ''
+
+    def _switch_note(self, name):
+        """
+        Return when a switch to integrator `name` acts, if not at once ('' if it does).
+
+        Read before the switch (see :meth:`_switch_integrator`, whose cases these are).
+        """
+        current = self._simulator.integrator
+        pending = self._compilation
+        if pending is not None and pending.name == name:
+            return (f'{name} compiling in the background already (about '
+                    f'{pending.estimate:.0f} s, {pending.elapsed():.0f} s so far); {current} '
+                    'runs until then')
+        if self._simulator.interpreted and not kernels_compiled(name):
+            return (f'{name} runs at once from its source, interpreted (the same steps, '
+                    f'slower), while its kernels compile in the background (about '
+                    f"{compile_seconds(name):.0f} s from the registry's compile estimate); "
+                    'then compiled')
+        if name != current and not kernels_compiled(name):
+            return (f'{name} compiling in the background (about {compile_seconds(name):.0f} s '
+                    f"from the registry's compile estimate); {current} runs until then, then "
+                    f'{name} takes over with the state kept')
+        if pending is not None:
+            return (f'{name} runs at once; the pending switch to {pending.name} (its kernels '
+                    'compiling) is abandoned')
+        return ''
+
     def _step_refusal(self, integrator, substeps, tolerance):
         """Return why the steps of this configuration cannot carry a stiff effect, or None."""
         simulator = self._simulator
@@ -819,10 +857,11 @@ class RigidBodyNode(Node):
 
     def _compilation_status(self):
         """Return the diagnostics' words about a background compilation ('' if none)."""
-        if self._compilation is None:
+        compilation = self._compilation
+        if compilation is None:
             return ''
-        return (f'compiling the kernels of {self._compilation.name} in the background '
-                f'(about {self._compilation.estimate:.0f} s)')
+        return (f'compiling the kernels of {compilation.name} in the background (about '
+                f'{compilation.estimate:.0f} s, {compilation.elapsed():.0f} s so far)')
 
     def destroy_node(self):
         """Stop a background compilation, then destroy the node."""
@@ -851,8 +890,8 @@ class RigidBodyNode(Node):
         ticks = self._ticks - window_ticks
         self._window = (now, self._ticks, self._missed_ticks, self._simulator.time)
         achieved = ticks / (now - window_start) if now > window_start else 0.0
-        requested = self._rate * self._real_time_factor  # ticks per wall-clock second
-        figures = TickFigures(achieved, self._missed_ticks - window_missed,
+        missed = self._missed_ticks - window_missed
+        figures = TickFigures(achieved, missed,
                               self._recent(self._step_durations, ticks),
                               self._recent(self._tick_durations, ticks),
                               self._simulator.time - window_simulated)
@@ -874,14 +913,23 @@ class RigidBodyNode(Node):
             message = f'waiting: {compiling}; the simulation starts when they are'
         elif self._paused:
             message = 'paused'
-        elif achieved < _RATE_WARNING_FRACTION * requested:
+        else:
+            behind = self._behind_schedule(missed, now - window_start)
+            if behind:
+                level = DiagnosticStatus.WARN
+                message = f'falling behind: {behind}'
+                if substep_cap_reached(dict(values), MAX_SUBSTEPS):
+                    message += f' (error control at its cap of {MAX_SUBSTEPS} substeps a tick)'
+        self._report_falling_behind(message.startswith('falling behind'), message)
+        if compiling and level == DiagnosticStatus.OK:
+            # Not what was asked for: the integrator set runs interpreted, or another one
+            # runs in its place, until its kernels are compiled.
             level = DiagnosticStatus.WARN
-            message = f'falling behind: {achieved:.1f} of {requested:g} ticks/s'
-            if substep_cap_reached(dict(values), MAX_SUBSTEPS):
-                message += f' (error control at its cap of {MAX_SUBSTEPS} substeps a tick)'
-        self._report_falling_behind(level == DiagnosticStatus.WARN, message)
         if compiling and self._timer is not None:
-            message += f'; {compiling}, {self._simulator.integrator} ' + (
+            running = self._simulator.integrator
+            if self._compilation.name != running:
+                message += f'; the switch to {self._compilation.name} is pending'
+            message += f'; {compiling}, {running} ' + (
                 'interpreted until then' if self._simulator.interpreted else 'until then')
         elif self._simulator.interpreted:
             message += '; interpreted: the kernels are not compiled'
@@ -901,6 +949,23 @@ class RigidBodyNode(Node):
         self._diagnostics_publisher.publish(diagnostic_array(
             status_name(self.get_name()), self.get_fully_qualified_name(), level, message,
             values, stamp))
+
+    def _behind_schedule(self, missed, window):
+        """
+        Return what says the ticks fall behind their schedule ('' if they keep it).
+
+        Only ticks actually missed count: dropped in the report's window of `window` s
+        (`missed`), and once falling behind, ticks still owed (the schedule's lag) until it
+        has caught up.  The achieved rate does not: its window spans a change of
+        real_time_factor (ticks at the old pace, then at the new) and the start-up before the
+        first tick, and such a window's average is below the new rate with nothing missed.
+        """
+        lag = max(0.0, time.monotonic() - self._next_due)  # s the next tick is overdue
+        if missed > 0:
+            return f'{missed} ticks missed in the last {window:.1f} s'
+        if self._falling_behind and lag > max(_CAUGHT_UP_LAG, 2.0 * self._wall_period):
+            return f'the ticks run {lag:.2f} s behind their schedule'
+        return ''
 
     def _report_falling_behind(self, behind, message):
         # One log line when the node starts falling behind, one when it keeps up again.

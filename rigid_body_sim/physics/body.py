@@ -6,7 +6,11 @@ lives in :mod:`rigid_body_sim.physics.state`.  Frame: the body frame, origin at 
 mass (COM).  Units: kg, m, kg m^2.
 """
 
+from __future__ import annotations
+
 import numpy as np
+from numpy.typing import ArrayLike
+from numpy.typing import NDArray
 
 __all__ = ['RigidBody']
 
@@ -25,7 +29,7 @@ MAX_MASS = 1.0e15
 """The heaviest body accepted, kg."""
 
 
-def _check_mass(mass):
+def _check_mass(mass: float) -> float:
     try:
         value = float(mass)
     except (TypeError, ValueError):
@@ -40,7 +44,7 @@ def _check_mass(mass):
     return value
 
 
-def _check_positive_lengths(values, name, count):
+def _check_positive_lengths(values: ArrayLike, name: str, count: int) -> NDArray[np.float64]:
     array = np.array(values, dtype=float).reshape(-1)
     if array.size != count:
         raise ValueError(f'{name} must have {count} value(s) in m; got {array.size}')
@@ -73,7 +77,7 @@ class RigidBody:
 
     """
 
-    def __init__(self, mass, inertia):
+    def __init__(self, mass: float, inertia: ArrayLike) -> None:
         self._mass = _check_mass(mass)
         tensor = np.array(inertia, dtype=float)
         if tensor.shape == (3,):
@@ -116,7 +120,7 @@ class RigidBody:
     # -- constructors for common shapes (solid, uniform density, principal axes = body axes)
 
     @classmethod
-    def box(cls, mass, size):
+    def box(cls, mass: float, size: ArrayLike) -> RigidBody:
         """
         Return a solid box of edge lengths size = (a, b, c) along body x, y, z (m).
 
@@ -127,7 +131,7 @@ class RigidBody:
         return cls(m, np.diag([b + c, a + c, a + b]) * m / 12.0)
 
     @classmethod
-    def cylinder(cls, mass, radius, height):
+    def cylinder(cls, mass: float, radius: float, height: float) -> RigidBody:
         """
         Return a solid cylinder of `radius` and `height` (m), its axis along body z.
 
@@ -140,14 +144,14 @@ class RigidBody:
         return cls(m, np.diag([side, side, 0.5 * m * r * r]))
 
     @classmethod
-    def sphere(cls, mass, radius):
+    def sphere(cls, mass: float, radius: float) -> RigidBody:
         """Return a solid sphere of `radius` (m): I = 2/5 m r^2 about every axis."""
         (r,) = _check_positive_lengths([radius], 'sphere radius', 1)
         m = _check_mass(mass)
         return cls(m, np.eye(3) * 0.4 * m * r * r)
 
     @classmethod
-    def ellipsoid(cls, mass, semi_axes):
+    def ellipsoid(cls, mass: float, semi_axes: ArrayLike) -> RigidBody:
         """
         Return a solid ellipsoid of semi-axes (a, b, c) along body x, y, z (m).
 
@@ -158,7 +162,7 @@ class RigidBody:
         return cls(m, np.diag([b + c, a + c, a + b]) * m / 5.0)
 
     @classmethod
-    def from_point_masses(cls, masses, positions):
+    def from_point_masses(cls, masses: ArrayLike, positions: ArrayLike) -> RigidBody:
         """
         Return the body made of point masses rigidly joined.
 
@@ -215,43 +219,43 @@ class RigidBody:
     # -- properties
 
     @property
-    def mass(self):
+    def mass(self) -> float:
         """Mass in kg."""
         return self._mass
 
     @property
-    def inertia(self):
+    def inertia(self) -> NDArray[np.float64]:
         """Inertia tensor about the COM in the body frame (3x3, kg m^2, read-only)."""
         return self._inertia
 
     @property
-    def inertia_inverse(self):
+    def inertia_inverse(self) -> NDArray[np.float64]:
         """Inverse of :attr:`inertia` (3x3, 1/(kg m^2), read-only)."""
         return self._inertia_inverse
 
     @property
-    def principal_moments(self):
+    def principal_moments(self) -> NDArray[np.float64]:
         """Principal moments I1 <= I2 <= I3 (kg m^2), ascending."""
         return self._principal_moments
 
     @property
-    def principal_axes(self):
+    def principal_axes(self) -> NDArray[np.float64]:
         """Principal axes in the body frame as columns, right-handed (det = +1)."""
         return self._principal_axes
 
     @property
-    def is_symmetric_top(self):
+    def is_symmetric_top(self) -> bool:
         """Tell whether two principal moments agree within a relative 1e-9 (spherical tops too)."""
         i1, i2, i3 = self._principal_moments
         return bool(i2 - i1 <= _EQUAL_MOMENTS_RTOL * i3 or i3 - i2 <= _EQUAL_MOMENTS_RTOL * i3)
 
     @property
-    def is_spherical_top(self):
+    def is_spherical_top(self) -> bool:
         """Tell whether all three principal moments agree within a relative 1e-9."""
         i1, _, i3 = self._principal_moments
         return bool(i3 - i1 <= _EQUAL_MOMENTS_RTOL * i3)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         """Return a readable summary of the mass properties."""
         tensor = np.array2string(self._inertia, precision=6, separator=', ')
         return f'RigidBody(mass={self._mass:g}, inertia={tensor})'

@@ -12,6 +12,8 @@ by m1, and 1 - m computed from a rounded m has a relative error eps / m1 (1e-8 a
 m1 = 1e-8): both are given so neither is formed by subtraction.
 """
 
+from __future__ import annotations
+
 import math
 
 import numpy as np
@@ -37,7 +39,8 @@ _MAX_LANDEN_LEVELS = 40
 
 
 @_jit
-def jacobi_elliptic(u, parameter, complement):
+def jacobi_elliptic(u: float, parameter: float,
+                    complement: float) -> tuple[float, float, float]:
     """
     Return the Jacobi elliptic functions (sn, cn, dn) of (u | m).
 
@@ -76,7 +79,7 @@ def jacobi_elliptic(u, parameter, complement):
 
 
 @_jit
-def carlson_rf(x, y, z):
+def carlson_rf(x: float, y: float, z: float) -> float:
     """Return R_F(x, y, z) = 1/2 int_0^inf dt / sqrt((t+x)(t+y)(t+z)), at most one zero."""
     mean0 = (x + y + z) / 3.0
     spread = _RF_SCALE * max(abs(mean0 - x), abs(mean0 - y), abs(mean0 - z))
@@ -98,7 +101,7 @@ def carlson_rf(x, y, z):
 
 
 @_jit
-def _carlson_rc_one(e):
+def _carlson_rc_one(e: float) -> float:
     """Return R_C(1, 1 + e) for e > -1: atan(sqrt e)/sqrt e, or atanh(sqrt(-e))/sqrt(-e)."""
     if e > 0.0:
         root = math.sqrt(e)
@@ -110,7 +113,7 @@ def _carlson_rc_one(e):
 
 
 @_jit
-def carlson_rj(x, y, z, p):
+def carlson_rj(x: float, y: float, z: float, p: float) -> float:
     """Return R_J(x, y, z, p) = 3/2 int_0^inf dt / ((t+p) sqrt((t+x)(t+y)(t+z))), p > 0."""
     mean0 = (x + y + z + 2.0 * p) / 5.0
     delta = (p - x) * (p - y) * (p - z)

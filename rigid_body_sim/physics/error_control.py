@@ -31,13 +31,13 @@ orientation error later, and this counts its first step of that.
 
 Where the count is set.  Error per step is what the estimate measures, but not what a long
 run's error follows: measured on the built-in scenes, a count that followed the local error
-along the orbit (n ~ sqrt(r), the textbook controller) was 2-8x dearer than a fixed step at
-the same error after 60 s, for two reasons.  Near the separatrix (the T-handle, the tennis
-racket, van Zon's body) an error made next to the unstable axis, where Buss's local error
-all but vanishes, is amplified most: it shifts every later flip.  And a geometric
-integrator's errors stay small over long runs at a constant step, while a varying one
-lets them drift (the heavy top, whose local error varies 5x over each nutation: 2.5x the
-error of a fixed step at the same mean count).  So the count is held at what the worst
+along the orbit (n ~ sqrt(r), the textbook controller) was several times dearer than a fixed
+step at the same error after 60 s, for two reasons.  Near the separatrix (the T-handle, the
+tennis racket, van Zon's body) an error made next to the unstable axis, where Buss's local
+error all but vanishes, is amplified most: it shifts every later flip.  And a geometric
+integrator's errors stay small over long runs at a constant step, while a varying one lets
+them drift (the heavy top, whose local error varies several-fold over each nutation: more
+error than a fixed step at the same mean count).  So the count is held at what the worst
 point of the motion needs, and changed seldom:
 
 - torque-free (no torque, no dissipation: :func:`set_torque_free`), the error constant
@@ -46,7 +46,7 @@ point of the motion needs, and changed seldom:
   estimates), so that from the first tick the count covers the whole orbit, the flips
   included, not just where the body is.  Under a torque or a flow the polhode is not the
   body's future, and only the body's own estimates count (measured on flat_spin: its
-  polhode widens as it dissipates, and the turning points asked 2x the substeps that
+  polhode widens as it dissipates, and the turning points asked for substeps that
   bought nothing, the error being made before the separatrix crossing);
 - the decision uses the largest C seen, decaying with the time constant HOLD (simulated s):
   C_held = max(C, C_held exp(-dt / HOLD)), and the count n* = T (C_held / (SAFETY tol))^(1/q)
@@ -69,28 +69,46 @@ lower bound: :func:`changed`).  The ticks between two estimates are one call of 
 The state of the controller lives in one float array (see :func:`new_control`), which the
 compiled kernel updates in place.  :data:`controlled` is that kernel: compiled once, it takes
 any integrator's run kernel as a first-class function (kernels/loop.py's RUN_SIGNATURE), so
-that no integrator compiles a controller of its own.
+that no integrator compiles a controller of its own.  The run reaches it inside a
+:class:`Controller` (a compiled structure holding it), built once per integrator by
+:func:`new_controller`: numba unboxes a compiled function passed from Python as an argument
+on every call (typing it, then resolving its address), a cost many times that of the tick's
+physics, where a structure that holds it is unboxed by reading one pointer
+(benchmarks/controlled_call_cost.py measures both).
 """
 
+from __future__ import annotations
+
+import collections
 import math
+from typing import Any
+from typing import Callable
 
 from numba import types
+from numba.experimental import structref
 import numpy as np
+import numpy.typing as npt
 
 from .kernels import helper
 from .kernels import LazyKernel
 from .kernels.algebra import conjugate
 from .kernels.algebra import quaternion_product
 from .kernels.algebra import rotate_back
+from .kernels.interpreted import stand_in
 from .kernels.layout import BODY_AXES
 from .kernels.layout import BODY_KIND
 from .kernels.layout import BODY_MOMENTS
 from .kernels.layout import inverse_inertia_times
+from .kernels.layout import STATE_SIZE
 from .kernels.loop import METHOD_TYPE
 from .kernels.loop import RUN_SIGNATURE
+from .kernels.model import Array
+from .kernels.model import Model
 from .kernels.model import MODEL_TYPE
 
 __all__ = ['new_control', 'controlled_ticks', 'controlled', 'CONTROLLED_SIGNATURE',
+           'Controller', 'CONTROLLER_TYPE', 'new_controller', 'controller_of',
+           'CONTROLLER_KERNELS',
            'next_substeps', 'step_difference',
            'set_tolerance', 'set_order', 'set_bounds', 'set_torque_free', 'changed', 'statistics',
            'reset_statistics', 'turning_points',
@@ -112,7 +130,7 @@ OVERHEAD = 1.0 / 16.0
 """Most of the substeps' cost spent on estimates (one extra step per estimate, two at n=1)."""
 ESTIMATE_WORK = 2.0
 """An estimate's work besides its extra steps, in steps: its two more calls of the
-integrator's run (~40 ns each, about a compiled Buss step's 50 ns), the difference and
+integrator's run (each about what a compiled Buss step costs), the difference and
 the decision.  Counted with the extra steps against OVERHEAD."""
 MAX_TURN = 1.0
 """Longest turn of the body (rad) between two estimates: the error rate follows the state."""
@@ -131,7 +149,8 @@ _TWO = np.int64(2)
 _RETAKES = 2
 
 
-def new_control(order, substeps=1, tolerance=0.0):
+def new_control(order: int, substeps: int = 1,
+                tolerance: float = 0.0) -> npt.NDArray[np.float64]:
     """
     Return a new control array for a method of order `order` (see the module docstring).
 
@@ -147,7 +166,7 @@ def new_control(order, substeps=1, tolerance=0.0):
     return control
 
 
-def changed(control, forget=False):
+def changed(control: npt.NDArray[np.float64], forget: bool = False) -> None:
     """
     Say that something changed: estimate at the next tick, the turning points too.
 
@@ -159,26 +178,26 @@ def changed(control, forget=False):
         control[HELD] = 0.0
 
 
-def set_torque_free(control, torque_free):
+def set_torque_free(control: npt.NDArray[np.float64], torque_free: bool) -> None:
     """Say whether the motion is torque-free (the turning points are then estimated too)."""
     control[TORQUE_FREE] = 1.0 if torque_free else 0.0
     control[ORBIT_CONSTANT] = 0.0
     control[ORBIT_COUNTDOWN] = 0.0
 
 
-def set_tolerance(control, tolerance):
+def set_tolerance(control: npt.NDArray[np.float64], tolerance: float) -> None:
     """Set the tolerance (rad/s, > 0) and estimate at the next tick."""
     control[TOLERANCE] = tolerance
     changed(control)
 
 
-def set_order(control, order):
+def set_order(control: npt.NDArray[np.float64], order: int) -> None:
     """Set the order of the method now in use and estimate at the next tick."""
     control[ORDER] = order
     changed(control, forget=True)
 
 
-def set_bounds(control, substeps):
+def set_bounds(control: npt.NDArray[np.float64], substeps: int) -> None:
     """Set the lower bound n_min (int >= 1); n is raised to it at once."""
     control[MIN_SUBSTEPS] = substeps
     control[CAP] = max(MAX_SUBSTEPS, substeps)
@@ -186,7 +205,7 @@ def set_bounds(control, substeps):
     changed(control)
 
 
-def reset_statistics(control):
+def reset_statistics(control: npt.NDArray[np.float64]) -> None:
     """Start a new statistics period (substeps min/max, steps, ticks, estimates)."""
     control[LOWEST] = np.inf
     control[HIGHEST] = 0.0
@@ -195,7 +214,7 @@ def reset_statistics(control):
     control[HIGHEST_RATE] = np.nan
 
 
-def statistics(control):
+def statistics(control: npt.NDArray[np.float64]) -> dict[str, Any]:
     """
     Return the controller's figures as a dict.
 
@@ -220,7 +239,8 @@ def statistics(control):
 
 
 @helper
-def step_difference(a, b, body, h):
+def step_difference(a: npt.NDArray[np.float64], b: npt.NDArray[np.float64],
+                    body: npt.NDArray[np.float64], h: float) -> float:
     """
     Return the difference (rad) of two packed states after the same span, h s a step.
 
@@ -241,7 +261,8 @@ def step_difference(a, b, body, h):
 
 
 @helper
-def next_substeps(control, substeps, rate, constant, tick):
+def next_substeps(control: npt.NDArray[np.float64], substeps: int, rate: float, constant: float,
+                  tick: float) -> int:
     """
     Return the substep count after an estimate at `substeps` substeps of a `tick` s tick.
 
@@ -269,7 +290,8 @@ def next_substeps(control, substeps, rate, constant, tick):
 
 
 @helper
-def turning_points(state, body):
+def turning_points(state: npt.NDArray[np.float64],
+                   body: npt.NDArray[np.float64]) -> tuple[npt.NDArray[np.float64], int]:
     """
     Return the body momenta (kg m^2/s, body frame) at the turning points of the polhode.
 
@@ -317,7 +339,7 @@ def turning_points(state, body):
 
 
 @helper
-def _turn_rate(state, body):
+def _turn_rate(state: Array, body: Array) -> float:
     """Return |Omega| (rad/s) of a packed state: |I_b^-1 R^T L|."""
     ox, oy, oz = inverse_inertia_times(body, rotate_back(
         (state[0], state[1], state[2], state[3]), (state[10], state[11], state[12])))
@@ -325,7 +347,7 @@ def _turn_rate(state, body):
 
 
 @helper
-def _ticks_between_estimates(substeps, tick, turn_rate):
+def _ticks_between_estimates(substeps: int, tick: float, turn_rate: float) -> float:
     """Return the ticks to take without an estimate after one (see OVERHEAD, MAX_TURN)."""
     extra = (1.0 if substeps >= 2 else 2.0) + ESTIMATE_WORK
     by_cost = math.ceil(extra / (OVERHEAD * substeps)) - 1.0
@@ -335,7 +357,7 @@ def _ticks_between_estimates(substeps, tick, turn_rate):
 
 
 @helper
-def _record(control, substeps, steps, ticks=1):
+def _record(control: Array, substeps: int, steps: int, ticks: int = 1) -> None:
     """Note `ticks` ticks of `substeps` substeps each that took `steps` integrator steps."""
     control[LAST] = substeps
     control[LOWEST] = min(control[LOWEST], substeps)
@@ -345,16 +367,73 @@ def _record(control, substeps, steps, ticks=1):
     control[TICKS] += ticks
 
 
-def controlled_ticks(run, state, model, method, tick, ticks, time, control):
+@structref.register
+class ControllerType(types.StructRef):
+    """numba's type of a :class:`Controller`."""
+
+    def preprocess_fields(self, fields: Any) -> tuple[Any, ...]:
+        """Drop literal types: every Controller has the one type."""
+        return tuple((name, types.unliteral(kind)) for name, kind in fields)
+
+
+class Controller(structref.StructRefProxy):
+    """
+    What the compiled controller drives: an integrator's run kernel, held compiled.
+
+    Build one with :func:`new_controller`, once per integrator (numba resolved the run
+    kernel's address then), and pass it to :data:`controlled` at every call.  Field ``run``:
+    the run kernel, a first-class function of kernels/loop.py's RUN_SIGNATURE.
+    """
+
+    run: Callable[..., int]
+
+
+_RUN_FUNCTION = types.FunctionType(RUN_SIGNATURE)
+structref.define_proxy(Controller, ControllerType, ['run'])
+# The kernels run as Python (kernels/interpreted.py) see a Controller as a named tuple.
+stand_in(Controller, collections.namedtuple('InterpretedController', ['run']))
+CONTROLLER_TYPE = ControllerType([('run', _RUN_FUNCTION)])
+"""numba's type of every Controller: one type, so the controller compiles once."""
+
+
+def _controller_of(run: Callable[..., int]) -> Controller:
+    return Controller(run)
+
+
+controller_of = LazyKernel(CONTROLLER_TYPE(_RUN_FUNCTION), _controller_of, compile_seconds=0.1)
+"""The compiled constructor of a :class:`Controller` from a compiled run kernel (compiled
+with :data:`controlled`, in the same compile job)."""
+
+
+def new_controller(run_kernel: LazyKernel, interpreted: bool = False) -> Controller:
+    """
+    Return the :class:`Controller` of an integrator's run kernel (its ``run_kernel``).
+
+    Compiled: the run kernel compiled (or loaded from the cache) and held; interpreted
+    (kernels/interpreted.py): its source, in the controller's stand-in (a named tuple), made
+    without compiling anything.
+    """
+    if interpreted:
+        return controller_of.source(run_kernel.source)
+    return controller_of.dispatcher(run_kernel.dispatcher)
+
+
+def controlled_ticks(controller: Controller, state: npt.NDArray[np.float64], model: Model,
+                     method: tuple[float, ...], tick: float, ticks: int, time: float,
+                     control: npt.NDArray[np.float64]) -> int:
     """
     Advance a packed state in place by `ticks` ticks of `tick` s from `time` (s), controlled.
 
-    run: an integrator's run kernel (kernels/loop.py's RUN_SIGNATURE); model and method are
-    passed on to it.  control: the control array (updated: n, the countdown, the votes, the
-    statistics).  Returns the integrator steps taken.  Compiled as :data:`controlled`, where
-    `run` is a first-class function (an indirect call a few times a tick); interpreted
-    (kernels/interpreted.py), it drives the run kernels' source.
+    controller: the :class:`Controller` of an integrator, whose run kernel
+    (kernels/loop.py's RUN_SIGNATURE) takes the steps; model (a kernels.model.Model) and
+    method (its constants) are passed on to it.  control: the control array (updated: n,
+    the countdown, the votes, the statistics).  Returns the integrator steps taken, or -1 if
+    the state it leaves holds a value that is not finite.
+    Compiled as :data:`controlled`, where the run is a first-class function (an indirect
+    call a few times a tick); interpreted (kernels/interpreted.py), it drives the run
+    kernels' source.
     """
+    run = controller.run
     order = control[ORDER]
     taken = 0
     start = state.copy()
@@ -444,13 +523,21 @@ def controlled_ticks(run, state, model, method, tick, ticks, time, control):
         control[SUBSTEPS] = following
         control[COUNTDOWN] = _ticks_between_estimates(following, tick,
                                                       _turn_rate(state, model.body))
+    # Tested here, compiled, at next to no cost, rather than by the Simulator in Python (as
+    # the run kernels do: kernels/loop.py).
+    for i in range(STATE_SIZE):
+        if not math.isfinite(state[i]):
+            return -1
     return taken
 
 
-CONTROLLED_SIGNATURE = types.int64(types.FunctionType(RUN_SIGNATURE), types.float64[::1],
-                                   MODEL_TYPE, METHOD_TYPE, types.float64, types.int64,
-                                   types.float64, types.float64[::1])
+CONTROLLED_SIGNATURE = types.int64(CONTROLLER_TYPE, types.float64[::1], MODEL_TYPE,
+                                   METHOD_TYPE, types.float64, types.int64, types.float64,
+                                   types.float64[::1])
 controlled = LazyKernel(CONTROLLED_SIGNATURE, controlled_ticks, compile_seconds=5.5)
-"""The compiled controller: ``controlled(run, state, model, method, tick, ticks, time,
+"""The compiled controller: ``controlled(controller, state, model, method, tick, ticks, time,
 control)``, one kernel for every integrator (see :func:`controlled_ticks`); 5.5 CPU s to
 compile on the 2-core development machine (`rigid-body-sim compile` prints the figure)."""
+
+CONTROLLER_KERNELS = (controlled, controller_of)
+"""The kernels of the ``controller`` compile job (physics/warm_up.py)."""

@@ -21,16 +21,22 @@ walk of Kalibr's IMU model (units as Kalibr defines them), a turn-on bias, a see
 Core only: numpy, no ROS.
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
+from numpy.typing import NDArray
 
+from .body import RigidBody
 from .kernels import kernel
 from .kernels.algebra import cross
 from .kernels.algebra import quaternion_product
 from .kernels.algebra import rotate
 from .kernels.algebra import rotate_back
 from .kernels.layout import inverse_inertia_times
+from .state import State
 
 
 class KalibrNoise:
@@ -43,23 +49,25 @@ class KalibrNoise:
     seeded with `seed` makes the sequence reproducible.
     """
 
-    def __init__(self, noise_density, random_walk, turn_on_bias_sigma=0.0, seed=0):
+    def __init__(self, noise_density: float, random_walk: float,
+                 turn_on_bias_sigma: float = 0.0,
+                 seed: int | np.random.SeedSequence = 0) -> None:
         """Draw the turn-on bias from N(0, turn_on_bias_sigma^2) per axis."""
         self.noise_density = float(noise_density)
         self.random_walk = float(random_walk)
         self._rng = np.random.default_rng(seed)
         self.bias = self._rng.normal(0.0, float(turn_on_bias_sigma), 3)
 
-    def error(self, dt):
+    def error(self, dt: float) -> NDArray[np.float64]:
         """Advance by one sample of period dt s; return its error: bias plus white noise."""
         self.bias = self.bias + self._rng.normal(0.0, self.random_walk * np.sqrt(dt), 3)
         return self.bias + self._rng.normal(0.0, self.noise_density / np.sqrt(dt), 3)
 
-    def corrupt(self, truth, dt):
+    def corrupt(self, truth: ArrayLike, dt: float) -> NDArray[np.float64]:
         """Return `truth` (shape (3,)) plus bias and white noise for a sample of period dt."""
         return np.asarray(truth, dtype=float) + self.error(dt)
 
-    def white_variance(self, dt):
+    def white_variance(self, dt: float) -> float:
         """Return the white noise's variance per sample of period dt: (sigma / sqrt(dt))^2."""
         return self.noise_density ** 2 / dt
 
@@ -89,7 +97,7 @@ class ImuModel:
                   'accel_noise_density', 'accel_random_walk', 'accel_bias_sigma')
 
     @property
-    def noisy(self):
+    def noisy(self) -> bool:
         """Return True if any noise term is not zero."""
         return any(getattr(self, key) != 0.0 for key in self.NOISE_KEYS)
 
@@ -110,7 +118,8 @@ class Imu:
 
     """
 
-    def __init__(self, model, body, gravity=(0.0, 0.0, 0.0), pivot_offset=None):
+    def __init__(self, model: ImuModel, body: RigidBody, gravity: ArrayLike = (0.0, 0.0, 0.0),
+                 pivot_offset: ArrayLike | None = None) -> None:
         self.model = model
         self._body = body
         self._gravity = np.asarray(gravity, dtype=float)
@@ -131,7 +140,7 @@ class Imu:
             pivot_inverse, offset, pivoted = inverse, np.zeros(3), 0.0
         else:
             offset = self._pivot_offset
-            pivot_inverse = np.linalg.inv(body.inertia + body.mass * (
+            pivot_inverse = np.linalg.inv(body.inertia + body.mass * (  # type: ignore[assignment]
                 offset @ offset * np.eye(3) - np.outer(offset, offset)))
             pivoted = 1.0
         # Packed for the compiled kernel: I^-1, I_pivot^-1 (body), m, pivoted, d, r, q_bi
@@ -140,13 +149,15 @@ class Imu:
             np.asarray(inverse).reshape(-1), pivot_inverse.reshape(-1),
             [body.mass, pivoted], offset, self._position, self._orientation, self._gravity])
 
-    def advance(self, dt):
+    def advance(self, dt: float) -> None:
         """Draw the noise of the next sample, dt s after the last (once per sample)."""
         if self.model.noisy:
             self._gyro_error = self.gyro_noise.error(dt)
             self._accel_error = self.accel_noise.error(dt)
 
-    def truth(self, state, force, torque):
+    def truth(self, state: State, force: ArrayLike,
+              torque: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                                          NDArray[np.float64]]:
         """
         Return (orientation, angular_velocity, specific_force) without noise.
 
@@ -159,14 +170,19 @@ class Imu:
                             self._constants)
         return values[0:4], values[4:7], values[7:10]
 
-    def reading(self, state, force, torque):
+    def reading(self, state: State, force: ArrayLike,
+                torque: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                                            NDArray[np.float64]]:
         """Return (orientation, angular_velocity, specific_force) with this sample's noise."""
         orientation, omega, specific_force = self.truth(state, force, torque)
         return orientation, omega + self._gyro_error, specific_force + self._accel_error
 
 
 @kernel
-def _imu_truth(quaternion, angular_momentum, linear_momentum, force, torque, constants):
+def _imu_truth(quaternion: NDArray[np.float64], angular_momentum: NDArray[np.float64],
+               linear_momentum: NDArray[np.float64], force: NDArray[np.float64],
+               torque: NDArray[np.float64], constants: NDArray[np.float64]
+               ) -> NDArray[np.float64]:
     """Compiled :meth:`Imu.truth`: [q_world_imu (4), omega_imu (3), specific force (3)]."""
     q = (quaternion[0], quaternion[1], quaternion[2], quaternion[3])
     inverse, pivot_inverse = constants[0:9], constants[9:18]

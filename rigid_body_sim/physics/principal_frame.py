@@ -6,9 +6,12 @@ packed with the body (kernels/layout.py): every kernel splits and solves in the 
 frame, which matters when two moments are equal and the principal axes are not unique.
 """
 
+from __future__ import annotations
+
 import collections
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .rotations import quaternion_from_matrix
 
@@ -30,11 +33,11 @@ body frame as columns (body coords = axes @ principal coords); quaternion : the 
 quaternion (x, y, z, w) of `axes`; kind : ASYMMETRIC, SPHERICAL, PROLATE or OBLATE.
 """
 
-_CACHE = {}
+_CACHE: dict[bytes, PrincipalFrame] = {}
 _CACHE_SIZE = 256
 
 
-def principal_frame(inertia):
+def principal_frame(inertia: ArrayLike) -> PrincipalFrame:
     """
     Return the :class:`PrincipalFrame` of a symmetric positive definite 3x3 tensor.
 

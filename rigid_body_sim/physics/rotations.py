@@ -10,9 +10,17 @@ here are its numpy faces (arrays in, arrays out) plus the checks and conversions
 Python code needs.
 """
 
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
 import numpy as np
+from numpy.typing import ArrayLike
+from numpy.typing import NDArray
 
 from .kernels import algebra
+from .kernels.algebra import VectorLike
 
 
 __all__ = [
@@ -28,23 +36,23 @@ __all__ = [
 ]
 
 
-def cross(a, b):
+def cross(a: VectorLike, b: VectorLike) -> NDArray[np.float64]:
     """Return the cross product a x b of two 3-vectors (an array)."""
     return np.array(algebra.cross(a, b))
 
 
-def skew(vector):
+def skew(vector: VectorLike | Sequence[float]) -> NDArray[np.float64]:
     """Return the 3x3 cross-product matrix [v]x of v, which maps u to v x u."""
     x, y, z = vector
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
-def rotation_matrix_from_rotation_vector(rotation_vector):
+def rotation_matrix_from_rotation_vector(rotation_vector: ArrayLike) -> NDArray[np.float64]:
     """Return exp([v]x), v the rotation axis times the angle (rad)."""
     return matrix_from_quaternion(quaternion_from_rotation_vector(rotation_vector))
 
 
-def quaternion_from_rotation_vector(rotation_vector):
+def quaternion_from_rotation_vector(rotation_vector: ArrayLike) -> NDArray[np.float64]:
     """
     Return the unit quaternion (x, y, z, w) of the rotation exp([v]x).
 
@@ -54,19 +62,19 @@ def quaternion_from_rotation_vector(rotation_vector):
     return np.array(algebra.exp_map(np.asarray(rotation_vector, dtype=float)))
 
 
-def quaternion_multiply(a, b):
+def quaternion_multiply(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
     """Return the Hamilton product a * b of quaternions stored (x, y, z, w)."""
     return np.array(algebra.quaternion_product(np.asarray(a, dtype=float),
                                                np.asarray(b, dtype=float)))
 
 
-def matrix_from_quaternion(quaternion):
+def matrix_from_quaternion(quaternion: ArrayLike) -> NDArray[np.float64]:
     """Return the rotation matrix of a quaternion (x, y, z, w); it is normalised first."""
     unit = algebra.normalised(np.asarray(quaternion, dtype=float))
     return np.array(algebra.rotation_matrix(unit)).reshape(3, 3)
 
 
-def quaternion_from_matrix(rotation):
+def quaternion_from_matrix(rotation: ArrayLike) -> NDArray[np.float64]:
     """
     Return the unit quaternion (x, y, z, w), w >= 0, of a rotation matrix.
 
@@ -77,6 +85,7 @@ def quaternion_from_matrix(rotation):
     trace = m[0, 0] + m[1, 1] + m[2, 2]
     candidates = (trace, m[0, 0], m[1, 1], m[2, 2])
     k = int(np.argmax(candidates))
+    q: Any
     if k == 0:
         w = 0.5 * np.sqrt(1.0 + trace)
         f = 0.25 / w
@@ -98,7 +107,8 @@ def quaternion_from_matrix(rotation):
     return -q if q[3] < 0.0 else q
 
 
-def check_rotation_matrix(rotation, name='rotation', tolerance=1e-6):
+def check_rotation_matrix(rotation: ArrayLike, name: str = 'rotation',
+                          tolerance: float = 1e-6) -> NDArray[np.float64]:
     """
     Return `rotation` as a float 3x3 array, or raise ValueError if it is not a rotation.
 
@@ -120,7 +130,8 @@ def check_rotation_matrix(rotation, name='rotation', tolerance=1e-6):
     return matrix
 
 
-def check_quaternion(quaternion, name='quaternion', tolerance=1e-6):
+def check_quaternion(quaternion: ArrayLike, name: str = 'quaternion',
+                     tolerance: float = 1e-6) -> NDArray[np.float64]:
     """
     Return a unit quaternion (x, y, z, w), or raise ValueError.
 

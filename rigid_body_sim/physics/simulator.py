@@ -6,13 +6,21 @@ owns the only mutable thing, the current state and time; bodies, states and inte
 values and pure functions.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable
+from collections.abc import Iterable
 import math
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from . import error_control
+from .body import RigidBody
 from .effects.registry import Effect
 from .integrators import get_integrator
+from .integrators import Integrator
 from .kernels import interpreting
 from .kernels.interpreted import ARITHMETIC_ERRORS
 from .kernels.layout import body_values
@@ -26,7 +34,7 @@ from .kernels.model import new_model
 from .stability import stiffness_problem
 from .state import State
 
-__all__ = ['Simulator', 'DivergedError', 'unresolved_rotation', 'RESOLVED_ROTATION']
+__all__ = ['Simulator', 'DivergedError', 'unresolved_rotation', 'RESOLVED_ROTATION', 'Wrench']
 
 RESOLVED_ROTATION = 0.5
 """The largest rotation (rad) per integrator step that the steps resolve: beyond it every
@@ -35,11 +43,14 @@ method's error per step is O(1) (the Taylor and Magnus series the methods trunca
 
 MAX_STEPS_PER_RUN = 10 ** 12
 """The most outer steps one :meth:`Simulator.run` takes (duration / dt beyond it is refused:
-at ~0.05 us per step it would run for days)."""
+at a compiled step's cost it would run for days)."""
 
 _FRAMES = ('world', 'body')
 # Steps per kernel call when a progress callback wants to hear about a long run.
 _PROGRESS_CHUNK = 20000
+
+Wrench = tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]
+"""A wrench as (force N, torque N m), world frame, each an array (3,)."""
 
 # What takes the steps (Simulator.path).
 COMPILED = 'compiled'  # the integrator's kernel, every effect compiled (kernels/model.py)
@@ -54,12 +65,12 @@ class DivergedError(ValueError):
     integrator, the step, the effects and the held wrench) and what to change.
     """
 
-    def __init__(self, message, time):
+    def __init__(self, message: str, time: float) -> None:
         super().__init__(message)
         self.time = time
 
 
-def _checked_vector(value, name):
+def _checked_vector(value: Any, name: str) -> npt.NDArray[np.float64]:
     array = np.zeros(3) if value is None else np.array(value, dtype=float).reshape(-1)
     if array.shape != (3,):
         raise ValueError(f'{name} must be a 3-vector; got shape {np.shape(value)}')
@@ -68,7 +79,7 @@ def _checked_vector(value, name):
     return array
 
 
-def _checked_positive(value, name):
+def _checked_positive(value: Any, name: str) -> float:
     try:
         number = float(value)
     except (TypeError, ValueError):
@@ -118,7 +129,9 @@ class Simulator:
 
     """
 
-    def __init__(self, body, state, integrator='buss', effects=(), tolerance=None, substeps=1):
+    def __init__(self, body: RigidBody, state: State, integrator: str = 'buss',
+                 effects: Iterable[Any] = (), tolerance: float | None = None,
+                 substeps: int = 1) -> None:
         if not isinstance(state, State):
             raise ValueError(f'state must be a State; got {type(state).__name__}')
         self._body = body
@@ -131,20 +144,22 @@ class Simulator:
         self._sort_effects()
         # The error controller's state (error_control.new_control).
         self._control = error_control.new_control(2)
-        self._tolerance = None
-        # The integrated state, packed [q, x, p, L].
+        self._tolerance: float | None = None
+        # The integrated state, packed [q, x, p, L], and the States made of it when read.
         self._values = np.zeros(STATE_SIZE)
+        self._state: State | None = None
+        self._integrated: State | None = None
         self.state = state
         self._interpreted = interpreting()
         # The last finite packed state (restored if a step turns the state non-finite), and
         # the configuration whose steps were last checked against the stiff effects.
         self._checkpoint = np.zeros(STATE_SIZE)
-        self._checked = None
+        self._checked: tuple[float, int, Integrator, float | None] | None = None
         self.integrator = integrator
         self.substeps = substeps
         self.tolerance = tolerance
 
-    def _sort_effects(self):
+    def _sort_effects(self) -> None:
         """Sort the effects by what they do and build the compiled model, once."""
         wrenches, flows, constraints = [], [], []
         for effect in self._effects:
@@ -170,7 +185,7 @@ class Simulator:
                                  else self._constraint.body)
         body = self._integrated_body
         constraint = self._constraint
-        self._model_arguments = {
+        self._model_arguments: dict[str, Any] = {
             'body': body_values(body.inertia, body.inertia_inverse, body.mass),
             'held': self._held,
             'terms': [(effect.compiled_wrench, effect.wrench_parameters(self._body))
@@ -186,17 +201,17 @@ class Simulator:
     # -- configuration
 
     @property
-    def body(self):
+    def body(self) -> RigidBody:
         """Get the simulated RigidBody."""
         return self._body
 
     @property
-    def effects(self):
+    def effects(self) -> tuple[Any, ...]:
         """Get the effects evaluated every step (a tuple)."""
         return self._effects
 
     @property
-    def path(self):
+    def path(self) -> str:
         """
         Get what takes the steps: 'compiled' (the kernels) or 'interpreted'.
 
@@ -205,39 +220,40 @@ class Simulator:
         return INTERPRETED if self._interpreted else COMPILED
 
     @property
-    def interpreted(self):
+    def interpreted(self) -> bool:
         """
         Whether the kernels run as their Python source instead of compiled (settable).
 
-        The same steps, ~1000x slower, with nothing to compile (kernels/interpreted.py): what
-        a process that must not wait runs while the kernels compile elsewhere.  Defaults to
+        The same steps, orders of magnitude slower, with nothing to compile
+        (kernels/interpreted.py): what a process that must not wait runs while the kernels
+        compile elsewhere.  Defaults to
         kernels.interpreting() when the Simulator is made; set it False once they are
         compiled, and the next step loads them (the state is kept).
         """
         return self._interpreted
 
     @interpreted.setter
-    def interpreted(self, interpreted):
+    def interpreted(self, interpreted: bool) -> None:
         interpreted = bool(interpreted)
         if interpreted != self._interpreted:
             self._interpreted = interpreted
             self._model = new_model(**self._model_arguments, interpreted=interpreted)
-            self._run = None
+            self._run: Callable[..., int] | None = None
 
     @property
-    def integrator(self):
+    def integrator(self) -> str:
         """Name of the integrator in use; settable, an unknown name is a ValueError."""
         return self._integrator.name
 
     @integrator.setter
-    def integrator(self, name):
+    def integrator(self, name: str) -> None:
         self._integrator = get_integrator(name)
         # Its compiled run kernel, fetched on the first compiled step (compiled or loaded).
         self._run = None
         self._set_order()
         self._plan()
 
-    def _set_order(self):
+    def _set_order(self) -> None:
         """
         Give the controller the order of the steps as taken.
 
@@ -253,7 +269,7 @@ class Simulator:
         error_control.set_order(self._control, order)
 
     @property
-    def tolerance(self):
+    def tolerance(self) -> float | None:
         """
         Error control: rad per simulated second, or None (off: fixed `substeps`).
 
@@ -263,7 +279,7 @@ class Simulator:
         return self._tolerance
 
     @tolerance.setter
-    def tolerance(self, tolerance):
+    def tolerance(self, tolerance: float | None) -> None:
         if tolerance is not None:
             try:
                 tolerance = float(tolerance)
@@ -280,7 +296,7 @@ class Simulator:
             error_control.set_tolerance(self._control, tolerance)
 
     @property
-    def substeps(self):
+    def substeps(self) -> int:
         """
         Get the steps per outer step without a tolerance, the least with one (int >= 1).
 
@@ -289,7 +305,7 @@ class Simulator:
         return self._substeps
 
     @substeps.setter
-    def substeps(self, substeps):
+    def substeps(self, substeps: int) -> None:
         if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) \
                 or substeps < 1:
             raise ValueError(f'substeps must be a whole number >= 1; got {substeps!r}')
@@ -297,7 +313,7 @@ class Simulator:
         error_control.set_bounds(self._control, self._substeps)
         self._control_floor = self._substeps
 
-    def substep_statistics(self, reset=False):
+    def substep_statistics(self, reset: bool = False) -> dict[str, Any]:
         """
         Return the substeps and the error estimates since the last reset, as a dict.
 
@@ -319,7 +335,8 @@ class Simulator:
             error_control.reset_statistics(self._control)
         return figures
 
-    def set_wrench(self, force=None, torque=None, frame='world'):
+    def set_wrench(self, force: npt.ArrayLike | None = None, torque: npt.ArrayLike | None = None,
+                   frame: str = 'world') -> None:
         """
         Hold a force through the COM (N) and a torque about it (N m) until changed.
 
@@ -336,8 +353,10 @@ class Simulator:
         else:
             self._hold(None, None, force, torque)
 
-    def hold_wrench(self, force_world=None, torque_world=None, force_body=None,
-                    torque_body=None):
+    def hold_wrench(self, force_world: npt.ArrayLike | None = None,
+                    torque_world: npt.ArrayLike | None = None,
+                    force_body: npt.ArrayLike | None = None,
+                    torque_body: npt.ArrayLike | None = None) -> None:
         """
         Hold world-fixed and body-fixed parts of the wrench at once (N, N m).
 
@@ -350,7 +369,10 @@ class Simulator:
                    _checked_vector(force_body, 'force_body'),
                    _checked_vector(torque_body, 'torque_body'))
 
-    def _hold(self, force_world, torque_world, force_body, torque_body):
+    def _hold(self, force_world: npt.NDArray[np.float64] | None,
+              torque_world: npt.NDArray[np.float64] | None,
+              force_body: npt.NDArray[np.float64] | None,
+              torque_body: npt.NDArray[np.float64] | None) -> None:
         # Written in place: the compiled model holds this very array.
         for row, part in ((HELD_FORCE_WORLD, force_world), (HELD_TORQUE_WORLD, torque_world),
                           (HELD_FORCE_BODY, force_body), (HELD_TORQUE_BODY, torque_body)):
@@ -358,24 +380,26 @@ class Simulator:
         self._plan()
 
     @property
-    def held_wrench(self):
+    def held_wrench(self) -> tuple[npt.NDArray[np.float64], ...]:
         """Get the held wrench: (force_world, torque_world, force_body, torque_body)."""
         return tuple(self._held[row].copy() for row in range(4))
 
     # -- state
 
     @property
-    def state(self):
+    def state(self) -> State:
         """Get the current State (world frame)."""
-        if self._state is None:
+        state = self._state
+        if state is None:
             if self._constraint is None:
-                self._state = self._integrated_state()
+                state = self._integrated_state()
             else:
-                self._state = State._from_values(self._constraint.expand_values(self._values))
-        return self._state
+                state = State._from_values(self._constraint.expand_values(self._values))
+            self._state = state
+        return state
 
     @state.setter
-    def state(self, state):
+    def state(self, state: State) -> None:
         if not isinstance(state, State):
             raise ValueError(f'state must be a State; got {type(state).__name__}')
         if self._constraint is None:
@@ -388,24 +412,24 @@ class Simulator:
         # A new state: estimate at the next outer step, from scratch.
         error_control.changed(self._control, forget=True)
 
-    def _store(self, integrated):
+    def _store(self, integrated: State) -> None:
         """Make `integrated` (a State of the integrated system) the current one."""
         np.concatenate(integrated._fields(), out=self._values)
         self._integrated = integrated
         self._state = None
 
-    def _integrated_state(self):
+    def _integrated_state(self) -> State:
         """Return the State of the integrated system (the pivot system under a pivot)."""
         if self._integrated is None:
             self._integrated = State._from_values(self._values)
         return self._integrated
 
     @property
-    def time(self):
+    def time(self) -> float:
         """Get the simulated time in s since the start."""
         return self._time
 
-    def reset(self, state, time=0.0):
+    def reset(self, state: State, time: float = 0.0) -> None:
         """Set the state and the time (s, finite)."""
         try:
             time = float(time)
@@ -417,7 +441,7 @@ class Simulator:
         self._time = time
         self._time_compensation = 0.0
 
-    def energy(self):
+    def energy(self) -> float:
         """Return the total energy in J: kinetic plus the effects' potential energies."""
         state = self.state
         energy = state.kinetic_energy(self._body)
@@ -427,7 +451,7 @@ class Simulator:
                 energy += potential(self._body, state)
         return energy
 
-    def applied_wrench(self):
+    def applied_wrench(self) -> Wrench:
         """
         Return (force N, torque N m) applied now: held plus effects, about the COM (world).
 
@@ -438,7 +462,7 @@ class Simulator:
         wrench = applied(values, self._time, self._model)
         return np.array(wrench[:3]), np.array(wrench[3:])
 
-    def wrench_function(self):
+    def wrench_function(self) -> Callable[[State, float], Wrench] | None:
         """
         Return the total wrench as ``wrench(state, time)``, or None when nothing pushes.
 
@@ -453,7 +477,7 @@ class Simulator:
         force_world, torque_world, force_body, torque_body = self.held_wrench
         body = self._body
 
-        def wrench(state, time):
+        def wrench(state: State, time: float) -> Wrench:
             force = force_world + state.rotation @ force_body
             torque = torque_world + state.rotation @ torque_body
             for effect in effects:
@@ -462,12 +486,13 @@ class Simulator:
                 torque = torque + effect_torque
             return force, torque
 
-        wrench.momentum_dependent = any(effect.momentum_dependent for effect in effects)
+        wrench.momentum_dependent = any(
+            effect.momentum_dependent for effect in effects)
         return wrench
 
     # -- time stepping
 
-    def step(self, dt):
+    def step(self, dt: float) -> State:
         """
         Advance one outer step of dt s; return the new State.
 
@@ -487,7 +512,8 @@ class Simulator:
             self._advance(self._substeps, dt / self._substeps, dt)
         return self.state
 
-    def run(self, duration, dt, progress=None):
+    def run(self, duration: float, dt: float,
+            progress: Callable[[float], Any] | None = None) -> State:
         """
         Advance by `duration` s in outer steps of dt s; return the final State.
 
@@ -538,7 +564,7 @@ class Simulator:
             progress(1.0)
         return self.state
 
-    def _plan(self):
+    def _plan(self) -> None:
         """Tell the error controller the configuration changed, and if it is torque-free."""
         held = self._held
         torque_free = not (self._flows or np.any(held[HELD_TORQUE_WORLD])
@@ -550,7 +576,7 @@ class Simulator:
         error_control.set_torque_free(self._control, torque_free)
         error_control.changed(self._control)
 
-    def _check_stiffness(self, dt):
+    def _check_stiffness(self, dt: float) -> None:
         """
         Refuse a fixed step too long for a stiff effect; under error control, bound it.
 
@@ -567,7 +593,7 @@ class Simulator:
             error_control.set_bounds(self._control, floor)
             self._control_floor = floor
 
-    def _advanced(self, duration, finite):
+    def _advanced(self, duration: float, finite: bool) -> None:
         """
         Take the state a kernel left after `duration` s: finite, or the last one restored.
 
@@ -581,7 +607,7 @@ class Simulator:
             raise DivergedError(self._divergence(duration), self._time)
         self._add_time(duration)
 
-    def _divergence(self, duration):
+    def _divergence(self, duration: float) -> str:
         """Return the one-line message of a state that turned non-finite."""
         acting = [repr(effect) for effect in self._effects
                   if getattr(effect, 'compiled_wrench', None) is not None
@@ -599,7 +625,7 @@ class Simulator:
                 f't = {self._time:.9g} s: a shorter step (rate, substeps) or smaller '
                 'coefficients or inputs keep it finite')
 
-    def _advance(self, steps, dt, duration=None):
+    def _advance(self, steps: int, dt: float, duration: float | None = None) -> None:
         """Take `steps` steps of dt s; the clock moves by `duration` (default steps x dt)."""
         # Called once a tick by the node: no closure, no call more than needed.
         values = self._values
@@ -611,7 +637,7 @@ class Simulator:
         finite = run(values, self._model, self._integrator.method, dt, steps, self._time) >= 0
         self._advanced(steps * dt if duration is None else duration, finite)
 
-    def _controlled(self, tick, ticks):
+    def _controlled(self, tick: float, ticks: int) -> None:
         """
         Take `ticks` outer steps of `tick` s under error control (error_control.py).
 
@@ -621,24 +647,32 @@ class Simulator:
         self._checkpoint[:] = values
         if self._run is None:
             self._load_kernels()
-        finite = self._controller(self._controlled_run, values, self._model,
-                                  self._integrator.method, tick, ticks, self._time,
-                                  self._control) >= 0
-        self._advanced(ticks * tick, finite and _all_finite(values))
+        # The controller tests the state it leaves (error_control.py): -1 if not finite.
+        finite = self._controlled_kernel(self._controller, values, self._model,
+                                         self._integrator.method, tick, ticks, self._time,
+                                         self._control) >= 0
+        self._advanced(ticks * tick, finite)
 
-    def _load_kernels(self):
-        """Fetch the run kernel and the controller, compiled or interpreted; return the run."""
+    def _load_kernels(self) -> Callable[..., int]:
+        """
+        Fetch the run kernel and the controller, compiled or interpreted; return the run.
+
+        Once per integrator (and per switch of :attr:`interpreted`): the Controller holding
+        the run is built here, so that no step pays for handing the run to the controller.
+        """
+        run_kernel = self._integrator.run_kernel
+        # Interpreted, the controller calls the run as it is (an error ends the whole call:
+        # -1).
+        self._controller = error_control.new_controller(run_kernel, self._interpreted)
         if self._interpreted:
-            # The controller calls the run as it is (an error ends the whole call: -1).
-            self._controlled_run = self._integrator.run_kernel.source
-            self._run = _interpreted(self._controlled_run)
-            self._controller = _interpreted(error_control.controlled.source)
+            self._run = _interpreted(run_kernel.source)
+            self._controlled_kernel = _interpreted(error_control.controlled.source)
         else:
-            self._run = self._controlled_run = self._integrator.run
-            self._controller = error_control.controlled.dispatcher
+            self._run = self._integrator.run
+            self._controlled_kernel = error_control.controlled.dispatcher
         return self._run
 
-    def _add_time(self, increment):
+    def _add_time(self, increment: float) -> None:
         # Kahan summation: keeps the clock exact to round-off over millions of ticks, where a
         # plain running sum would drift by ~steps * eps * time.
         y = increment - self._time_compensation
@@ -647,9 +681,9 @@ class Simulator:
         self._time = total
 
 
-def _interpreted(function):
+def _interpreted(function: Callable[..., int]) -> Callable[..., int]:
     """Return an interpreted kernel that says -1 (not finite) where Python's math raises."""
-    def guarded(*arguments):
+    def guarded(*arguments: Any) -> int:
         try:
             return function(*arguments)
         except ARITHMETIC_ERRORS:
@@ -657,15 +691,8 @@ def _interpreted(function):
     return guarded
 
 
-def _all_finite(values):
-    """Return whether every entry of a float array is finite."""
-    # The sum of the values as Python floats is finite when they all are, in a tenth of the
-    # time of np.isfinite (a step() per tick); only a sum overflowed by finite values near
-    # 1e308 needs the exact test.
-    return math.isfinite(sum(values.tolist())) or bool(np.isfinite(values).all())
-
-
-def unresolved_rotation(body, state, period, substeps=1, tolerance=None):
+def unresolved_rotation(body: RigidBody, state: State, period: float, substeps: int = 1,
+                        tolerance: float | None = None) -> str | None:
     """
     Return a one-line warning if a tick's steps turn the body too far, else None.
 

@@ -10,10 +10,17 @@ Velocities are derived with the body's mass properties:
 I_w = R I_b R^T, omega = I_w^{-1} L (world), Omega = R^T omega (body), v = p / m.
 """
 
+from __future__ import annotations
+
 import math
+from typing import Any
+from typing import NoReturn
 
 import numpy as np
+from numpy.typing import ArrayLike
+from numpy.typing import NDArray
 
+from .body import RigidBody
 from .rotations import check_quaternion
 from .rotations import check_rotation_matrix
 from .rotations import matrix_from_quaternion
@@ -25,7 +32,7 @@ __all__ = ['State']
 _UNIT_TOLERANCE = 4.0 * 2.0 ** -52
 
 
-def _vector(value, name, unit):
+def _vector(value: Any, name: str, unit: str) -> NDArray[np.float64]:
     array = np.array(value, dtype=float).reshape(-1) if value is not None else np.zeros(3)
     if array.shape != (3,):
         raise ValueError(f'{name} must be a 3-vector in {unit}; got {np.shape(value)}')
@@ -35,7 +42,7 @@ def _vector(value, name, unit):
     return array
 
 
-def _frozen(array):
+def _frozen(array: NDArray[np.float64]) -> NDArray[np.float64]:
     array.flags.writeable = False
     return array
 
@@ -66,9 +73,16 @@ class State:
 
     __slots__ = ('_rotation', '_quaternion', '_position', '_linear_momentum',
                  '_angular_momentum')
+    # The slots' types (read-only arrays; R is made on first use).
+    _rotation: NDArray[np.float64] | None
+    _quaternion: NDArray[np.float64]
+    _position: NDArray[np.float64]
+    _linear_momentum: NDArray[np.float64]
+    _angular_momentum: NDArray[np.float64]
 
-    def __init__(self, rotation=None, position=None, linear_momentum=None,
-                 angular_momentum=None):
+    def __init__(self, rotation: ArrayLike | None = None, position: ArrayLike | None = None,
+                 linear_momentum: ArrayLike | None = None,
+                 angular_momentum: ArrayLike | None = None) -> None:
         if rotation is None:
             quaternion = np.array([0.0, 0.0, 0.0, 1.0])
             matrix = np.eye(3)
@@ -85,7 +99,9 @@ class State:
                   _vector(linear_momentum, 'linear_momentum', 'kg m/s'),
                   _vector(angular_momentum, 'angular_momentum', 'kg m^2/s'))
 
-    def _set(self, quaternion, matrix, position, linear_momentum, angular_momentum):
+    def _set(self, quaternion: NDArray[np.float64], matrix: NDArray[np.float64] | None,
+             position: NDArray[np.float64], linear_momentum: NDArray[np.float64],
+             angular_momentum: NDArray[np.float64]) -> None:
         # The arrays come read-only: every field of a State is frozen.
         _set_quaternion(self, quaternion)
         _set_rotation(self, matrix)
@@ -94,7 +110,9 @@ class State:
         _set_angular_momentum(self, angular_momentum)
 
     @classmethod
-    def _from_arrays(cls, quaternion, position, linear_momentum, angular_momentum):
+    def _from_arrays(cls, quaternion: NDArray[np.float64], position: NDArray[np.float64],
+                     linear_momentum: NDArray[np.float64],
+                     angular_momentum: NDArray[np.float64]) -> State:
         """
         Build a state from trusted float arrays (integrator output): no validation.
 
@@ -114,7 +132,7 @@ class State:
         return state
 
     @classmethod
-    def _from_values(cls, values):
+    def _from_values(cls, values: NDArray[np.float64]) -> State:
         """
         Build a state from a packed array [q (4), x, p, L] (a compiled kernel's state).
 
@@ -128,13 +146,15 @@ class State:
         state._set(frozen[0:4], None, frozen[4:7], frozen[7:10], frozen[10:13])
         return state
 
-    def __setattr__(self, name, value):
+    def __setattr__(self, name: str, value: object) -> NoReturn:
         """Refuse assignment: a State is an immutable value."""
         raise AttributeError('State is immutable; use State.replace(...) for a changed copy')
 
     @classmethod
-    def from_velocity(cls, body, rotation=None, position=None, velocity=None,
-                      angular_velocity_body=None, angular_velocity_world=None):
+    def from_velocity(cls, body: RigidBody, rotation: ArrayLike | None = None,
+                      position: ArrayLike | None = None, velocity: ArrayLike | None = None,
+                      angular_velocity_body: ArrayLike | None = None,
+                      angular_velocity_world: ArrayLike | None = None) -> State:
         """
         Return the state of `body` moving with the given velocities.
 
@@ -166,8 +186,9 @@ class State:
         angular_momentum = matrix @ (body.inertia @ omega_body)
         return cls(oriented.quaternion, position, body.mass * v, angular_momentum)
 
-    def replace(self, rotation=None, position=None, linear_momentum=None,
-                angular_momentum=None):
+    def replace(self, rotation: ArrayLike | None = None, position: ArrayLike | None = None,
+                linear_momentum: ArrayLike | None = None,
+                angular_momentum: ArrayLike | None = None) -> State:
         """Return a copy with the given fields changed (validated like the constructor)."""
         return State(self._quaternion if rotation is None else rotation,
                      self._position if position is None else position,
@@ -177,71 +198,71 @@ class State:
     # -- state variables
 
     @property
-    def rotation(self):
+    def rotation(self) -> NDArray[np.float64]:
         """Rotation matrix R, body to world (3x3, read-only)."""
         if self._rotation is None:
             _set_rotation(self, _frozen(matrix_from_quaternion(self._quaternion)))
-        return self._rotation
+        return self._rotation  # type: ignore[return-value]  # set just above
 
     @property
-    def quaternion(self):
+    def quaternion(self) -> NDArray[np.float64]:
         """Get the orientation, body to world, as a unit quaternion [x, y, z, w] (read-only)."""
         return self._quaternion
 
     @property
-    def position(self):
+    def position(self) -> NDArray[np.float64]:
         """COM position in m, world frame (read-only)."""
         return self._position
 
     @property
-    def linear_momentum(self):
+    def linear_momentum(self) -> NDArray[np.float64]:
         """Linear momentum p = m v in kg m/s, world frame (read-only)."""
         return self._linear_momentum
 
     @property
-    def angular_momentum(self):
+    def angular_momentum(self) -> NDArray[np.float64]:
         """Angular momentum about the COM in kg m^2/s, world frame (read-only)."""
         return self._angular_momentum
 
     # -- derived quantities, which need the body's mass properties
 
-    def inertia_world(self, body):
+    def inertia_world(self, body: RigidBody) -> NDArray[np.float64]:
         """Return I_w = R I_b R^T, the inertia about the COM in world axes (kg m^2)."""
         return self.rotation @ body.inertia @ self.rotation.T
 
-    def velocity(self, body):
+    def velocity(self, body: RigidBody) -> NDArray[np.float64]:
         """Return the COM velocity v = p / m in m/s, world frame."""
         return self._linear_momentum / body.mass
 
-    def angular_velocity_body(self, body):
+    def angular_velocity_body(self, body: RigidBody) -> NDArray[np.float64]:
         """Return Omega = I_b^{-1} R^T L in rad/s, body frame."""
         return body.inertia_inverse @ (self.rotation.T @ self._angular_momentum)
 
-    def angular_velocity(self, body):
+    def angular_velocity(self, body: RigidBody) -> NDArray[np.float64]:
         """Return omega = R Omega = I_w^{-1} L in rad/s, world frame."""
         return self.rotation @ self.angular_velocity_body(body)
 
-    def kinetic_energy(self, body):
+    def kinetic_energy(self, body: RigidBody) -> float:
         """Return T = |p|^2 / (2 m) + omega . L / 2 in J."""
         p = self._linear_momentum
-        return 0.5 * (p @ p) / body.mass + 0.5 * (
+        return 0.5 * (p @ p) / body.mass + 0.5 * (  # type: ignore[return-value]
             self.angular_velocity(body) @ self._angular_momentum)
 
-    def __eq__(self, other):
+    def __eq__(self, other: object) -> bool:
         """Return True if all state variables are bit-identical."""
         if not isinstance(other, State):
             return NotImplemented
         return all(np.array_equal(a, b) for a, b in zip(self._fields(), other._fields()))
 
-    __hash__ = None
+    __hash__ = None  # type: ignore[assignment]
 
-    def _fields(self):
+    def _fields(self) -> tuple[NDArray[np.float64], ...]:
         return (self._quaternion, self._position, self._linear_momentum,
                 self._angular_momentum)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         """Return the state variables, quaternion (x, y, z, w) for the rotation."""
-        def fmt(a):
+        def fmt(a: NDArray[np.float64]) -> str:
             return np.array2string(a, precision=6, separator=', ')
         return (f'State(quaternion={fmt(self._quaternion)}, position={fmt(self._position)}, '
                 f'linear_momentum={fmt(self._linear_momentum)}, '
@@ -250,8 +271,9 @@ class State:
 
 # Slot setters, bypassing State.__setattr__ (which refuses every assignment): a State is
 # built once and never changed.
-_set_quaternion = State._quaternion.__set__
-_set_rotation = State._rotation.__set__
-_set_position = State._position.__set__
-_set_linear_momentum = State._linear_momentum.__set__
-_set_angular_momentum = State._angular_momentum.__set__
+# (mypy sees the slots' declared types, not their descriptors.)
+_set_quaternion = State._quaternion.__set__  # type: ignore[misc, attr-defined]
+_set_rotation = State._rotation.__set__  # type: ignore[misc, union-attr]
+_set_position = State._position.__set__  # type: ignore[misc, attr-defined]
+_set_linear_momentum = State._linear_momentum.__set__  # type: ignore[misc, attr-defined]
+_set_angular_momentum = State._angular_momentum.__set__  # type: ignore[misc, attr-defined]

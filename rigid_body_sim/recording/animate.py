@@ -16,8 +16,9 @@ What is drawn comes from the node's topics alone, so any bag of the node works:
 The view is from the COM (the body turns about it; a translation of the COM is not
 drawn): the shape, the body axes x, y, z (red, green, blue) of a length that reaches past
 the shape, the direction of the world angular momentum L (black, fixed for a torque-free
-body), and a fading trail of the tip of the body axis that moves most over the bag (the one
-that flips, for a T-handle).
+body), and a fading trail of the tip of the middle principal axis, the one that flips (of
+the inertia an offline bag names, or that a live bag's motion shows: L = I Omega), drawn
+through every tick between frames so a fast spin stays a smooth curve; the legend names it.
 
 Frames are taken at simulated times t0, t0 + speed / fps, ... up to the bag's end: a frame
 shows the latest tick at or before its time.  Writers: Pillow for GIF (a palette per frame,
@@ -37,8 +38,8 @@ import numpy as np
 # used: the command line builds this tool's options from the defaults below at every start.
 
 __all__ = ['Animation', 'AnimationPlan', 'animate_bag', 'prepare_animation',
-           'render_animation', 'plan_frames', 'read_shape', 'DEFAULT_FPS', 'DEFAULT_SPEED',
-           'DEFAULT_MAX_BYTES']
+           'render_animation', 'plan_frames', 'read_shape', 'read_trail_axis', 'DEFAULT_FPS',
+           'DEFAULT_SPEED', 'DEFAULT_MAX_BYTES']
 
 DEFAULT_FPS = 10.0
 DEFAULT_SPEED = 1.0
@@ -72,7 +73,8 @@ def read_shape(bag, motion, namespace=''):
 
     A box marker with the edges of the inertia-equivalent box of the mass and inertia an
     offline bag names is labelled as that stand-in (the node draws a body given by its
-    inertia alone so).
+    inertia alone so), unless the bag says the scene gave the body a shape (a box body is
+    its own equivalent box).
 
     Raises
     ------
@@ -93,7 +95,10 @@ def read_shape(bag, motion, namespace=''):
             shape = shape_from_marker(marker, motion.quaternion[index])
         except ValueError as error:
             raise ValueError(f'{bag}: {error}') from None
-        if is_equivalent_box(shape, motion.mass, motion.inertia):
+        # A box body's own box has the moments of its equivalent box too: the bag's word on
+        # the body's shape decides (an older offline bag says nothing: the edges do).
+        given_by_inertia = motion.body_shape in ('', None)
+        if given_by_inertia and is_equivalent_box(shape, motion.mass, motion.inertia):
             shape.origin = 'marker: inertia-equivalent box'
         return shape
     mass, inertia = motion.mass, motion.inertia
@@ -167,13 +172,13 @@ class _Scene3D:
         import matplotlib.pyplot as plt
 
         from ..drawing import BodyView
-        from ..drawing import trail_axis
 
         self.motion = motion
         dpi = 100
         self.figure = plt.figure(figsize=(pixels / dpi, pixels / dpi), dpi=dpi)
         self.axes = self.figure.add_subplot(projection='3d')
-        self.view = BodyView(self.axes, shape, trail_axis(motion.quaternion))
+        self.view = BodyView(self.axes, shape, read_trail_axis(motion))
+        self.shown = 0  # the tick of the last frame drawn: the trail runs on from it
         self.axis_lines = self.view.axis_lines
         self.axis_length = self.view.axis_length
         self.axes.legend(loc='upper left', fontsize=6, frameon=False)
@@ -182,8 +187,15 @@ class _Scene3D:
 
     def draw(self, index, time):
         """Show tick `index` (its orientation and L) at simulated `time` s."""
+        from ..drawing import trail_points
+
+        # Every tick since the last frame, its last point included, so the trail is joined.
+        start = min(self.shown, index)
+        trail = trail_points(self.motion.rotation[start:index + 1],
+                             self.view.trail_axis.direction)
+        self.shown = index
         size = self.view.show(self.motion.quaternion[index],
-                              self.motion.angular_momentum[index])
+                              self.motion.angular_momentum[index], trail)
         self.axes.set_title(self.title, fontsize=8)
         self.text.set_text(f't = {time:6.2f} s   |L| = {size:.4g} kg m²/s')
 
@@ -216,6 +228,26 @@ def _gif_bytes(images, fps):
     images[0].save(buffer, format='GIF', save_all=True, append_images=images[1:],
                    duration=1000.0 / fps, loop=0, optimize=False, disposal=1)
     return buffer.getvalue()
+
+
+def read_trail_axis(motion):
+    """
+    Return the :class:`~rigid_body_sim.drawing.TrailAxis` whose tip the animation trails.
+
+    The middle principal axis, the one that flips (as ``watch`` traces it), of the inertia
+    the bag names or its motion shows (:meth:`.motion.BagMotion.inertia_seen`); else the
+    body axis whose direction varies most, and the caption says so.
+    """
+    from ..drawing import middle_axis
+    from ..drawing import trail_axis
+    from ..drawing import TrailAxis
+
+    inertia = motion.inertia_seen()
+    if inertia is not None:
+        return middle_axis(inertia)
+    index = trail_axis(motion.quaternion)
+    return TrailAxis(np.eye(3)[index], f'body {"xyz"[index]}: the axis that moves\nmost '
+                                       '(the bag shows no inertia)')
 
 
 def _palette(image):

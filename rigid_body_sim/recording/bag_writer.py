@@ -24,9 +24,9 @@ every import of this module and of :mod:`.recovery`), none of their private stat
   ``struct`` and numpy (a test compares them with the library's ``Message`` and
   ``MessageIndex`` records byte for byte).  Not :class:`mcap.writer.Writer`: it has no hook
   for a provisional end (below), nor for many messages at once, and its ``add_message``
-  (a Message instance, six RecordBuilder writes, a MessageIndex entry each) cost 3.4 us
-  more a message: ``simulate`` at 1 kHz wrote 147,000 messages per CPU second through it
-  against 299,000 here (303,000 with the rosbags internals this module used before).
+  (a Message instance, six RecordBuilder writes, a MessageIndex entry each) made
+  ``simulate`` write half as many messages per CPU second (docs/recording.md, "How
+  `simulate` writes fast", has the figures).
 - sqlite3: Python's :mod:`sqlite3`, in rosbag2 Jazzy's schema (version 4: tables schema,
   metadata, topics, message_definitions, messages).
 - ``metadata.yaml``: written here (ruamel.yaml, json).  From rosbags only its typestore and
@@ -1037,8 +1037,8 @@ class BagWriter:
     def _write_metadata(self, file, final=False):
         # metadata.yaml with the counts so far, naming the storage file `file`.  The final
         # one is block-style YAML without folded lines; at a flush, JSON (which is YAML
-        # too): ruamel's pure-Python emitter would cost a fifth of a core at four flushes a
-        # second.
+        # too): ruamel's pure-Python emitter would be a large part of the recorder's work at
+        # four flushes a second.
         information = self._information(Path(file).name)
         document = {'rosbag2_bagfile_information': information}
         temporary = self.path / 'metadata.yaml.tmp'

@@ -19,7 +19,7 @@ Time.  The time axis is simulated time from the scene's start: an offline bag na
 stamp of simulated time 0 in its custom data, and the node's stamps with ``publish_clock``
 are simulated time already; so a 5 s run at 100 Hz shows ticks at 0.01 .. 5 s.  A live bag
 stamped with the wall clock has its ticks arrive as the machine schedules them (under load
-0.2-90 ms apart at 100 Hz): when it holds the node's /diagnostics, whose reports say the
+far from evenly): when it holds the node's /diagnostics, whose reports say the
 simulated time and rate once a second in the tick of a state, each tick is timed from the
 last report before it plus one period per tick whose state moved (a paused tick adds none;
 a reset restarts at its report's time).  Without reports the wall-clock time from the first
@@ -70,12 +70,15 @@ __all__ = [
     'BagMotion',
     'ConservedQuantity',
     'conserved_quantities',
+    'not_a_bag',
     'read_motion',
     'simulated_time_from_reports',
     'symmetry_axis',
 ]
 
 _ODOMETRY = 'nav_msgs/msg/Odometry'
+# The file endings of rosbag2's storage files (MCAP, sqlite3).
+_STORAGE_SUFFIXES = ('.mcap', '.db3')
 _DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 _VECTOR3_STAMPED = 'geometry_msgs/msg/Vector3Stamped'
 # Stamps before this (one year after the epoch, ns) are simulated time, not the wall clock.
@@ -83,6 +86,11 @@ _SIMULATED_STAMPS_BEFORE = 365 * 86400 * 10**9
 # Two principal moments closer than this (relative to the largest) are equal: the body is
 # symmetric about the third axis.
 _SYMMETRY_TOLERANCE = 1e-9
+# The inertia a live bag's motion shows is taken when the motion spans all six of its
+# components (the least singular value of the fit at least this fraction of the largest) and
+# L = I Omega holds to this fraction of |L| over the ticks.
+_FIT_CONDITION = 1e-6
+_FIT_RESIDUAL = 1e-6
 
 
 class BagMotion:
@@ -204,6 +212,50 @@ class BagMotion:
             return None
         return [{'effect': name.strip()} for name in names.split(',')
                 if name.strip() and name.strip() != 'none']
+
+    @property
+    def body_shape(self):
+        """
+        Return the shape the scene gave the body ('box', ...), '' if given by inertia, or None.
+
+        None when the bag does not say (a live recording, or an offline bag of an older
+        version).
+        """
+        return self.custom('body_shape')
+
+    def inertia_seen(self):
+        """
+        Return the inertia (3, 3) in kg m^2, body frame: the one the bag names, or the motion's.
+
+        A live bag names none; its motion shows it where L = I Omega (in the body frame, R^T
+        L) pins down all six components: the least-squares fit over the ticks.  None when
+        the motion does not (a steady spin about one axis shows one column of I).
+        """
+        named = self.inertia
+        if named is not None:
+            return named
+        step = max(1, len(self.stamps) // 2000)
+        omega = self.angular_velocity_body[::step]
+        momentum = np.einsum('nji,nj->ni', self.rotation[::step], self.angular_momentum[::step])
+        if len(omega) < 2 or not (np.all(np.isfinite(omega)) and np.all(np.isfinite(momentum))):
+            return None
+        # Unknowns (Ixx, Iyy, Izz, Ixy, Ixz, Iyz); three equations per tick.
+        x, y, z = omega.T
+        zero = np.zeros_like(x)
+        design = np.concatenate([np.stack([x, zero, zero, y, z, zero], axis=1),
+                                 np.stack([zero, y, zero, x, zero, z], axis=1),
+                                 np.stack([zero, zero, z, zero, x, y], axis=1)])
+        target = np.concatenate(momentum.T)
+        values, _, rank, singular = np.linalg.lstsq(design, target, rcond=None)
+        if rank < 6 or singular[-1] < _FIT_CONDITION * singular[0]:
+            return None
+        xx, yy, zz, xy, xz, yz = values
+        inertia = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+        fitted = design @ values
+        if np.linalg.norm(fitted - target) > _FIT_RESIDUAL * np.linalg.norm(target) or \
+                np.any(np.linalg.eigvalsh(inertia) <= 0.0):
+            return None
+        return inertia
 
     def total_energy(self, gravity):
         """Return E = T_rot + 1/2 m |v|^2 - m g . x in J, (n,); `gravity` in m/s^2 or None."""
@@ -456,6 +508,9 @@ def read_motion(bag, namespace=''):
 
     """
     bag = Path(bag)
+    problem = not_a_bag(bag)
+    if problem is not None:
+        raise ValueError(problem)
     namespace = (namespace or '').rstrip('/')
     store = typestore()
     odometry = {}
@@ -489,6 +544,7 @@ def read_motion(bag, namespace=''):
     except FileNotFoundError:
         raise ValueError(f'no bag at {bag}') from None
     except ReaderError as error:
+        # A bag by its metadata (not_a_bag), which rosbags cannot read: a killed writer's.
         raise ValueError(f'cannot read the bag {bag}: {error} (if a recorder was killed, '
                          f'try: rigid-body-sim record --recover {bag})') from None
     stamps = sorted(set(odometry) & set(momentum))
@@ -499,6 +555,43 @@ def read_motion(bag, namespace=''):
                      [row[2] for row in rows], [momentum[stamp] for stamp in stamps],
                      custom, bag.name, velocity_body=[row[3] for row in rows],
                      reports=reports)
+
+
+def not_a_bag(path):
+    """
+    Return one line saying why `path` is not a rosbag2 bag, or None if it may be one.
+
+    A bag is a folder whose ``metadata.yaml`` holds ``rosbag2_bagfile_information``, or a
+    lone .mcap or .db3 file.  A folder with storage files and no metadata.yaml is a killed
+    recorder's bag, which ``record --recover`` completes; any other folder or file is not a
+    bag, and nothing suggests recovering it.
+    """
+    path = Path(path)
+    if not path.exists():
+        return f'no bag at {path}: nothing is there'
+    if not path.is_dir():
+        if path.suffix in _STORAGE_SUFFIXES:
+            return None
+        return (f'{path} is not a bag: a file that is not a storage file of one (.mcap, '
+                '.db3); a bag is a folder with its metadata.yaml')
+    metadata = path / 'metadata.yaml'
+    storage = [child.name for child in path.iterdir() if child.suffix in _STORAGE_SUFFIXES]
+    if not metadata.is_file():
+        if storage:
+            return (f'{path} has storage files ({", ".join(sorted(storage)[:3])}) but no '
+                    'metadata.yaml: a recorder killed before it wrote it? try: rigid-body-sim '
+                    f'record --recover {path}')
+        return (f'{path} is not a bag: a folder with no metadata.yaml and no .mcap or .db3 '
+                'file')
+    try:
+        document = YAML(typ='safe').load(metadata.read_text(encoding='utf-8'))
+    except Exception:  # noqa: B902 (any YAML or decoding error: not rosbag2's metadata)
+        document = None
+    if not isinstance(document, dict) or not isinstance(
+            document.get('rosbag2_bagfile_information'), dict):
+        return (f'{path} is not a bag: its metadata.yaml is not a rosbag2 one (no '
+                'rosbag2_bagfile_information)')
+    return None
 
 
 def _custom_data(bag):

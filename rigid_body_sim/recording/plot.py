@@ -20,6 +20,7 @@ import numpy as np
 from .motion import conserved_quantities
 from .motion import read_motion
 from ..drawing import AXIS_COLOURS
+from ..drawing import middle_axis
 
 __all__ = [
     'apex_index',
@@ -393,6 +394,11 @@ def _orientation_panel(axes, motion):
         if beyond.size:
             end = int(beyond[0]) + 1
     window_stride = max(1, -(-end // _PATH_POINTS))
+    # The axis that flips, named as animate and watch trace it (its inertia named by the
+    # bag, or shown by its motion).
+    inertia = motion.inertia_seen()
+    middle = None if inertia is None else middle_axis(inertia)
+    flipping = middle.body_axis if middle is not None and middle.flips else None
     for k, (label, color) in enumerate(zip('xyz', AXIS_COLOURS)):
         tips = rotation[:, :, k]
         if spinning[k]:
@@ -403,7 +409,8 @@ def _orientation_panel(axes, motion):
             path = np.vstack((tips[:end:window_stride], tips[end - 1:end]))
             axes.plot(path[:, 0], path[:, 1], path[:, 2], color=color, linewidth=0.7,
                       alpha=0.85)
-            label = f'body {label} axis'
+            label = f'body {label} axis' + (
+                ' (the middle principal axis: it flips)' if k == flipping else '')
             last = tips[end - 1]
         axes.plot([], [], color=color, label=label)
         axes.scatter(*tips[0], color=color, marker='o', s=25)

@@ -14,12 +14,12 @@ transient local if every publisher is).  History is keep-last with a deep queue 
 default 30,000: thirty seconds at 1 kHz; Fast DDS allocates a sample only when it is
 queued, so a deep queue costs nothing until the recorder falls behind), so a recorder that
 falls behind while the DDS threads keep receiving (a slow flush, the interpreter busy)
-loses nothing.  A flush was seen to block for 4.9 s on a loaded machine (most likely its
+loses nothing.  A flush was seen to block for seconds on a loaded machine (most likely its
 write into the page of the bag's end that the fsync thread had under writeback), which
-overflowed the former 5000 by 60 messages a topic.  A stall of the whole
-process, DDS threads included, is another matter: Fast DDS's shared-memory port queue holds
-512 samples (85 ms of the node's six topics at 1 kHz), and a reliable publisher resends
-only what its history still holds: the node's state publishers their last 1000 samples
+overflowed the former, shallower queue.  A stall of the whole process, DDS threads
+included, is another matter: Fast DDS's shared-memory port queue holds 512 samples (under a
+tenth of a second of the node's six topics at 1 kHz), and a reliable publisher resends only
+what its history still holds: the node's state publishers their last 1000 samples
 (1 s at 1 kHz, :mod:`rigid_body_sim.messages.qos`), /diagnostics and other publishers often 10,
 best-effort /clock nothing.  A longer stall loses the rest (measured in
 ``benchmarks/recording_benchmark.py --stalls``; the summary says so when it happens).

@@ -156,7 +156,8 @@ class _McapRecords:
     Iterate over the schemas, channels and messages of an MCAP file, up to its end or cut.
 
     A stream, not a list: the memory a recovery needs is one chunk's, whatever the bag's
-    size (a list of every message took 1.36 GB of RSS for a 735 MB bag).  After the
+    size (a list of every message held more than the whole bag in memory: docs/recording.md
+    has the figures, from benchmarks/recover_memory.py).  After the
     iteration, `truncated` says whether the file ended inside a record: the stream reader
     raises EndOfFile (an McapError) at a record cut short, and struct.error at a footer cut
     short.

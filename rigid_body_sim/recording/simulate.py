@@ -31,7 +31,6 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray
 from diagnostic_msgs.msg import DiagnosticStatus
 import numpy as np
-from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu
 
@@ -45,6 +44,7 @@ from ..messages.cdr import column
 from ..messages.cdr import offset_of
 from ..messages.cdr import rows_of
 from ..messages.cdr import sentinels
+from ..messages.cdr import serialize_zeroed
 from ..messages.cdr import STAMP_SENTINEL
 from ..messages.cdr import write_stamps
 from ..messages.diagnostics import diagnostic_array
@@ -52,6 +52,8 @@ from ..messages.diagnostics import NODE_NAME
 from ..messages.diagnostics import status_name
 from ..messages.diagnostics import status_values
 from ..messages.diagnostics import TickFigures
+from ..messages.frames import default_frame_prefix
+from ..messages.frames import frame_ids
 from ..messages.imu import fill_imu_message
 from ..messages.imu import imu_message
 from ..messages.marker import marker_geometry_from_drawing
@@ -86,7 +88,8 @@ IMU_TOPIC = 'imu'
 _BATCH_TICKS = 1024
 FLUSH_PERIOD = 1.0
 """Default wall-clock s between flushes of simulate's bag (record flushes every 0.25 s;
-a simulation writes far more per second, so less often keeps the cost below 1 %)."""
+a simulation writes far more per second, so less often keeps a flush's cost small beside
+the writing)."""
 # The first stamp builtin_interfaces/Time (int32 seconds) cannot hold.
 _LAST_STAMP = 2**31 * 10**9
 
@@ -171,7 +174,7 @@ def _tick_count(duration, rate):
 def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1,
                     tolerance=None, storage='mcap', start_time=0, clock=False, namespace='',
                     world_frame='world', body_frame='body', progress=False, stop=None,
-                    flush_period=FLUSH_PERIOD, imu_frame='imu'):
+                    flush_period=FLUSH_PERIOD, imu_frame='imu', frame_prefix=None):
     """
     Simulate `scene` for `duration` s and write what the node would publish into a bag.
 
@@ -202,9 +205,14 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
     namespace : str
         Namespace of the state topics ('' or '/name'), as the node's ``__ns``.
     world_frame, body_frame, imu_frame : str
-        Frame ids, as the node's parameters.  The ``imu`` topic (sensor_msgs/Imu) holds
+        Frame names, as the node's parameters, after `frame_prefix` (unless one starts with
+        ``/``), checked and read as tf2 reads them (:mod:`rigid_body_sim.messages.frames`).
+        The ``imu`` topic (sensor_msgs/Imu) holds
         the scene's IMU (its ``imu:`` section: mount, noise and seed) as the node publishes
         it: the same readings, the same noise for the same seed.
+    frame_prefix : str, optional
+        Put before every frame name, as the node's parameter; default (None): the
+        namespace's, as the node's (``sat1/`` for ``/sat1``).
     progress : bool
         Show a tqdm progress bar (on stderr).
     stop : threading.Event, optional
@@ -223,7 +231,8 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
     Raises
     ------
     ValueError
-        For a bad duration, rate, substeps, storage or start time, or an existing bag.
+        For a bad duration, rate, substeps, storage, start time or frame, or an existing
+        bag.
 
     """
     rate = float(scene.rate if rate is None else rate)
@@ -240,8 +249,12 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
         raise ValueError(f'stamps must lie between 0 and {_LAST_STAMP // 10**9} s since the '
                          f'epoch; the start time {start_time * 1e-9:g} s and duration '
                          f'{ticks / rate:g} s do not fit')
-    if world_frame == body_frame:
-        raise ValueError(f'world_frame and body_frame must differ; both are {world_frame!r}')
+    if frame_prefix is None:
+        frame_prefix = default_frame_prefix(absolute_namespace(namespace))
+    frames = frame_ids(frame_prefix, {'world_frame': world_frame, 'body_frame': body_frame,
+                                      'imu_frame': imu_frame})
+    world_frame, body_frame, imu_frame = (frames[name] for name in (
+        'world_frame', 'body_frame', 'imu_frame'))
     names = topic_names(namespace)
     simulator = scene.simulator(integrator=integrator, tolerance=tolerance)
     simulator.substeps = substeps
@@ -249,9 +262,6 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
     geometry = marker_geometry_from_drawing(scene.drawing)
     serializer = BatchSerializer(body, world_frame, body_frame, geometry)
     types = {topic: message_type_name(STATE_TYPES[topic]) for topic in STATE_TOPICS}
-    if imu_frame in (world_frame, body_frame) or not imu_frame:
-        raise ValueError(f'imu_frame must differ from world_frame and body_frame and not be '
-                         f'empty; got {imu_frame!r}')
     transform_class, no_tf = transform_message_class()
     if no_tf is not None:
         print(f'simulate: no /tf or /tf_static in the bag: {no_tf}', file=sys.stderr)
@@ -283,7 +293,7 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
             static_connection = writer.add_topic(
                 TF_STATIC_TOPIC, message_type_name(transform_class),
                 [offered_qos(qos.TF_STATIC_QOS)])
-            writer.write(static_connection, start_time, serialize_message(static_transforms(
+            writer.write(static_connection, start_time, serialize_zeroed(static_transforms(
                 transform_class, body_frame, imu_frame, imu.model, start_time)))
             connections.append((TF_TOPIC, writer.add_topic(
                 TF_TOPIC, message_type_name(transform_class), [offered_qos(qos.TF_QOS)])))
@@ -365,7 +375,7 @@ class _ImuRows:
         seconds, nanoseconds = STAMP_SENTINEL
         fill_imu_message(message, seconds * 1_000_000_000 + nanoseconds, values[0:4],
                          values[4:7], values[7:10])
-        template = bytes(serialize_message(message))
+        template = bytes(serialize_zeroed(message))
         self._offsets = [offset_of(template, struct.pack('<d', value), 'an imu field')
                          for value in values]
         self._stamp_offset = offset_of(template, struct.pack('<iI', *STAMP_SENTINEL),
@@ -395,7 +405,7 @@ class _ImuRows:
 
 def _clock_rows(stamps):
     """Return the serialised rosgraph_msgs/Clock of each stamp, (n, size) uint8."""
-    rows = rows_of(serialize_message(Clock()), len(stamps))
+    rows = rows_of(serialize_zeroed(Clock()), len(stamps))
     # CDR: the 4-byte encapsulation header, then clock.sec (int32), clock.nanosec (uint32).
     write_stamps(rows, 4, stamps)
     return rows
@@ -441,6 +451,9 @@ def _set_custom_data(writer, scene, simulator, rate, substeps, start_time):
         'start_time': str(start_time),
         'mass': f'{body.mass:.17g}',
         'inertia': ' '.join(f'{value:.17g}' for value in body.inertia.ravel()),
+        # The scene's own shape of the body ('' for a body given by its inertia): a box
+        # marker of a box body is that box, not a stand-in with its moments.
+        'body_shape': scene.data.get('body', {}).get('shape', ''),
         'effects': ', '.join(scene.effect_names()) or 'none',
         'effect_parameters': effect_parameters_json(scene),
         'writer': 'rigid-body-sim simulate',
@@ -497,5 +510,5 @@ class _OfflineDiagnostics:
             clock_seconds=1e-9 * stamp if self._clock else None,
             reference_energy=self._reference_energy,
             reference_momentum=self._reference_momentum)
-        return serialize_message(diagnostic_array(
+        return serialize_zeroed(diagnostic_array(
             self._name, self._hardware_id, DiagnosticStatus.OK, 'running', values, stamp))

@@ -15,7 +15,8 @@ like Python's), so each value is bit for bit the node's.
 
 Padding.  rclpy's serializer skips CDR's alignment padding without writing it, so those
 bytes of its output are whatever its buffer held (they differ from run to run and may be
-leftover memory).  The templates here have them zeroed (:func:`_zero_padding`), so a run
+leftover memory).  The templates here have them zeroed
+(:func:`~rigid_body_sim.messages.cdr.serialize_zeroed`), so a run
 serialises the same states into the same bytes every time (tested: two identical
 ``simulate`` runs write byte-identical messages).
 """
@@ -23,16 +24,14 @@ serialises the same states into the same bytes every time (tested: two identical
 import struct
 
 import numpy as np
-from rclpy.serialization import deserialize_message
-from rclpy.serialization import serialize_message
 
-from .bag_writer import typestore
 from ..messages.cdr import byte_order
 from ..messages.cdr import column
 from ..messages.cdr import field_target
 from ..messages.cdr import offset_of
 from ..messages.cdr import rows_of
 from ..messages.cdr import sentinels
+from ..messages.cdr import serialize_zeroed
 from ..messages.cdr import STAMP_SENTINEL
 from ..messages.cdr import write_stamps
 from ..messages.marker import marker_geometry
@@ -162,7 +161,8 @@ def _layout(messages, topic):
     header = getattr(message, 'header', None)
     if header is not None:
         header.stamp.sec, header.stamp.nanosec = STAMP_SENTINEL
-    template = serialize_message(message)
+    # Padding zeroed: the same states give the same bytes in every run.
+    template = serialize_zeroed(message)
     if byte_order(template) != '<':
         raise RuntimeError('rclpy serialised big-endian CDR; the batch serializer writes '
                            'little-endian fields')
@@ -172,7 +172,7 @@ def _layout(messages, topic):
     if header is not None:
         stamp_offset = offset_of(template, struct.pack('<iI', *STAMP_SENTINEL),
                                  f'the {topic} stamp')
-    buffer = _zero_padding(message, template)
+    buffer = bytearray(template)
     # The template's own values do not matter (every state field and the stamp are
     # overwritten), but zeros keep a mistake visible.
     for offset in offsets:
@@ -180,24 +180,3 @@ def _layout(messages, topic):
     if stamp_offset is not None:
         buffer[stamp_offset:stamp_offset + 8] = bytes(8)
     return np.frombuffer(bytes(buffer), dtype=np.uint8), stamp_offset, offsets
-
-
-def _zero_padding(message, serialized):
-    """
-    Return `serialized` (rclpy's CDR bytes of `message`) with its padding bytes zeroed.
-
-    rosbags' serializer (its public typestore API) writes every field where rclpy's does and
-    zeros in between; the message goes through it once (deserialised from rclpy's bytes,
-    serialised again).  Checked: the two differ only where rosbags wrote a zero, and rclpy
-    reads the result back as `message`, so only padding changes.
-    """
-    cls = type(message)
-    typename = f"{cls.__module__.split('.')[0]}/msg/{cls.__name__}"
-    store = typestore()
-    zeroed = bytes(store.serialize_cdr(store.deserialize_cdr(bytes(serialized), typename),
-                                       typename))
-    if len(zeroed) != len(serialized) or any(
-            new != old and new != 0 for new, old in zip(zeroed, serialized)) or \
-            deserialize_message(zeroed, cls) != message:
-        raise RuntimeError(f'rosbags serialises {typename} differently from rclpy')
-    return bytearray(zeroed)

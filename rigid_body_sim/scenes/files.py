@@ -7,11 +7,19 @@ and :func:`default_state` are those of the node's default scene, for callers tha
 body or the state alone.
 """
 
+from __future__ import annotations
+
+import errno
+import os
 from pathlib import Path
+import stat
 
 from .schema import parse_scene
+from .schema import Scene
 from .strict_yaml import read_scene_yaml
 from ..paths import scenes_dir
+from ..physics import RigidBody
+from ..physics import State
 from ..text import one_line_errors
 
 __all__ = ['DEFAULT_SCENE', 'default_body', 'default_state', 'find_scene', 'load_scene',
@@ -21,13 +29,13 @@ DEFAULT_SCENE = 'default'
 """The node's default scene: the T-handle with external_wrench, so a newcomer can push it."""
 
 
-def scene_names():
+def scene_names() -> list[str]:
     """Return the names of the built-in scenes (``config/scenes/*.yaml``), sorted."""
     return sorted(path.stem for path in Path(scenes_dir()).glob('*.yaml'))
 
 
 @one_line_errors
-def find_scene(name_or_path):
+def find_scene(name_or_path: str | os.PathLike[str]) -> Path:
     """
     Return the file of a scene given by built-in name or by path.
 
@@ -39,26 +47,56 @@ def find_scene(name_or_path):
         raise ValueError(f'scene: empty name; built-in scenes: {", ".join(scene_names())}')
     given_path = '/' in text or text.endswith(('.yaml', '.yml'))
     path = Path(text).expanduser() if given_path else Path(scenes_dir()) / f'{text}.yaml'
-    try:
-        is_dir, is_file = path.is_dir(), path.is_file()
-    except (OSError, ValueError) as error:  # a name too long, a null character
-        raise ValueError(f'scene {text!r}: {getattr(error, "strerror", None) or error}') \
-            from None
+    kind = _file_kind(path, text)
     if given_path:
-        if is_dir:
+        if kind == 'directory':
             raise ValueError(f'scene {text!r} is a directory; give the path of a .yaml file '
                              'in it')
-        if not is_file:
+        if kind is None:
             raise ValueError(f'scene file {text!r} does not exist')
+        if kind != 'file':
+            raise ValueError(f'scene {text!r} is {kind}, not a regular file; give the path '
+                             'of a .yaml file')
         return path
-    if not is_file:
+    if kind != 'file':
         raise ValueError(f'unknown scene {text!r}; built-in scenes: {", ".join(scene_names())}'
                          ' (or give a path to a .yaml file)')
     return path
 
 
+# What a path that is not a regular file is, in a message (S_IS* test, words).
+_FILE_KINDS = ((stat.S_ISFIFO, 'a FIFO (named pipe)'), (stat.S_ISCHR, 'a character device'),
+               (stat.S_ISBLK, 'a block device'), (stat.S_ISSOCK, 'a socket'))
+
+
+def _file_kind(path: Path, text: str) -> str | None:
+    """
+    Return 'file', 'directory', None (nothing there) or what else the path is, in words.
+
+    Only stat: a FIFO is never opened (opening one blocks until a writer comes), a device
+    never read (/dev/zero has no end).
+    """
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        return 'a broken symlink' if path.is_symlink() else None
+    except OSError as error:
+        if error.errno == errno.ELOOP:
+            return 'a symlink loop'
+        if error.errno == errno.ENOTDIR:
+            return None
+        raise ValueError(f'scene {text!r}: {error.strerror or error}') from None
+    except ValueError as error:  # a null character
+        raise ValueError(f'scene {text!r}: {error}') from None
+    if stat.S_ISREG(mode):
+        return 'file'
+    if stat.S_ISDIR(mode):
+        return 'directory'
+    return next((words for test, words in _FILE_KINDS if test(mode)), 'not a regular file')
+
+
 @one_line_errors
-def load_scene(name_or_path=DEFAULT_SCENE):
+def load_scene(name_or_path: str | os.PathLike[str] = DEFAULT_SCENE) -> Scene:
     """
     Read, validate and return a scene, by built-in name or by path.
 
@@ -83,11 +121,11 @@ def load_scene(name_or_path=DEFAULT_SCENE):
     return parse_scene(data, source, path.parent)
 
 
-def default_body():
+def default_body() -> RigidBody:
     """Return the default scene's RigidBody (the T-handle: mass 1 kg, I = diag(1, 2, 3) kg m^2)."""
     return load_scene(DEFAULT_SCENE).body
 
 
-def default_state():
+def default_state() -> State:
     """Return the default scene's initial State: at the origin, at rest, spinning near axis 2."""
     return load_scene(DEFAULT_SCENE).state

@@ -25,8 +25,8 @@ take."""
 SUBSTEPS_RANGE = (1, 100000)
 """The integrator steps per tick the node and the command line take."""
 MAX_SCENE_SIZE = 256 * 1024
-"""The most characters of a scene file.  The built-in scenes have under 5,000; PyYAML reads
-about 0.5 MB/s, so this bounds a load to half a second."""
+"""The most characters of a scene file: far above what a built-in scene holds, and small enough
+that PyYAML reads it in well under a second (docs/scenes.md has the figures)."""
 MAX_SCENE_DEPTH = 20
 """The deepest nesting of a scene's YAML (a scene needs 5: effects, an effect, its parameters,
 a vector)."""

@@ -12,12 +12,19 @@ with nothing after it (``initial:``, ``draw:``, ``body:``, ``effects:``, an effe
 defaults, ``effects: []`` means none.
 """
 
+from __future__ import annotations
+
+from collections.abc import Iterable
+from collections.abc import Mapping
 import copy
 from dataclasses import dataclass
 from dataclasses import field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
+from numpy.typing import NDArray
 
 from .limits import MAX_DESCRIPTION_LENGTH
 from .limits import MAX_NAME_LENGTH
@@ -30,12 +37,15 @@ from ..physics import Simulator
 from ..physics import State
 from ..physics.effects import create_effect
 from ..physics.effects import EFFECTS
+from ..physics.effects import ExternalWrench
 from ..physics.effects import load_effect_file
 from ..physics.effects import ParameterError
+from ..physics.effects import Pivot
 from ..physics.effects import PluginError
 from ..physics.effects.registry import check_number
 from ..physics.effects.registry import check_vector
 from ..physics.effects.registry import describe_value
+from ..physics.effects.registry import Effect
 from ..physics.effects.registry import unknown_effect
 from ..physics.imu import Imu
 from ..physics.imu import ImuModel
@@ -153,49 +163,50 @@ class Scene:
     integrator: str
     rate: float
     drawing: Drawing
-    tolerance: float = DEFAULT_TOLERANCE
+    tolerance: float | None = DEFAULT_TOLERANCE
     imu: ImuModel = ImuModel()
     source: str = '<scene>'
     data: dict = field(default_factory=dict, repr=False, compare=False)
-    plugins: tuple = ()
+    plugins: tuple[str, ...] = ()
 
     @property
-    def dt(self):
+    def dt(self) -> float:
         """Return the default step in s: 1 / rate."""
         return 1.0 / self.rate
 
     @property
-    def external_wrench(self):
+    def external_wrench(self) -> ExternalWrench | None:
         """Return the scene's external_wrench effect, or None if it takes no outside input."""
         return self._effect('external_wrench')
 
     @property
-    def accepts_external_wrench(self):
+    def accepts_external_wrench(self) -> bool:
         """Return True if the scene takes a wrench from outside (the node's topics)."""
         return any(getattr(e, 'accepts_external_wrench', False) for e in self.effects)
 
     @property
-    def pivot(self):
+    def pivot(self) -> Pivot | None:
         """Return the scene's pivot effect, or None if the body is free."""
         return self._effect('pivot')
 
     @property
-    def gravity(self):
+    def gravity(self) -> NDArray[np.float64]:
         """Return the gravitational field in m/s^2, world frame (zeros without gravity)."""
         gravity = self._effect('gravity')
         return np.zeros(3) if gravity is None else np.array(gravity.acceleration)
 
-    def imu_sensor(self, model=None):
+    def imu_sensor(self, model: ImuModel | None = None) -> Imu:
         """Return the IMU of `model` (default: the scene's) on the body, gravity and pivot."""
         pivot = self.pivot
         return Imu(self.imu if model is None else model, self.body, self.gravity,
                    None if pivot is None else -np.asarray(pivot.point, dtype=float))
 
-    def effect_names(self):
+    def effect_names(self) -> list[str]:
         """Return the names of the scene's effects, in order."""
         return [getattr(effect, 'effect_name', type(effect).__name__) for effect in self.effects]
 
-    def simulator(self, body=None, state=None, integrator=None, tolerance=None):
+    def simulator(self, body: RigidBody | None = None, state: State | None = None,
+                  integrator: str | None = None, tolerance: float | None = None) -> Simulator:
         """
         Return a Simulator of this scene, with its effects.
 
@@ -218,10 +229,14 @@ class Scene:
                          effects=self.effects,
                          tolerance=self.tolerance if tolerance is None else tolerance)
 
-    def with_overrides(self, mass=None, inertia=None, orientation=None,
-                       angular_velocity_body=None, angular_velocity_world=None,
-                       position=None, velocity=None, integrator=None, rate=None, body=None,
-                       tolerance=None):
+    def with_overrides(self, mass: float | None = None, inertia: ArrayLike | None = None,
+                       orientation: ArrayLike | None = None,
+                       angular_velocity_body: ArrayLike | None = None,
+                       angular_velocity_world: ArrayLike | None = None,
+                       position: ArrayLike | None = None, velocity: ArrayLike | None = None,
+                       integrator: str | None = None, rate: float | None = None,
+                       body: Mapping[str, Any] | None = None,
+                       tolerance: float | None = None) -> Scene:
         """
         Return the scene with some body, initial-state or run values replaced.
 
@@ -278,7 +293,7 @@ class Scene:
             data['tolerance'] = _plain(tolerance)
         return parse_scene(data, f'{self.source} (overrides)')
 
-    def _effect(self, name):
+    def _effect(self, name: str) -> Any:
         for effect in self.effects:
             if getattr(effect, 'effect_name', None) == name:
                 return effect
@@ -286,7 +301,8 @@ class Scene:
 
 
 @one_line_errors
-def parse_scene(data, source='<scene>', folder=None):
+def parse_scene(data: Any, source: str = '<scene>',
+                folder: str | Path | None = None) -> Scene:
     """
     Validate a scene's mapping (as from YAML) and return the :class:`Scene`.
 
@@ -304,16 +320,16 @@ def parse_scene(data, source='<scene>', folder=None):
 class _SceneReader:
     """Validates one scene mapping; every error names the source and the key path."""
 
-    def __init__(self, source, folder=None):
+    def __init__(self, source: str, folder: str | Path | None = None) -> None:
         self.source = source
         self.folder = folder
 
-    def error(self, path, problem):
+    def error(self, path: str, problem: str) -> ValueError:
         # Escaped and cut to one line by parse_scene (one_line_errors).
         prefix = f'{self.source}: {path}: ' if path else f'{self.source}: '
         return ValueError(prefix + problem)
 
-    def read(self, data):
+    def read(self, data: Any) -> Scene:
         mapping = self.mapping(data, '', _TOP_KEYS)
         self.reject_empty_sections(mapping)
         for key in ('name', 'description', 'body'):
@@ -353,7 +369,7 @@ class _SceneReader:
                      drawing=drawing, source=self.source, data=data,
                      tolerance=tolerance or None, imu=imu, plugins=plugins)
 
-    def reject_empty_sections(self, mapping):
+    def reject_empty_sections(self, mapping: dict[str, Any]) -> None:
         """
         Raise for a section key with nothing after it (``initial:`` alone).
 
@@ -372,7 +388,8 @@ class _SceneReader:
 
     # -- generic checks
 
-    def mapping(self, value, path, keys, required=()):
+    def mapping(self, value: Any, path: str, keys: Iterable[str],
+                required: Iterable[str] = ()) -> dict[str, Any]:
         where = path or 'the scene'
         if not isinstance(value, dict):
             raise self.error(path, f'expected a mapping of keys, got {describe_value(value)}')
@@ -385,7 +402,7 @@ class _SceneReader:
                 raise self.error(_join(path, key), f'missing; {where} requires it')
         return value
 
-    def text(self, value, path, limit):
+    def text(self, value: Any, path: str, limit: int) -> str:
         """Return one line of printable text of at most `limit` characters (no control ones)."""
         if not isinstance(value, str) or not value.strip():
             raise self.error(path, f'expected a non-empty string, got {describe_value(value)}')
@@ -403,13 +420,13 @@ class _SceneReader:
                                        'printable; give one line of printable text')
         return value
 
-    def number(self, value, path, unit='', positive=False):
+    def number(self, value: Any, path: str, unit: str = '', positive: bool = False) -> float:
         try:
             return check_number(value, 'value', unit, positive=positive)
         except ParameterError as error:
             raise self.error(path, error.problem + _quoted_number_hint(value)) from None
 
-    def vector(self, value, path, unit=''):
+    def vector(self, value: Any, path: str, unit: str = '') -> NDArray[np.float64]:
         try:
             return check_vector(value, 'value', unit)
         except ParameterError as error:
@@ -417,7 +434,7 @@ class _SceneReader:
 
     # -- sections
 
-    def body(self, value):
+    def body(self, value: Any) -> tuple[RigidBody, str | None]:
         """Return (RigidBody, shape or None) of the body section."""
         shape = value.get('shape') if isinstance(value, dict) else None
         # A shape of the wrong YAML type (a list, a mapping) is not hashable: it gets the
@@ -446,7 +463,7 @@ class _SceneReader:
         for key in shape_keys:
             if key not in body:
                 raise self.error(f'body.{key}', f'missing; shape {shape} requires it')
-        sizes = {}
+        sizes: dict[str, Any] = {}
         for key in shape_keys:
             path = f'body.{key}'
             if key in ('size', 'semi_axes'):
@@ -472,7 +489,7 @@ class _SceneReader:
                 raise self.error('body.mass', f'{mass:g} kg with {given} gives no valid '
                                               f'inertia ({error})') from None
 
-    def inertia_body(self, mass, value):
+    def inertia_body(self, mass: float, value: Any) -> RigidBody:
         path = 'body.inertia'
         if isinstance(value, np.ndarray):
             value = value.tolist()
@@ -492,10 +509,11 @@ class _SceneReader:
         except ValueError as error:
             raise self.error(path, str(error)) from None
 
-    def effects(self, value):
+    def effects(self, value: Any) -> list[Effect]:
         if not isinstance(value, list):
             raise self.error('effects', f'expected a list of effects, got {describe_value(value)}')
         effects, seen = [], set()
+        parameters: Any
         for index, item in enumerate(value):
             path = f'effects[{index}]'
             if isinstance(item, str):
@@ -526,7 +544,7 @@ class _SceneReader:
                 raise self.error(f'{path}.{name}', str(error)) from None
         return effects
 
-    def plugins(self, value):
+    def plugins(self, value: Any) -> tuple[str, ...]:
         """
         Load the effect plugin files the scene names; return their absolute paths.
 
@@ -537,7 +555,7 @@ class _SceneReader:
             raise self.error('plugins', 'expected a list of effect plugin files (.py, paths '
                                         f'relative to the scene file), got '
                                         f'{describe_value(value)}')
-        loaded = []
+        loaded: list[str] = []
         for index, item in enumerate(value):
             path = f'plugins[{index}]'
             if not isinstance(item, str) or not item.strip():
@@ -556,7 +574,7 @@ class _SceneReader:
             loaded.append(str(file.resolve()))
         return tuple(loaded)
 
-    def initial(self, value, body, pivot):
+    def initial(self, value: Any, body: RigidBody, pivot: Effect | None) -> State:
         initial = self.mapping(value, 'initial', _INITIAL_KEYS)
         if 'angular_velocity_body' in initial and 'angular_velocity_world' in initial:
             raise self.error('initial', 'give angular_velocity_body or angular_velocity_world, '
@@ -581,7 +599,7 @@ class _SceneReader:
         if 'velocity' in vectors:
             with np.errstate(over='ignore', invalid='ignore'):
                 momentum = body.mass * vectors['velocity']
-                energy = 0.5 * (momentum @ momentum) / body.mass
+                energy: Any = 0.5 * (momentum @ momentum) / body.mass
             if not (np.isfinite(energy) and np.all(np.isfinite(momentum))):
                 raise self.error('initial.velocity', f'gives a linear momentum of '
                                                      f'{momentum.tolist()} kg m/s and a kinetic '
@@ -607,7 +625,7 @@ class _SceneReader:
                                     ' kg m^2/s: not finite')
         return state
 
-    def orientation(self, value, path='initial.orientation'):
+    def orientation(self, value: Any, path: str = 'initial.orientation') -> NDArray[np.float64]:
         if isinstance(value, (list, tuple)) and len(value) != 4:
             raise self.error(path, f'expected 4 numbers (quaternion x, y, z, w), got '
                                    f'{len(value)}')
@@ -622,10 +640,10 @@ class _SceneReader:
                                    f'{norm:.9g}')
         return quaternion / norm
 
-    def imu(self, value):
+    def imu(self, value: Any) -> ImuModel:
         """Read the imu section: mount pose and Kalibr noise terms (all optional)."""
         self.mapping(value, 'imu', _IMU_KEYS)
-        values = {}
+        values: dict[str, Any] = {}
         if 'position' in value:
             values['position'] = tuple(float(v) for v in self.vector(
                 value['position'], 'imu.position', 'm'))
@@ -647,22 +665,23 @@ class _SceneReader:
             values['seed'] = seed
         return ImuModel(**values)
 
-    def drawing(self, value, body, body_shape, body_data):
+    def drawing(self, value: Any, body: RigidBody, body_shape: str | None,
+                body_data: Any) -> Drawing:
         draw = self.mapping(value, 'draw', _DRAW_KEYS)
         shape = draw.get('shape', body_shape or 'box')
         if shape not in SHAPES:
             raise self.error('draw.shape', f'expected one of {", ".join(SHAPES)}, got '
                                            f'{describe_value(shape)}')
-        color = DEFAULT_COLOR
+        color: tuple[float, ...] = DEFAULT_COLOR
         if 'color' in draw:
             color = self.color(draw['color'])
         if 'size' in draw:
-            size = self.vector(draw['size'], 'draw.size', 'm')
+            size: Any = self.vector(draw['size'], 'draw.size', 'm')
             if np.any(size <= 0.0):
                 raise self.error('draw.size', f'must be > 0 m, got {size.tolist()}')
             return Drawing(shape, tuple(size.tolist()), color, derived=False)
         if shape == body_shape:
-            size = _shape_extents(body_data, body_shape)
+            size = _shape_extents(body_data, shape)
             return Drawing(shape, size, color)
         if shape not in ('box', 'ellipsoid'):
             raise self.error('draw.size', f'missing: a {shape} cannot be derived from this '
@@ -670,7 +689,7 @@ class _SceneReader:
         size, orientation = _equivalent_extents(body, shape)
         return Drawing(shape, size, color, orientation)
 
-    def color(self, value):
+    def color(self, value: Any) -> tuple[float, ...]:
         path = 'draw.color'
         if isinstance(value, (list, tuple)) and len(value) == 3:
             value = list(value) + [1.0]
@@ -686,7 +705,7 @@ class _SceneReader:
         return tuple(color.tolist())
 
 
-def _shape_extents(body_data, shape):
+def _shape_extents(body_data: Mapping[str, Any], shape: str) -> tuple[float, ...]:
     """Return the Marker scale (m) of a body's own shape from its sizes."""
     if shape == 'box':
         return tuple(float(x) for x in body_data['size'])
@@ -698,7 +717,8 @@ def _shape_extents(body_data, shape):
     return (diameter, diameter, float(body_data['height']))
 
 
-def _equivalent_extents(body, shape):
+def _equivalent_extents(body: RigidBody,
+                        shape: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """
     Return the extents and orientation of the box or ellipsoid with the body's inertia.
 
@@ -708,6 +728,7 @@ def _equivalent_extents(body, shape):
     inequality makes these real; a flat body gets a small thickness.
     """
     inertia = body.inertia
+    orientation: tuple[float, ...]
     if np.count_nonzero(inertia - np.diag(np.diag(inertia))) == 0:
         moments, orientation = np.diag(inertia), (0.0, 0.0, 0.0, 1.0)
     else:
@@ -721,7 +742,7 @@ def _equivalent_extents(body, shape):
     return tuple(float(x) for x in extents), orientation
 
 
-def _quoted_number_hint(value):
+def _quoted_number_hint(value: object) -> str:
     """Return a hint if `value` (or an item of it) is a number in quotes, else ''."""
     items = value if isinstance(value, (list, tuple)) else (value,)
     for item in items:
@@ -730,11 +751,11 @@ def _quoted_number_hint(value):
     return ''
 
 
-def _join(path, key):
+def _join(path: str, key: str) -> str:
     return f'{path}.{key}' if path else key
 
 
-def _same_tensor(value, tensor):
+def _same_tensor(value: ArrayLike, tensor: NDArray[np.float64]) -> bool:
     """Return True if `value` (3, 9 or 3x3 numbers) is exactly the 3x3 `tensor`."""
     try:
         array = np.array(_plain(value), dtype=float)
@@ -747,7 +768,7 @@ def _same_tensor(value, tensor):
     return array.shape == (3, 3) and np.array_equal(array, tensor)
 
 
-def _plain(value):
+def _plain(value: Any) -> Any:
     """Return an override as plain Python data (lists and floats), like YAML gives."""
     if isinstance(value, np.ndarray):
         return value.tolist()

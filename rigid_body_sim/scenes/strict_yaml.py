@@ -7,9 +7,13 @@ Stricter than ``yaml.safe_load``: a key given twice in one mapping is an error
 bounded by :mod:`.limits`: size, nesting and number of values.
 """
 
+from __future__ import annotations
+
 import io
 import re
 import sys
+from typing import Any
+from typing import TextIO
 
 import yaml
 
@@ -30,13 +34,13 @@ _YAML12_FLOAT = re.compile(r'^(?:[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+
                            r'|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$')
 
 
-def is_yaml_number(text):
+def is_yaml_number(text: str) -> bool:
     """Return whether `text` reads as a number in YAML 1.2 (so, in quotes, it is a string)."""
     return bool(_YAML12_INT.match(text) or _YAML12_FLOAT.match(text))
 
 
 @one_line_errors
-def read_scene_yaml(stream, source='<scene>'):
+def read_scene_yaml(stream: str | TextIO, source: str = '<scene>') -> Any:
     """
     Return the data of a scene file's YAML (a str or a text stream), as the loader reads it.
 
@@ -93,7 +97,7 @@ def read_scene_yaml(stream, source='<scene>'):
 class _TooLarge(ValueError):
     """A scene's YAML nested too deep or with too many values; `mark` says where."""
 
-    def __init__(self, problem, mark):
+    def __init__(self, problem: str, mark: Any) -> None:
         super().__init__(problem)
         self.mark = mark
 
@@ -104,18 +108,19 @@ class _SceneYamlLoader(yaml.SafeLoader):
 
     The composer counts the depth and the values as it builds nodes, and stops at
     MAX_SCENE_DEPTH or MAX_SCENE_VALUES: PyYAML's composer and constructor recurse once per
-    level (3,000 levels were a RecursionError), and each value costs ~30 us and ~1 KB (a
-    list of a million took 35 s and 850 MB: benchmarks/scene_input_cost.py).
+    level (a deep file is a RecursionError), and each value costs time and memory, so a file
+    of many values could hold the loader for long (docs/scenes.md has the figures, from
+    benchmarks/scene_input_cost.py).
     """
 
-    def __init__(self, stream):
+    def __init__(self, stream: str | TextIO) -> None:
         super().__init__(stream)
         self._depth = 0
         self._values = 0
         # id(node) -> the values it holds, itself included: what an alias to it repeats.
-        self._sizes = {}
+        self._sizes: dict[int, int] = {}
 
-    def compose_node(self, parent, index):
+    def compose_node(self, parent: yaml.Node | None, index: int) -> yaml.Node | None:
         """Compose one node, counting it (an alias: the values it repeats) and its depth."""
         event = self.peek_event()
         if isinstance(event, yaml.AliasEvent):
@@ -133,7 +138,7 @@ class _SceneYamlLoader(yaml.SafeLoader):
         self._sizes[id(node)] = self._values - first
         return node
 
-    def _count(self, values, mark):
+    def _count(self, values: int, mark: Any) -> None:
         self._values += values
         if self._values > MAX_SCENE_VALUES:
             raise _TooLarge(f'more than {MAX_SCENE_VALUES} values (an alias counts as the '
@@ -145,7 +150,7 @@ class _SceneYamlLoader(yaml.SafeLoader):
         first: [(tag, regexp) for tag, regexp in resolvers if tag not in (_INT_TAG, _FLOAT_TAG)]
         for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()}
 
-    def construct_yaml12_int(self, node):
+    def construct_yaml12_int(self, node: yaml.ScalarNode) -> int:
         """Return a YAML 1.2 integer: decimal (leading zeros too), 0o octal or 0x hex."""
         text = self.construct_scalar(node)
         try:
@@ -155,7 +160,7 @@ class _SceneYamlLoader(yaml.SafeLoader):
             raise yaml.constructor.ConstructorError(
                 None, None, f'{text!r} is not an integer', node.start_mark) from None
 
-    def construct_yaml12_float(self, node):
+    def construct_yaml12_float(self, node: yaml.ScalarNode) -> float:
         """Return a float; a value that is none (an explicit !!float tag) is a YAML error."""
         try:
             return self.construct_yaml_float(node)
@@ -172,7 +177,7 @@ _SceneYamlLoader.add_constructor(_INT_TAG, _SceneYamlLoader.construct_yaml12_int
 _SceneYamlLoader.add_constructor(_FLOAT_TAG, _SceneYamlLoader.construct_yaml12_float)
 
 
-def _check_nodes(loader, root, source):
+def _check_nodes(loader: _SceneYamlLoader, root: yaml.Node, source: str) -> None:
     """
     Raise ValueError ``<source>: <key path>: ...`` for a key given twice or a huge integer.
 
@@ -191,7 +196,7 @@ def _check_nodes(loader, root, source):
         elif isinstance(node, yaml.SequenceNode):
             pending.extend((item, f'{path}[{index}]') for index, item in enumerate(node.value))
         elif isinstance(node, yaml.MappingNode):
-            marks = {}
+            marks: dict[Any, yaml.Mark] = {}
             for key_node, value_node in node.value:
                 if isinstance(key_node, yaml.ScalarNode):
                     _check_integer(key_node, path, source)
@@ -206,7 +211,7 @@ def _check_nodes(loader, root, source):
                 pending.append((value_node, key_path))
 
 
-def _check_integer(node, path, source):
+def _check_integer(node: yaml.ScalarNode, path: str, source: str) -> None:
     """Raise ValueError if `node` is an integer no float holds (beyond +-1.8e308)."""
     if node.tag != _INT_TAG or not _YAML12_INT.match(node.value):
         return
@@ -220,7 +225,7 @@ def _check_integer(node, path, source):
                      f'beyond the range of a float (+-{sys.float_info.max:.3g})')
 
 
-def _integer_parts(text):
+def _integer_parts(text: str) -> tuple[int, int, str]:
     """
     Return (sign, base, digits) of a YAML 1.2 integer's text; ValueError if it has no digits.
 
@@ -235,7 +240,7 @@ def _integer_parts(text):
     return sign, base, digits.lstrip('0') or '0'
 
 
-def _mapping_key(loader, key_node):
+def _mapping_key(loader: _SceneYamlLoader, key_node: yaml.Node) -> Any:
     """Return a scalar mapping key as it will be constructed (None for other keys)."""
     if not isinstance(key_node, yaml.ScalarNode):
         return None  # a list or mapping as a key: construction rejects it as unhashable
@@ -247,12 +252,12 @@ def _mapping_key(loader, key_node):
         return None  # construct_document reports it, as invalid YAML
 
 
-def _where_both(first, second):
+def _where_both(first: yaml.Mark, second: yaml.Mark) -> str:
     """Return where two marks are: 'lines 3 and 7', or 'line 3, columns 8 and 23'."""
     if first.line == second.line:
         return f'line {first.line + 1}, columns {first.column + 1} and {second.column + 1}'
     return f'lines {first.line + 1} and {second.line + 1}'
 
 
-def _one_line(error):
+def _one_line(error: BaseException) -> str:
     return ' '.join(str(error).split())

@@ -9,6 +9,8 @@ table as it arrives.  A stop (the `stop` event: Ctrl-C) keeps every row that arr
 next call with the same spec and folder runs the rest.
 """
 
+from dataclasses import dataclass
+from dataclasses import field
 import fcntl
 import os
 from pathlib import Path
@@ -29,6 +31,7 @@ __all__ = ['SweepResult', 'run_sweep', 'needed_integrators']
 LOCK_FILE = '.sweep.lock'
 
 
+@dataclass
 class SweepResult:
     """
     What one call of :func:`run_sweep` did.
@@ -58,18 +61,16 @@ class SweepResult:
 
     """
 
-    def __init__(self, total):
-        """Start with nothing done."""
-        self.total = total
-        self.skipped = 0
-        self.done = 0
-        self.not_done = []
-        self.stopped = False
-        self.seconds = 0.0
-        self.engine_seconds = 0.0
-        self.machines = {}
-        self.statuses = {}
-        self.ids = set()
+    total: int
+    skipped: int = 0
+    done: int = 0
+    not_done: list = field(default_factory=list)
+    stopped: bool = False
+    seconds: float = 0.0
+    engine_seconds: float = 0.0
+    machines: dict = field(default_factory=dict)
+    statuses: dict = field(default_factory=dict)
+    ids: set = field(default_factory=set)
 
 
 def needed_integrators(spec):

@@ -274,8 +274,8 @@ class Spec:
         Validate the first draw of every combination as a scene (ValueError if one fails).
 
         The other draws are checked where they run (a value drawn outside what a scene
-        takes makes an ``invalid`` row); checking each here would cost the driver ~0.4 ms
-        a run.
+        takes makes an ``invalid`` row); checking each here would cost the driver a scene's
+        validation a run, in one process, for every run.
         """
         first = self.drawn(0)
         for scene, changes, duration, substeps in self._points():

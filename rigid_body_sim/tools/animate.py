@@ -16,10 +16,13 @@ Typical use:
   rigid-body-sim simulate --scene tennis_racket --duration 10 --animate racket.gif
 """
 
+from __future__ import annotations
+
+import argparse
 import sys
 
 
-def add_arguments(parser):
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of ``rigid-body-sim animate``."""
     parser.add_argument('bag', help='bag directory')
     add_animation_options(parser, out_help='GIF or MP4 file to write (default: <bag>.gif '
@@ -28,7 +31,8 @@ def add_arguments(parser):
                         help="the node's namespace in the bag (default: none)")
 
 
-def add_animation_options(parser, out_help=None, prefix=''):
+def add_animation_options(parser: argparse.ArgumentParser, out_help: str | None = None,
+                          prefix: str = '') -> None:
     """Add --fps, --speed, --max-size (and --out unless out_help is None) to a parser."""
     from ..recording.animate import DEFAULT_FPS
     from ..recording.animate import DEFAULT_MAX_BYTES
@@ -46,7 +50,8 @@ def add_animation_options(parser, out_help=None, prefix=''):
                              f'(default {DEFAULT_MAX_BYTES / 2 ** 20:g})')
 
 
-def render(bag, out, fps, speed, max_size, namespace='', quiet=False):
+def render(bag: str, out: str | None, fps: float, speed: float, max_size: float,
+           namespace: str = '', quiet: bool = False) -> int:
     """Animate `bag` into `out` with a progress bar; print what was written; return 0."""
     import math
     import time
@@ -78,6 +83,6 @@ def render(bag, out, fps, speed, max_size, namespace='', quiet=False):
     return 0
 
 
-def main(args):
+def main(args: argparse.Namespace) -> int:
     """Animate the bag; return 0."""
     return render(args.bag, args.out, args.fps, args.speed, args.max_size, args.namespace)

@@ -11,12 +11,18 @@ do the work once (the second waits).  The set-up (`make test`) runs this; the no
 `simulate` run it in a process of their own when they need it.
 """
 
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from collections.abc import Iterable
 import concurrent.futures
 import multiprocessing
 import os
 import subprocess
 import sys
 import time
+from typing import TextIO
 
 from ..physics import INTEGRATORS
 from ..physics import warm_up
@@ -32,7 +38,7 @@ class _SourcesChanged(Exception):
     pass
 
 
-def _workers(requested):
+def _workers(requested: int | None) -> int:
     if requested:
         return max(1, requested)
     try:
@@ -41,7 +47,8 @@ def _workers(requested):
         return max(1, os.cpu_count() or 1)
 
 
-def announce_compile(command, integrators, stream=None):
+def announce_compile(command: str, integrators: Iterable[str],
+                     stream: TextIO | None = None) -> None:
     """
     Say, in one line, which kernels a command is about to compile and about how long.
 
@@ -55,7 +62,7 @@ def announce_compile(command, integrators, stream=None):
               '`rigid-body-sim compile` does them all)', file=stream or sys.stderr, flush=True)
 
 
-def ensure_compiled(command, integrators, quiet=False):
+def ensure_compiled(command: str, integrators: Iterable[str], quiet: bool = False) -> int:
     """
     Compile what `integrators` need, if anything, in a process of its own; return its code.
 
@@ -77,7 +84,7 @@ def ensure_compiled(command, integrators, quiet=False):
     return result.returncode
 
 
-def add_arguments(parser):
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of ``rigid-body-sim compile``."""
     parser.add_argument('integrators', nargs='*', metavar='INTEGRATOR',
                         help=f'compile only what these need (default: all of '
@@ -94,7 +101,7 @@ def add_arguments(parser):
                              'exit')
 
 
-def _worker(job, sources):
+def _worker(job: str, sources: str) -> float:
     """Compile `job` in a worker process; return its CPU seconds."""
     # The worker read the sources when it started: if they are not those of the compile
     # it works for, what it compiles is not what will be marked.
@@ -103,7 +110,8 @@ def _worker(job, sources):
     return warm_up.compile_job(job)
 
 
-def _run_jobs(jobs, workers, say):
+def _run_jobs(jobs: Iterable[str], workers: int,
+              say: Callable[[str], None]) -> dict[str, float]:
     """Compile `jobs`, longest first, in `workers` processes; return job -> CPU seconds."""
     ordered = sorted(jobs, key=warm_up.job_estimate, reverse=True)
     seconds = {}
@@ -128,7 +136,7 @@ def _run_jobs(jobs, workers, say):
     return seconds
 
 
-def main(args):
+def main(args: argparse.Namespace) -> int:
     """Compile the kernels; return 0 (1: cannot cache, 2: unknown name, 3: sources changed)."""
     unknown = sorted(set(args.integrators) - set(INTEGRATORS))
     if unknown:
@@ -136,7 +144,7 @@ def main(args):
               f'valid: {", ".join(sorted(INTEGRATORS))}')
         return 2
 
-    def say(line):
+    def say(line: str) -> None:
         if not args.quiet:
             print(line, flush=True)
 

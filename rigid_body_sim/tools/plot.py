@@ -16,8 +16,12 @@ Typical use:
   rigid-body-sim plot racket --out /tmp/racket.png
 """
 
+from __future__ import annotations
 
-def add_arguments(parser):
+import argparse
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of ``rigid-body-sim plot``."""
     parser.add_argument('bag', help='bag directory')
     parser.add_argument('--out', help='PNG file to write (default: <bag>.png beside the bag)')
@@ -25,7 +29,7 @@ def add_arguments(parser):
                         help="the node's namespace in the bag (default: none)")
 
 
-def main(args):
+def main(args: argparse.Namespace) -> int:
     """Plot the bag; print the PNG's path; return 0."""
     from ..recording.plot import plot_bag
 

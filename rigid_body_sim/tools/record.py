@@ -16,13 +16,16 @@ Typical use:
   rigid-body-sim record --recover run1             after a kill -9
 """
 
+from __future__ import annotations
+
+import argparse
 from datetime import datetime
 from pathlib import Path
 
 from ..recording.bag_writer import STORAGES
 
 
-def default_record_topics(namespace=''):
+def default_record_topics(namespace: str = '') -> list[str]:
     """
     Return the topics ``record`` records by default: what the node publishes.
 
@@ -37,7 +40,7 @@ def default_record_topics(namespace=''):
     return [*default_topics(namespace), f'{namespace}/imu', TF_TOPIC, TF_STATIC_TOPIC]
 
 
-def add_arguments(parser):
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of ``rigid-body-sim record``."""
     parser.add_argument('topics', nargs='*', metavar='TOPIC',
                         help='topics to record; relative names are under --namespace '
@@ -67,7 +70,7 @@ def add_arguments(parser):
                         help='with --recover: rewrite even a complete bag')
 
 
-def main(args):
+def main(args: argparse.Namespace) -> int:
     """Record until stopped, or recover a bag; print the summary; return 0."""
     if args.recover is not None:
         from ..recording.recovery import recover_bag

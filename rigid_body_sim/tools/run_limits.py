@@ -13,7 +13,10 @@ Simulator.run takes), one of 5e-324 s overflowed the step count, a NaN duration 
 and exited 0.
 """
 
+from __future__ import annotations
+
 import math
+from typing import TypeVar
 
 from ..scenes import RATE_RANGE
 from ..scenes import SUBSTEPS_RANGE
@@ -28,8 +31,12 @@ MAX_DURATION = 2.0 ** 31
 STEP_RANGE = (1.0 / RATE_RANGE[1], 1.0 / RATE_RANGE[0])
 """The steps (s) ``run --dt`` takes: the periods of the node's rates."""
 
+# A checked value keeps its type: a count stays an int, a time a float.
+_Number = TypeVar('_Number', int, float)
 
-def _within(value, option, low, high, allowed, above=False):
+
+def _within(value: _Number, option: str, low: float, high: float, allowed: str,
+            above: bool = False) -> _Number:
     """Return `value` if low <= value <= high (low < value if `above`), else ValueError."""
     # Written so that NaN, which compares False, is refused too.
     if not ((low < value if above else low <= value) and value <= high):
@@ -38,39 +45,39 @@ def _within(value, option, low, high, allowed, above=False):
     return value
 
 
-def check_duration(duration, option='--duration'):
+def check_duration(duration: float, option: str = '--duration') -> float:
     """Return `duration` (s) if it is above 0 and at most MAX_DURATION, else ValueError."""
     return _within(duration, option, 0.0, MAX_DURATION,
                    'above 0 and at most 2^31 s (68 years)', above=True)
 
 
-def check_rate(rate, option='--rate'):
+def check_rate(rate: float, option: str = '--rate') -> float:
     """Return `rate` (Hz) if it is one the node takes, else ValueError."""
     return _within(rate, option, *RATE_RANGE,
                    f"{RATE_RANGE[0]:g} to {RATE_RANGE[1]:g} Hz, as the node's rate")
 
 
-def check_step(step, option='--dt'):
+def check_step(step: float, option: str = '--dt') -> float:
     """Return `step` (s) if it is the period of a rate the node takes, else ValueError."""
     return _within(step, option, *STEP_RANGE,
                    f"{STEP_RANGE[0]:g} to {STEP_RANGE[1]:g} s (the node's rates, "
                    f'{RATE_RANGE[0]:g} to {RATE_RANGE[1]:g} Hz)')
 
 
-def check_substeps(substeps, option='--substeps'):
+def check_substeps(substeps: int, option: str = '--substeps') -> int:
     """Return `substeps` if it is a number of substeps the node takes, else ValueError."""
     return _within(substeps, option, *SUBSTEPS_RANGE,
                    f"{SUBSTEPS_RANGE[0]} to {SUBSTEPS_RANGE[1]}, as the node's substeps")
 
 
-def check_tolerance(tolerance, option='--tolerance'):
+def check_tolerance(tolerance: float, option: str = '--tolerance') -> float:
     """Return `tolerance` (rad/s, 0: off) if the node takes it, else ValueError."""
     return _within(tolerance, option, *TOLERANCE_RANGE,
                    f'{TOLERANCE_RANGE[0]:g} (off) to {TOLERANCE_RANGE[1]:g} rad/s, as the '
                    "node's tolerance")
 
 
-def check_every(every, step, option='--every'):
+def check_every(every: float, step: float, option: str = '--every') -> float:
     """
     Return `every` (s between printed rows) if it is at least one `step` (s), else ValueError.
 

@@ -11,17 +11,25 @@ documents the first few and points here), the installed effect plugins' effects 
 plugin that fails to load is one line on stderr naming it, and the rest are listed.
 """
 
+from __future__ import annotations
+
+import argparse
 import inspect
 import sys
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
+from numpy.typing import NDArray
 
 from ..paths import scenes_dir
+from ..physics import RigidBody
 from ..physics.effects import effect_parameters
 from ..physics.effects import EFFECTS
 from ..physics.effects.plugins import problems
 from ..scenes import DEFAULT_SCENE
 from ..scenes import load_scene
+from ..scenes import Scene
 from ..scenes import scene_names
 
 
@@ -29,7 +37,7 @@ from ..scenes import scene_names
 _ROUND_OFF = 1e-12
 
 
-def add_arguments(parser):
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of ``rigid-body-sim scenes``."""
     parser.add_argument('scene', nargs='?',
                         help='a built-in scene name or a path to a .yaml file: check it and '
@@ -38,7 +46,7 @@ def add_arguments(parser):
                         help='list the effects a scene may name, with their parameters')
 
 
-def main(args):
+def main(args: argparse.Namespace) -> int:
     """List the scenes (or effects), or describe one scene; return 0."""
     if args.effects:
         _print_effects()
@@ -49,7 +57,7 @@ def main(args):
     return 0
 
 
-def _print_scenes():
+def _print_scenes() -> None:
     names = scene_names()
     width = max(len(name) for name in names)
     print(f'built-in scenes ({scenes_dir()}):')
@@ -60,10 +68,10 @@ def _print_scenes():
           'ros2 run rigid_body_sim rigid_body_node --ros-args -p scene:=NAME')
 
 
-def _print_scene(scene):
+def _print_scene(scene: Scene) -> None:
     body, state = scene.body, scene.state
 
-    def vector(values, scale=None):
+    def vector(values: ArrayLike, scale: float | np.floating[Any] | None = None) -> str:
         return np.array2string(without_round_off(values, scale), precision=6,
                                separator=', ')
     omega = state.angular_velocity_body(body)
@@ -91,7 +99,7 @@ def _print_scene(scene):
           f'{"yes" if scene.accepts_external_wrench else "no"}')
 
 
-def moments(body):
+def moments(body: RigidBody) -> str:
     """
     Return how the body's inertia reads: its moments about body x, y, z if diagonal.
 
@@ -109,7 +117,8 @@ def moments(body):
     return f'principal moments {values} kg m^2 about the body axes (rows) {axes}'
 
 
-def without_round_off(values, scale=None):
+def without_round_off(values: ArrayLike,
+                      scale: float | np.floating[Any] | None = None) -> NDArray[np.float64]:
     """
     Return `values` with the components below their round-off set to 0.
 
@@ -124,7 +133,7 @@ def without_round_off(values, scale=None):
     return values + 0.0  # -0.0 prints as 0
 
 
-def _print_effects():
+def _print_effects() -> None:
     names = sorted(EFFECTS)
     for line in problems():
         print(f'rigid-body-sim scenes: {line}', file=sys.stderr)

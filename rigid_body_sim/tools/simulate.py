@@ -16,6 +16,9 @@ Typical use:
   rigid-body-sim plot t_handle_1khz --out t_handle.png
 """
 
+from __future__ import annotations
+
+import argparse
 from datetime import datetime
 import math
 from pathlib import Path
@@ -35,7 +38,7 @@ from ..scenes import load_scene
 from ..text import one_line
 
 
-def add_arguments(parser):
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of ``rigid-body-sim simulate``."""
     parser.add_argument('--scene', default=DEFAULT_SCENE,
                         help='built-in scene name (see rigid-body-sim scenes) or path to a '
@@ -71,6 +74,9 @@ def add_arguments(parser):
     parser.add_argument('--namespace', default='',
                         help="namespace of the state topics, as the node's __ns (default: "
                              'none)')
+    parser.add_argument('--frame-prefix', default=None,
+                        help="put before the frame names, as the node's frame_prefix (default: "
+                             "the namespace's, 'sat1/' for /sat1, as the node's)")
     parser.add_argument('--world-frame', default='world', help='world frame id (default: world)')
     parser.add_argument('--body-frame', default='body', help='body frame id (default: body)')
     parser.add_argument('--quiet', action='store_true', help='no progress bar')
@@ -85,7 +91,7 @@ def add_arguments(parser):
     add_animation_options(parser, prefix='animate-')
 
 
-def start_time_nanoseconds(text):
+def start_time_nanoseconds(text: str) -> int:
     """Return the --start-time value in ns since the epoch: a number of s, or 'now'."""
     if text == 'now':
         return time.time_ns()
@@ -106,7 +112,7 @@ def start_time_nanoseconds(text):
 _COMPANIONS = ('-journal', '-wal', '-shm')
 
 
-def _named_by_metadata(path):
+def _named_by_metadata(path: Path) -> list[str]:
     """Return the names metadata.yaml of the bag directory `path` lists, or raise ValueError."""
     import yaml
 
@@ -128,7 +134,7 @@ def _named_by_metadata(path):
     return named
 
 
-def remove_bag(path):
+def remove_bag(path: Path) -> None:
     """
     Remove the bag directory `path` (for --overwrite).
 
@@ -160,7 +166,7 @@ def remove_bag(path):
     path.rmdir()
 
 
-def main(args):
+def main(args: argparse.Namespace) -> int:
     """
     Run the simulation into the bag and print what was written; return 0.
 
@@ -203,7 +209,8 @@ def main(args):
             substeps=args.substeps, tolerance=args.tolerance, storage=args.storage,
             start_time=start_time,
             clock=args.clock, namespace=args.namespace, world_frame=args.world_frame,
-            body_frame=args.body_frame, progress=not args.quiet, stop=signals.stop,
+            body_frame=args.body_frame, frame_prefix=args.frame_prefix,
+            progress=not args.quiet, stop=signals.stop,
             flush_period=args.flush_period)
     print(summary)
     for topic, count in summary.message_counts.items():

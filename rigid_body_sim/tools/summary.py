@@ -9,6 +9,9 @@ time (s), the orientation quaternion (x, y, z, w), the body angular velocity (ra
 the relative drift of kinetic energy and |L| since t = 0.
 """
 
+from __future__ import annotations
+
+import argparse
 import math
 import time
 
@@ -25,7 +28,7 @@ from ..scenes import DEFAULT_SCENE
 from ..scenes import load_scene
 
 
-def add_arguments(parser):
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of ``rigid-body-sim run``."""
     parser.add_argument('--integrator', default=None,
                         help=f'one of: {", ".join(sorted(INTEGRATORS))} '
@@ -46,7 +49,7 @@ def add_arguments(parser):
                              '(default: 1)')
 
 
-def main(args):
+def main(args: argparse.Namespace) -> int:
     """Run the simulation and print the summary table; return 0."""
     scene = load_scene(DEFAULT_SCENE)
     body = scene.body
@@ -70,7 +73,7 @@ def main(args):
     print(header)
     print('-' * len(header))
 
-    def line():
+    def line() -> None:
         state = simulator.state
         omega = state.angular_velocity_body(body)
         energy_drift = (simulator.energy() - energy0) / energy0

@@ -41,18 +41,30 @@ choice [values...], uniform_rotation (a unit quaternion x, y, z, w).  Runs: scen
 integrators x rates x tolerances x substeps x durations x grid x count.
 
 Typical use:
-  rigid-body-sim sweep small --out runs/small          # 16 runs, under a minute on 2 cores
+  rigid-body-sim sweep small --out runs/small          # the bar shows the time left
   rigid-body-sim sweep small --out runs/small          # again: every run found done
-  rigid-body-sim sweep my_spec.yaml --out runs/mine --dry-run
+  rigid-body-sim sweep my_spec.yaml --out runs/mine --dry-run   # its runs, none run
   rigid-body-sim sweep imu_dataset --out runs/imu --scheduler tcp://HOST:8786
 """
 
+from __future__ import annotations
+
+import argparse
+from collections.abc import Mapping
+from pathlib import Path
 import sys
+from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # for the annotations: the command imports the sweep (Dask) when it runs
+    from ..sweep.driver import SweepResult
+    from ..sweep.spec import Run
+    from ..sweep.spec import Spec
 
 __all__ = ['add_arguments', 'main']
 
 
-def add_arguments(parser):
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of ``rigid-body-sim sweep``."""
     parser.add_argument('spec', metavar='SPEC',
                         help='a spec file (.yaml) or the name of an example in config/sweeps')
@@ -74,7 +86,7 @@ def add_arguments(parser):
                         help="show distributed's warnings (a worker restarted, ...)")
 
 
-def main(args):
+def main(args: argparse.Namespace) -> int:
     """
     Run the sweep and print its summary; return 0 when every run is in the table.
 
@@ -120,24 +132,24 @@ def main(args):
 class _Progress:
     """What the command says while it runs: the start, then a progress bar (tqdm, stderr)."""
 
-    def __init__(self, quiet):
+    def __init__(self, quiet: bool) -> None:
         self.quiet = quiet
         self.bar = None
         self.not_ok = 0
 
-    def starting(self, result):
+    def starting(self, result: SweepResult) -> None:
         if not self.quiet:
             print(f'rigid-body-sim sweep: {result.total} runs, {result.skipped} in the table '
                   'already; starting the workers (each loads the kernels once) ...',
                   file=sys.stderr, flush=True)
 
-    def started(self, result):
+    def started(self, result: SweepResult) -> None:
         if not self.quiet:
             from tqdm import tqdm
             self.bar = tqdm(total=len(result.ids), initial=result.skipped, unit='run',
                             desc='runs', file=sys.stderr, dynamic_ncols=True)
 
-    def row(self, row):
+    def row(self, row: Mapping[str, Any]) -> None:
         if self.bar is None:
             return
         if row['status'] != 'ok':
@@ -145,18 +157,18 @@ class _Progress:
             self.bar.set_postfix_str(f'{self.not_ok} not ok', refresh=False)
         self.bar.update(1)
 
-    def close(self):
+    def close(self) -> None:
         if self.bar is not None:
             self.bar.close()
 
 
-def _dry_run(spec, out):
+def _dry_run(spec: Spec, out: Path) -> int:
     from ..sweep.driver import needed_integrators
     from ..sweep.table import finished_ids
 
     done = finished_ids(out) if out.is_dir() else set()
     runs = spec.runs()
-    shown = []
+    shown: list[Run] = []
     found = 0
     for run in runs:
         found += run.run_id in done

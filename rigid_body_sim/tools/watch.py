@@ -7,9 +7,12 @@ The window draws the body as `rigid-body-sim animate` does (its shape, the body 
 z in red, green, blue, the direction of L dashed, a trail), strip charts of the body
 angular velocity and of the drift of what the scene conserves, and the node's live cost
 and state from /diagnostics.  Without a display (or with --terminal) a terminal view
-refreshes in place: simulated time, omega, |L|, energy drift, flips so far, substeps,
-ticks per second.  Both follow a reset, a pause and an integrator switch, and say so while
-no node is found.  Ctrl-C (or closing the window) ends it.
+refreshes in place: simulated time, omega, |L|, energy drift, flips since watch started
+(about the middle principal axis, while no input acts), substeps, ticks per second.  Both
+follow a reset, a pause and an integrator switch, and say so while no node is found.  Only
+the watched node's own publishers are believed (another node of the same name is said);
+a peer's numbers that are not finite or absurd are said to be so, its text is cut and
+escaped.  Ctrl-C (or closing the window) ends it.
 
 Typical use (the node in another terminal: make run):
   rigid-body-sim watch                        the window, or the terminal view without one
@@ -18,13 +21,27 @@ Typical use (the node in another terminal: make run):
   rigid-body-sim watch --timeout 10           give up (exit 1) if no node shows in 10 s
 """
 
+from __future__ import annotations
+
+import argparse
 import math
+import os
 import signal
 import sys
+import threading
 import time
+from types import FrameType
+from typing import Literal
+from typing import NoReturn
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # for the annotations: the command imports the watch (rclpy) when it runs
+    from ..watch.listener import Listener
+    from ..watch.live import LiveState
+    from ..watch.live import Snapshot
 
 
-def add_arguments(parser):
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of ``rigid-body-sim watch``."""
     parser.add_argument('--node', help='the node to watch: its name or /namespace/name '
                                        '(default: the first found)')
@@ -38,36 +55,50 @@ def add_arguments(parser):
                              'looking)')
     parser.add_argument('--interval', type=float, default=0.5, metavar='S',
                         help='seconds between refreshes of the terminal view (default 0.5)')
+    parser.add_argument('--refresh', type=float, metavar='S',
+                        help="seconds between the window's redraws, kept as given (default: "
+                             '0.2, longer while a redraw takes over a fifth of a core or the '
+                             'machine is busy)')
 
 
 class _Stop:
     """SIGINT and SIGTERM end the watch cleanly (a window closes, the context shuts down)."""
 
-    def __init__(self):
-        self.signal = None
+    def __init__(self) -> None:
+        self.signal: signal.Signals | None = None
         self.timed_out = False
+        # Set by the signal: the terminal view's wait between refreshes ends at once.
+        self.event = threading.Event()
 
-    def __enter__(self):
+    def __enter__(self) -> _Stop:
         self._previous = {number: signal.signal(number, self._handle)
                           for number in (signal.SIGINT, signal.SIGTERM)}
         return self
 
-    def _handle(self, number, frame):
+    def _handle(self, number: int, frame: FrameType | None) -> None:
         self.signal = signal.Signals(number)
+        self.event.set()
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> Literal[False]:
         for number, handler in self._previous.items():
             signal.signal(number, handler)
         return False
 
-    def __call__(self):
+    def __call__(self) -> bool:
         return self.signal is not None or self.timed_out
 
 
-def main(args):
-    """Watch until Ctrl-C, the window's closing or the timeout; return the exit code."""
-    for name in ('history', 'interval'):
+def main(args: argparse.Namespace) -> int:
+    """
+    Watch until Ctrl-C, the window's closing or the timeout; return the exit code.
+
+    After a signal (Ctrl-C, SIGTERM) the process ends here, once all is closed, with the
+    code it returns otherwise (130 for Ctrl-C, 0 for SIGTERM).
+    """
+    for name in ('history', 'interval', 'refresh'):
         value = getattr(args, name)
+        if name == 'refresh' and value is None:
+            continue
         if not (math.isfinite(value) and value > 0.0):
             raise ValueError(f'--{name} must be a number of s > 0; got {value:g}')
     if math.isnan(args.timeout) or args.timeout <= 0.0:
@@ -91,10 +122,28 @@ def main(args):
             listener.close()
     if stop.timed_out:
         return 1
-    return 0 if stop.signal in (None, signal.SIGTERM) else 128 + stop.signal
+    code = 0 if stop.signal in (None, signal.SIGTERM) else 128 + stop.signal
+    if stop.signal is not None:
+        _exit_now(f'rigid-body-sim watch: stopped ({stop.signal.name})', code)
+    return code
 
 
-def _no_node_for(listener, timeout, stop):
+def _exit_now(message: str, code: int) -> NoReturn:
+    """
+    Say `message` and end the process at once, with `code`.
+
+    Everything watch holds is released by now (the window, the DDS participant); what is
+    left is the interpreter's own exit, seconds on a busy machine (mostly LLVM's teardown,
+    which the physics core's numba brings), while a signal asks for the prompt back now.
+    """
+    import logging
+    print(message, file=sys.stderr, flush=True)
+    sys.stdout.flush()
+    logging.shutdown()
+    os._exit(code)
+
+
+def _no_node_for(listener: Listener, timeout: float, stop: _Stop) -> bool:
     """Note a timeout (and say so) if no node has shown for `timeout` s; return True then."""
     if listener.watched is not None or time.monotonic() - listener.searching_since < timeout:
         return False
@@ -106,7 +155,8 @@ def _no_node_for(listener, timeout, stop):
     return True
 
 
-def _terminal(state, listener, args, stop):
+def _terminal(state: LiveState, listener: Listener, args: argparse.Namespace,
+              stop: _Stop) -> None:
     from ..watch.terminal import render_lines
     from ..watch.terminal import TerminalView
     from ..watch.terminal import waiting_lines
@@ -122,17 +172,19 @@ def _terminal(state, listener, args, stop):
             view.show(waiting_lines(listener, math.floor(waited)))
         else:
             view.show(render_lines(snapshot))
-        time.sleep(args.interval)
+        stop.event.wait(args.interval)
 
 
-def _window(state, listener, args, stop):
+def _window(state: LiveState, listener: Listener, args: argparse.Namespace,
+            stop: _Stop) -> None:
     from ..watch.window import WatchWindow
 
-    def should_stop():
+    def should_stop() -> bool:
         return stop() or _no_node_for(listener, args.timeout, stop)
 
-    def drawn(snapshot):
+    def drawn(snapshot: Snapshot) -> None:
         # One line when the body and both charts are on screen: scripts and the tests wait
         # for it.
         print(f'rigid-body-sim watch: window shows {snapshot.node}', flush=True)
-    WatchWindow(state, listener, args.history, should_stop, on_drawn=drawn).run()
+    WatchWindow(state, listener, args.history, should_stop, on_drawn=drawn,
+                refresh=args.refresh).run()

@@ -14,6 +14,18 @@ state, then its report), and every later tick whose state moved adds one period 
 the count by more than half a tick is a ``reset`` (time restarts at 0); the ticks since the
 reset are re-timed from the report, and everything before it is forgotten.  Ticks that
 come before the first report wait for it (at most a second).
+
+What a peer sends is not believed blindly.  A state whose numbers are not finite or absurd
+(beyond :data:`ABSURD`, or a quaternion that is not a rotation) is refused: it never enters
+the history, and the views say 'not finite' or 'absurd'.  A report's strings are cut and
+escaped (:func:`rigid_body_sim.text.shortened`) before they are kept, and its numbers are
+used only if they are finite and in range.
+
+Flips.  A Dzhanibekov flip is a sign change of the body angular velocity's component along
+the body's middle principal axis, counted while the body is free (no outside input acts).
+The principal axes come from the node's marker: a box or an ellipsoid of uniform density
+(the node draws a body given by its inertia as its inertia-equivalent box) has its middle
+moment about its middle edge; an axisymmetric body has no middle axis and no flips.
 """
 
 from collections import deque
@@ -24,10 +36,14 @@ import threading
 
 import numpy as np
 
+from ..drawing import shape_from_marker
 from ..physics import matrix_from_quaternion
 from ..physics.effects import EFFECTS
+from ..scenes.limits import RATE_RANGE
+from ..text import shortened
 
-__all__ = ['LiveState', 'Tick', 'DIAGNOSTICS_KEYS', 'format_number']
+__all__ = ['ABSURD', 'LiveState', 'Tick', 'DIAGNOSTICS_KEYS', 'format_number',
+           'number_verdict']
 
 # The /diagnostics keys the view reads (the node's own names, docs/node.md).
 DIAGNOSTICS_KEYS = {
@@ -57,26 +73,65 @@ DIAGNOSTICS_KEYS = {
     # Not a key of the node's: the status's message ('running', 'paused', 'falling behind').
     'status': '(status message)',
 }
+ABSURD = 1e12
+"""The largest magnitude of a number the view charts or computes with (a state's component
+in SI units, a simulated time in s): beyond it a peer's number is 'absurd'."""
 # What an effect must conserve (its class's ``conserves``, physics/effects/registry.py) for
 # the view to chart the drift of the rotational energy 1/2 Omega . R^T L and of |L|.
 _TORQUE_FREE = {'angular_momentum', 'rotational_energy'}
 # Ticks kept while the first report is awaited (a second at 10 kHz).
 _PENDING_TICKS = 10000
-# A Dzhanibekov flip: the component of Omega the spin started about changes sign, counted
-# when it swings from below -_FLIP_LEVEL to above +_FLIP_LEVEL of its first magnitude or
-# back (a Schmitt trigger: no count for ripples around zero).
-_FLIP_LEVEL = 0.5
+# The most ticks kept at all, whatever a report says of the rate: memory stays bounded.
+_MAX_TICKS = 50000
+# A flip is counted when the middle-axis component of Omega swings from below
+# -_FLIP_LEVEL |Omega| to above +_FLIP_LEVEL |Omega| or back (a Schmitt trigger: no count
+# for ripples around zero).
+_FLIP_LEVEL = 0.3
+# The trail keeps an orientation each time the body has turned this far (rad) since the
+# last one kept: a smooth curve at any spin rate, from every pose received.
+_TRAIL_STEP = math.radians(2.0)
+_TRAIL_POINTS = 600
+# The most (key, value) pairs of a report kept, and characters of a key.
+_MAX_REPORT_VALUES = 64
+_MAX_KEY = 80
+# A quaternion whose norm is this far from 1 is not a rotation.
+_QUATERNION_NORM_TOLERANCE = 1e-3
+
+
+def number_verdict(value, limit=ABSURD):
+    """Return 'not finite' or 'absurd' for a number the view must not show as one, else None."""
+    if not math.isfinite(value):
+        return 'not finite'
+    if abs(value) > limit:
+        return 'absurd'
+    return None
 
 
 def format_number(value, digits=9, signed=True):
     """
     Return `value` as the view prints it: `digits` significant digits, trailing zeros kept.
 
-    The terminal view and its test format a message's numbers with this one function.
+    None is 'not reported'; a number that is not finite or absurd (:data:`ABSURD`) is said
+    to be so.  The terminal view and its test format a message's numbers with this function.
     """
-    if value is None or not math.isfinite(value):
-        return f'{value}'
+    if value is None:
+        return 'not reported'
+    verdict = number_verdict(value)
+    if verdict is not None:
+        return verdict
     return f'{value:{"+" if signed else ""}#.{digits}g}'
+
+
+def _state_verdict(quaternion, *vectors):
+    """Return why a tick's numbers cannot be charted ('not finite', 'absurd'), or None."""
+    values = np.concatenate([np.asarray(quaternion, dtype=float).ravel()]
+                            + [np.asarray(v, dtype=float).ravel() for v in vectors])
+    if not np.all(np.isfinite(values)):
+        return 'not finite'
+    if np.any(np.abs(values) > ABSURD) or abs(
+            np.linalg.norm(quaternion) - 1.0) > _QUATERNION_NORM_TOLERANCE:
+        return 'absurd'
+    return None
 
 
 @dataclass(eq=False, slots=True)
@@ -100,6 +155,10 @@ class Tick:
         Whether the state differs from the tick before (False while paused).
     time : float or None
         Simulated time in s, once a report has told it.
+    rotational_energy : float
+        T_rot = 1/2 Omega . (R^T L) in J (needs no inertia).
+    momentum_magnitude : float
+        |L| in kg m^2/s.
 
     """
 
@@ -110,25 +169,45 @@ class Tick:
     angular_momentum: np.ndarray
     moved: bool = field(default=True, init=False)
     time: float = field(default=None, init=False)
+    rotational_energy: float = field(default=0.0, init=False)
+    momentum_magnitude: float = field(default=0.0, init=False)
 
     def __post_init__(self):
-        """Hold the stamp as an int and the vectors as float arrays."""
+        """Hold the stamp as an int and the vectors as float arrays; compute T_rot, |L|."""
         self.stamp = int(self.stamp)
         self.quaternion = np.asarray(self.quaternion, dtype=float)
         self.position = np.asarray(self.position, dtype=float)
         self.angular_velocity_body = np.asarray(self.angular_velocity_body, dtype=float)
         self.angular_momentum = np.asarray(self.angular_momentum, dtype=float)
-
-    @property
-    def rotational_energy(self):
-        """Return T_rot = 1/2 Omega . (R^T L) in J (needs no inertia)."""
+        # Once per tick, not per redraw: a snapshot reads them for every tick it holds.
         rotation = matrix_from_quaternion(self.quaternion / np.linalg.norm(self.quaternion))
-        return 0.5 * float(self.angular_velocity_body @ (rotation.T @ self.angular_momentum))
+        self.rotational_energy = 0.5 * float(
+            self.angular_velocity_body @ (rotation.T @ self.angular_momentum))
+        self.momentum_magnitude = float(np.linalg.norm(self.angular_momentum))
 
-    @property
-    def momentum_magnitude(self):
-        """Return |L| in kg m^2/s."""
-        return float(np.linalg.norm(self.angular_momentum))
+
+def middle_principal_axis(marker, body_quaternion):
+    """
+    Return the body's middle principal axis (unit, body frame) from its marker, or None.
+
+    A box's or an ellipsoid's moment about an axis grows with the other two edges squared,
+    so the middle moment is about the middle edge; None when two moments are equal (a
+    cylinder, a square box: no flip) or the marker is not a shape.
+    """
+    try:
+        shape = shape_from_marker(marker, body_quaternion)
+    except ValueError:
+        return None
+    if shape.kind == 'cylinder' or not np.all(np.isfinite(shape.scale)):
+        return None
+    squares = np.asarray(shape.scale, dtype=float) ** 2
+    moments = squares.sum() - squares
+    order = np.argsort(moments)
+    low, middle, high = moments[order]
+    if not high > 0.0 or min(middle - low, high - middle) <= 1e-9 * high:
+        return None
+    axis = shape.orientation[:, order[1]]
+    return axis / np.linalg.norm(axis)
 
 
 class LiveState:
@@ -150,21 +229,28 @@ class LiveState:
         self._odometry = {}
         self._momentum = {}
         self._ticks = deque()
+        self._trail = deque(maxlen=_TRAIL_POINTS)
         self._pending_report = None
         self.node = None
         self.diagnostics = {}
         self.events = deque(maxlen=50)
         self.ticks_received = 0
         self.resets_seen = 0
+        self.refused = {}
+        self.warnings = {}
+        self._announced = {}
+        self._rate = None
         self._marker = None
         self.marker = None
+        self.middle_axis = None
+        self._input_active = False
         self._reset_motion()
 
     def _reset_motion(self):
         self._ticks.clear()
+        self._trail.clear()
         self._reference = None
         self._reference_after = -math.inf
-        self._flip_axis = None
         self._flip_sign = 0
         self.flips = 0
 
@@ -178,9 +264,30 @@ class LiveState:
                 self._momentum.clear()
                 self._pending_report = None
                 self.diagnostics = {}
-                self._marker = self.marker = None
+                self._marker = self.marker = self.middle_axis = None
+                self._rate = None
+                self._announced.clear()
+                self.refused.clear()
+                self.warnings.clear()
                 self._reset_motion()
             self.node = name
+
+    def set_warning(self, topic, text):
+        """Say (or with None stop saying) why a topic's messages are not taken now."""
+        with self._lock:
+            if text is None:
+                self.warnings.pop(topic, None)
+            else:
+                self.warnings[topic] = shortened(text, 400)
+
+    def refuse(self, topic, verdict):
+        """Count a message of `topic` not taken, and why ('not finite', 'too large', ...)."""
+        with self._lock:
+            self._refuse(topic, verdict)
+
+    def _refuse(self, topic, verdict):
+        _, count = self.refused.get(topic, (None, 0))
+        self.refused[topic] = (verdict, count + 1)
 
     def add_marker(self, stamp, marker):
         """Take a marker message (stamp ns): the drawing, paired with its tick's orientation."""
@@ -202,47 +309,70 @@ class LiveState:
             if tick.stamp == stamp:
                 # (marker, the body's orientation at the marker's stamp)
                 self.marker = (marker, tick.quaternion)
+                self.middle_axis = middle_principal_axis(marker, tick.quaternion)
                 self._marker = None
                 return
 
     def add_odometry(self, stamp, quaternion, position, angular_velocity_body):
         """Take one odom message (stamp ns; pose in the world, Omega in the body frame)."""
         with self._lock:
-            self._odometry[stamp] = (quaternion, position, angular_velocity_body)
-            self._pair(stamp)
+            verdict = _state_verdict(quaternion, position, angular_velocity_body)
+            if verdict is not None:
+                self._refuse('odom', verdict)
+                return
+            self._odometry[int(stamp)] = (quaternion, position, angular_velocity_body)
+            self._pair(int(stamp))
 
     def add_angular_momentum(self, stamp, angular_momentum):
         """Take one angular_momentum message (stamp ns, L in kg m^2/s, world frame)."""
         with self._lock:
-            self._momentum[stamp] = angular_momentum
-            self._pair(stamp)
+            verdict = _state_verdict((0.0, 0.0, 0.0, 1.0), angular_momentum)
+            if verdict is not None:
+                self._refuse('angular_momentum', verdict)
+                return
+            self._momentum[int(stamp)] = angular_momentum
+            self._pair(int(stamp))
 
     def add_diagnostics(self, stamp, values):
-        """Take the node's /diagnostics status: its stamp (ns) and {key: value}."""
+        """Take the node's /diagnostics status: its stamp (ns) and {key: value} (strings)."""
+        # A peer's strings, cut and escaped once here: every view shows them as they are.
+        values = {shortened(key, _MAX_KEY): shortened(value)
+                  for key, value in list(values.items())[:_MAX_REPORT_VALUES]}
         with self._lock:
             previous = self.diagnostics
-            self.diagnostics = dict(values)
-            if previous.get('integrator') not in (None, values.get('integrator')):
-                self._note_change('integrator', values.get('integrator'))
+            self.diagnostics = values
+            integrator = values.get('integrator')
+            if previous.get('integrator') not in (None, integrator):
+                # The node announces a switch on /parameter_events at once: one event.
+                if self._announced.pop('integrator', None) != integrator:
+                    self._note_change('integrator', integrator)
             if previous.get(DIAGNOSTICS_KEYS['paused']) != values.get(
                     DIAGNOSTICS_KEYS['paused']) and previous:
                 paused = values.get(DIAGNOSTICS_KEYS['paused']) == 'True'
                 self._note_change('paused' if paused else 'running', None)
             active = DIAGNOSTICS_KEYS['wrench_active']
+            self._input_active = values.get(active) == 'True'
             if previous.get(active) == 'True' and values.get(active) == 'False':
                 # The input ended: the conserved quantities hold again from here.
                 self._reference = None
                 last = self._ticks[-1] if self._ticks else None
                 if last is not None and last.time is not None:
                     self._reference_after = last.time
-            self._pending_report = (int(stamp), self._float('simulated_time'),
-                                    self._float('rate'))
+            rate = self._float('rate', RATE_RANGE)
+            if rate is not None:
+                self._rate = rate
+            self._pending_report = (int(stamp), self._float('simulated_time', (0.0, ABSURD)),
+                                    rate)
             self._resolve_report()
 
     def add_parameter_change(self, name, value):
         """Take a parameter the node announces it changed (/parameter_events)."""
         with self._lock:
             if name in ('integrator', 'tolerance', 'substeps', 'real_time_factor'):
+                if isinstance(value, float) and number_verdict(value) is not None:
+                    value = number_verdict(value)
+                value = shortened(value, 60)
+                self._announced[name] = value
                 self._note_change(name, value)
 
     def _note_change(self, name, value):
@@ -250,11 +380,14 @@ class LiveState:
         time = None if last is None else last.time
         self.events.append((time, name, value))
 
-    def _float(self, key):
+    def _float(self, key, bounds):
+        """Return the report's number under `key` if it is one within `bounds`, else None."""
         try:
-            return float(self.diagnostics[DIAGNOSTICS_KEYS[key]])
-        except (KeyError, ValueError):
+            value = float(self.diagnostics[DIAGNOSTICS_KEYS[key]])
+        except (KeyError, ValueError, OverflowError):
             return None
+        low, high = bounds
+        return value if low <= value <= high else None
 
     def _pair(self, stamp):
         if stamp not in self._odometry or stamp not in self._momentum:
@@ -274,21 +407,29 @@ class LiveState:
                               and np.array_equal(tick.angular_velocity_body,
                                                  last.angular_velocity_body)
                               and np.array_equal(tick.position, last.position))
-            rate = self._float('rate')
-            if last.time is not None and rate:
-                tick.time = last.time + (1.0 / rate if tick.moved else 0.0)
+            if last.time is not None and self._rate is not None:
+                tick.time = last.time + (1.0 / self._rate if tick.moved else 0.0)
         self._ticks.append(tick)
+        self._extend_trail(tick)
         self._count_flip(tick)
         self._match_marker()
         self._resolve_report()
         self._forget_old()
+
+    def _extend_trail(self, tick):
+        if self._trail:
+            # The angle between two orientations: 2 acos |q1 . q2|.
+            dot = min(1.0, abs(float(self._trail[-1] @ tick.quaternion)))
+            if 2.0 * math.acos(dot) < _TRAIL_STEP:
+                return
+        self._trail.append(tick.quaternion)
 
     def _resolve_report(self):
         """Pair the waiting report with its tick, once a later tick shows which that is."""
         if self._pending_report is None or not self._ticks:
             return
         stamp, simulated, rate = self._pending_report
-        if simulated is None or not rate:
+        if simulated is None or rate is None:
             self._pending_report = None
             return
         if self._ticks[-1].stamp <= stamp:
@@ -324,32 +465,39 @@ class LiveState:
             self._reset_motion()
             self._ticks.extend(kept)
             for tick in kept:
+                self._extend_trail(tick)
                 self._count_flip(tick)
             self.events.append((0.0, 'reset', None))
 
     def _forget_old(self):
         last = self._ticks[-1]
+        limit = _PENDING_TICKS if last.time is None else _MAX_TICKS
+        while len(self._ticks) > limit:
+            self._ticks.popleft()
         if last.time is None:
-            while len(self._ticks) > _PENDING_TICKS:
-                self._ticks.popleft()
             return
         while self._ticks and (self._ticks[0].time is None
                                or self._ticks[0].time < last.time - self.history):
             self._ticks.popleft()
 
     def _count_flip(self, tick):
-        omega = tick.angular_velocity_body
-        if self._flip_axis is None:
-            if not np.any(omega):
-                return
-            self._flip_axis = int(np.argmax(np.abs(omega)))
-            self._flip_level = _FLIP_LEVEL * abs(float(omega[self._flip_axis]))
-            self._flip_sign = 1 if omega[self._flip_axis] > 0 else -1
+        if self.middle_axis is None:
             return
-        value = float(omega[self._flip_axis])
-        if self._flip_sign > 0 and value < -self._flip_level:
+        if self._input_active:
+            # Pushed, the body may turn any way: count again once it is free.
+            self._flip_sign = 0
+            return
+        omega = tick.angular_velocity_body
+        value = float(omega @ self.middle_axis)
+        level = _FLIP_LEVEL * float(np.linalg.norm(omega))
+        if level <= 0.0:
+            return
+        if self._flip_sign == 0:
+            if abs(value) > level:
+                self._flip_sign = 1 if value > 0.0 else -1
+        elif self._flip_sign > 0 and value < -level:
             self._flip_sign, self.flips = -1, self.flips + 1
-        elif self._flip_sign < 0 and value > self._flip_level:
+        elif self._flip_sign < 0 and value > level:
             self._flip_sign, self.flips = 1, self.flips + 1
 
     # -- output (a view's thread)
@@ -367,9 +515,11 @@ class LiveState:
                                        first.time)
             return Snapshot(
                 node=self.node, latest=latest, timed=timed, diagnostics=dict(self.diagnostics),
-                flips=self.flips, flip_axis=self._flip_axis, events=list(self.events),
+                flips=self.flips, middle_axis=self.middle_axis, events=list(self.events),
                 reference=self._reference, ticks_received=self.ticks_received,
-                marker=self.marker, resets_seen=self.resets_seen)
+                marker=self.marker, resets_seen=self.resets_seen,
+                trail=np.array(self._trail).reshape(-1, 4), refused=dict(self.refused),
+                warnings=dict(self.warnings))
 
 
 class Snapshot:
@@ -387,13 +537,14 @@ class Snapshot:
     rotational_energy : ndarray (n,)
         T_rot = 1/2 Omega . R^T L in J.
     diagnostics : dict
-        The node's last /diagnostics report, {key: value}.
+        The node's last /diagnostics report, {key: value}, its strings cut and escaped.
     flips : int
-        Sign changes seen of the Omega component the spin started about.
-    flip_axis : int or None
-        That component (0, 1, 2).
+        Flips seen since the watch started (or the node's last reset): sign changes of
+        Omega's component along the middle principal axis while the body was free.
+    middle_axis : ndarray (3,) or None
+        The middle principal axis in the body frame (None: not known, or none).
     events : list of (time or None, name, value)
-        Resets, pauses, integrator and tolerance switches, in order.
+        Resets, pauses, integrator and tolerance switches, in order, one per change.
     reference : (T_rot, |L|, time) or None
         The values the drifts are counted from: the first timed tick after the start, a
         reset or the end of an outside input.
@@ -403,11 +554,19 @@ class Snapshot:
         The node's marker message and the body's orientation at its stamp.
     resets_seen : int
         Resets seen since the watch started.
+    trail : ndarray (k, 4)
+        Recent orientations (x, y, z, w), one each time the body turned 2 degrees.
+    refused : dict
+        {topic: (why, how many)} of the messages not taken (not finite, absurd, too large,
+        from another publisher).
+    warnings : dict
+        {topic: sentence} of what the listener says of a topic now (another publisher).
 
     """
 
-    def __init__(self, node, latest, timed, diagnostics, flips, flip_axis, events,
-                 reference, ticks_received, marker=None, resets_seen=0):
+    def __init__(self, node, latest, timed, diagnostics, flips, middle_axis, events,
+                 reference, ticks_received, marker=None, resets_seen=0, trail=None,
+                 refused=None, warnings=None):
         self.node = node
         self.marker = marker
         self.resets_seen = resets_seen
@@ -419,26 +578,51 @@ class Snapshot:
         self.rotational_energy = np.array([tick.rotational_energy for tick in timed])
         self.diagnostics = diagnostics
         self.flips = flips
-        self.flip_axis = flip_axis
+        self.middle_axis = middle_axis
         self.events = events
         self.reference = reference
         self.ticks_received = ticks_received
+        self.trail = np.zeros((0, 4)) if trail is None else trail
+        self.refused = refused or {}
+        self.warnings = warnings or {}
 
     def value(self, key):
         """Return the report's value of a :data:`DIAGNOSTICS_KEYS` key, or None."""
         return self.diagnostics.get(DIAGNOSTICS_KEYS[key])
 
-    def number(self, key):
-        """Return the report's value of a key as a float, or None."""
+    def shown(self, key):
+        """
+        Return the report's value of a key as the views print it.
+
+        'not reported' if missing; a number that is not finite or absurd said to be so;
+        any other text as it came (already cut and escaped).
+        """
+        text = self.value(key)
+        if text is None:
+            return 'not reported'
         try:
-            return float(self.value(key))
-        except (TypeError, ValueError):
+            number = float(text)
+        except (ValueError, OverflowError):
+            return text
+        return number_verdict(number) or text
+
+    def number(self, key):
+        """Return the report's value of a key as a float, or None (also if not finite)."""
+        try:
+            value = float(self.value(key))
+        except (TypeError, ValueError, OverflowError):
             return None
+        return value if number_verdict(value) is None else None
 
     @property
     def current_time(self):
         """Return the simulated time of the newest tick (s), or None before a report."""
         return None if self.latest is None else self.latest.time
+
+    @property
+    def flips_since(self):
+        """Return since when the flips are counted, as the views say it."""
+        return 'since the reset' if self.resets_seen else 'since watch started'
 
     @property
     def torque_free(self):

@@ -4,15 +4,15 @@ The terminal view of ``rigid-body-sim watch``: a few lines refreshed in place.
 On a terminal the block is rewritten where it stands (ANSI cursor movement); piped into a
 file or another program, each changed block is printed after the last, so a log reads
 top to bottom.  Every number of the node is printed as its message has it: the state's
-with :func:`.live.format_number`, the report's strings unchanged.
+with :func:`.live.format_number`, the report's strings as they came (cut and escaped by
+:class:`.live.LiveState`); a number that is not finite or absurd is said to be so.
 """
 
+import shutil
 
 from .live import format_number
 
-__all__ = ['render_lines', 'TerminalView', 'waiting_lines']
-
-_AXES = 'xyz'
+__all__ = ['flips_text', 'refused_lines', 'render_lines', 'TerminalView', 'waiting_lines']
 
 
 def waiting_lines(listener, waited):
@@ -40,15 +40,18 @@ def waiting_lines(listener, waited):
 
 def render_lines(snapshot):
     """Return the view's lines for a :class:`.live.Snapshot` of a watched node."""
-    value = snapshot.value
-    status = value('status') or 'waiting for its first report (/diagnostics, once a second)'
+    shown = snapshot.shown
+    status = shown('status') if snapshot.diagnostics else \
+        'waiting for its first report (/diagnostics, once a second)'
     lines = [f'rigid-body-sim watch: {snapshot.node}: {status}']
+    lines.extend(f'  warning       {text}' for text in snapshot.warnings.values())
     if snapshot.diagnostics:
-        lines.append(f'  scene         {value("scene")} (effects: {value("effects")}), '
-                     f'integrator {value("integrator")} at {value("rate")} Hz')
+        lines.append(f'  scene         {shown("scene")} (effects: {shown("effects")}), '
+                     f'integrator {shown("integrator")} at {shown("rate")} Hz')
     latest = snapshot.latest
     if latest is None:
         lines.append('  waiting for its state (odom, angular_momentum)')
+        lines.extend(refused_lines(snapshot))
         return lines
     time = latest.time
     lines.append('  time          ' + (
@@ -58,22 +61,39 @@ def render_lines(snapshot):
     magnitude = format_number(latest.momentum_magnitude, signed=False)
     lines.append(f'  |L|           {magnitude} kg m^2/s')
     if snapshot.diagnostics:
-        lines.append(f'  energy drift  {value("energy_drift")} (total energy, since the last '
+        lines.append(f'  energy drift  {shown("energy_drift")} (total energy, since the last '
                      "input; the node's report)")
-    axis = snapshot.flip_axis
-    flipped = '' if axis is None else f' (sign changes of Omega_{_AXES[axis]})'
-    lines.append(f'  flips         {snapshot.flips}{flipped}')
+    lines.append(f'  flips         {flips_text(snapshot)}')
     if snapshot.diagnostics:
-        tolerance = value('tolerance')
-        control = 'fixed' if tolerance == 'off' else f'tolerance {tolerance} rad/s'
-        lines.append(f'  substeps      {value("substeps")} per tick ({control})')
-        lines.append(f'  ticks/s       {value("achieved_rate")} (requested {value("rate")} x '
-                     f'real-time factor {value("real_time_factor")}); tick p50 '
-                     f'{value("tick_p50")} ms, p99 {value("tick_p99")} ms')
+        tolerance = snapshot.value('tolerance')
+        control = 'fixed' if tolerance == 'off' else f'tolerance {shown("tolerance")} rad/s'
+        lines.append(f'  substeps      {shown("substeps")} per tick ({control})')
+        lines.append(f'  ticks/s       {shown("achieved_rate")} (requested {shown("rate")} x '
+                     f'real-time factor {shown("real_time_factor")}); tick p50 '
+                     f'{shown("tick_p50")} ms, p99 {shown("tick_p99")} ms')
     changes = [_event_text(event) for event in snapshot.events[-3:]]
     if changes:
         lines.append('  changes       ' + '; '.join(changes))
+    lines.extend(refused_lines(snapshot))
     return lines
+
+
+def flips_text(snapshot, brief=False):
+    """Return the flips as the views say them: how many, of what, since when."""
+    if snapshot.middle_axis is None:
+        return ('not counted: the body has no middle principal axis' if snapshot.marker
+                else 'not counted until the marker tells the principal axes')
+    if brief:
+        return f'{snapshot.flips} {snapshot.flips_since} (about the middle axis, while free)'
+    axis = ' '.join(f'{component:+.2f}' for component in snapshot.middle_axis)
+    return (f'{snapshot.flips} {snapshot.flips_since} (sign changes of Omega along the middle '
+            f'principal axis [{axis}] while no input acts)')
+
+
+def refused_lines(snapshot):
+    """Return a line per topic of which messages were not taken, and why."""
+    return [f'  refused       {topic}: {count} ({why}; not shown, not charted)'
+            for topic, (why, count) in sorted(snapshot.refused.items())]
 
 
 def _event_text(event):
@@ -111,6 +131,11 @@ class TerminalView:
             return
         self._last = list(lines)
         if self.in_place:
+            # A line wider than the terminal would wrap, and the block's lines would no
+            # longer be the rows to go back up: each is cut to the width.
+            width = max(20, shutil.get_terminal_size().columns - 1)
+            lines = [line if len(line) <= width else line[:width - 3] + '...'
+                     for line in lines]
             # Up to the block's first line, rewrite each line, clear what is left below.
             text = (f'\x1b[{self._shown}F' if self._shown else '') + ''.join(
                 f'\x1b[2K{line}\n' for line in lines) + '\x1b[J'

@@ -14,7 +14,9 @@ Five cases, each a scene (body, initial state, effects) plus an optional held wr
 
 For each case, method and step dt: the orientation error (rotation angle, rad) at the
 horizon against an independent reference, and the CPU time per simulated second (median of
-fresh timed runs, ``time.process_time``).  Methods: every registered integrator at fixed
+fresh timed runs, :data:`.cells.CPU_CLOCK`).  The sweep is a :class:`.cells.Plan`
+(:func:`forces_plan`: per case the reference and its check, then a cell per run) that any
+process can run; :func:`run_forces` runs it here.  Methods: every registered integrator at fixed
 steps, ``buss`` under error control at a range of tolerances (its tick 1/rate of the scene),
 and MuJoCo's Euler, RK4 and implicitfast.
 
@@ -41,10 +43,13 @@ generic way (Simulator.wrench_function): no effect is named in this module.
 
 from dataclasses import asdict
 from dataclasses import dataclass
+import functools
 import math
 
 import numpy as np
 
+from .cells import Plan
+from .cells import run_in_process
 from .measure import _timing as measured_timing
 from .peer_mujoco import mujoco_available
 from .peer_mujoco import MUJOCO_INTEGRATORS
@@ -63,8 +68,8 @@ _NATIVE_TO_MUJOCO = ('gravity', 'pivot', 'external_wrench')
 
 __all__ = ['FORCED_CASE_NAMES', 'ForcedCase', 'forced_cases', 'forced_reference',
            'forced_reference_check',
-           'ForcesConfig', 'FORCES_FULL', 'FORCES_QUICK', 'run_forces', 'forces_goal_table',
-           'forces_units']
+           'ForcesConfig', 'FORCES_FULL', 'FORCES_QUICK', 'run_forces', 'forces_plan',
+           'measure_forced_run', 'reference_of', 'forces_goal_table', 'forces_units']
 
 FORCED_CASE_NAMES = ('heavy_top', 'bike_wheel', 'offaxis_pivot', 'van_zon_sinusoid',
                      'body_torque')
@@ -416,8 +421,8 @@ class _Mujoco:
         """
         Return MuJoCo's physical state packed as the kernels take it (q, x, p, L; world).
 
-        Built from qpos and qvel directly, a few microseconds a step, as a user of MuJoCo's
-        Python API would write it (a State with its checks would cost the twin ~40 us).
+        Built from qpos and qvel directly, as a user of MuJoCo's Python API would write it (a
+        State with its checks would cost the twin far more than its step).
         """
         data, scene = self.data, self.case.scene
         body = scene.body
@@ -498,8 +503,39 @@ def forces_units(config, with_mujoco=True):
                for case in forced_cases(config.cases))
 
 
-def run_forces(config, with_mujoco=True, progress=None):
-    """Run the forced sweep; return {'records', 'references', 'methods', 'mujoco'}."""
+@functools.lru_cache(maxsize=None)
+def _forced_case(name):
+    """Return the ForcedCase of a name, built once per process."""
+    return forced_cases([name])[0]
+
+
+def reference_of(name, times, check=False):
+    """Return the named case's :func:`forced_reference` (or its check) at `times` (s)."""
+    solve = forced_reference_check if check else forced_reference
+    return solve(_forced_case(name), times)
+
+
+def measure_forced_run(name, method, dt, tolerance, steps, config, reference):
+    """
+    Measure `steps` steps of dt of one method on the named case; return its ForcedRecord.
+
+    method: a registered integrator or a MuJoCo one at fixed steps, or 'buss_controlled'
+    (``buss`` under error control at `tolerance`, dt the scene's tick).  reference: the
+    reference rotation at the horizon, steps x dt.  As a dict.
+    """
+    case = _forced_case(name)
+    if method == 'buss_controlled':
+        run = _Ours(case, 'buss', dt, tolerance)
+    else:
+        run = (_Mujoco if method in MUJOCO_INTEGRATORS else _Ours)(case, method, dt)
+    error, cpu = _measure(run, steps, reference, config)
+    return asdict(ForcedRecord(case.name, method, run.family, dt, tolerance or 0.0, steps,
+                               error, cpu / steps * 1e6, cpu / (steps * dt),
+                               not math.isfinite(error)))
+
+
+def forces_plan(config, with_mujoco=True):
+    """Return the forced sweep as a Plan (its result: see :func:`run_forces`)."""
     methods = sorted(INTEGRATORS)
     mujoco_status = 'skipped on request (--no-mujoco)'
     if with_mujoco and mujoco_available():
@@ -507,44 +543,50 @@ def run_forces(config, with_mujoco=True, progress=None):
         mujoco_status = 'included'
     elif with_mujoco:
         mujoco_status = 'not installed (import mujoco failed): peer skipped'
-    records, references = [], {}
-    for case in forced_cases(config.cases):
+    cases = forced_cases(config.cases)
+    plan = None
+
+    def assemble(references, values):
+        found = {}
+        for case in cases:
+            reference = references[f'{plan.part}/{case.name}/reference']
+            check = references[f'{plan.part}/{case.name}/reference check']
+            found[case.name] = {
+                'solver': f'DOP853 rtol {REFERENCE_RTOL:g}',
+                'formulation': REFERENCE_FORMULATION, 'check': CHECK_FORMULATION,
+                'uncertainty': max(rotation_angle(reference[t], check[t]) for t in reference),
+                'description': case.description}
+        return {'records': [values[name] for name in order], 'references': found,
+                'methods': methods, 'mujoco': mujoco_status}
+
+    plan = Plan('forces', assemble)
+    order = []
+    for case in cases:
         dts = _dts(case, config)
         tick = 1.0 / case.scene.rate
         runs = {dt: max(1, int(round(config.horizon / dt))) for dt in dts + (tick,)}
         times = sorted({steps * dt for dt, steps in runs.items()})
-        reference = forced_reference(case, times)
-        if progress is not None:
-            progress(f'{case.name}: reference')
-        check = forced_reference_check(case, times)
-        uncertainty = max(rotation_angle(reference[t], check[t]) for t in reference)
-        references[case.name] = {
-            'solver': f'DOP853 rtol {REFERENCE_RTOL:g}',
-            'formulation': REFERENCE_FORMULATION, 'check': CHECK_FORMULATION,
-            'uncertainty': uncertainty, 'description': case.description}
-        if progress is not None:
-            progress(f'{case.name}: reference check')
+        reference = plan.add_reference(f'{case.name}/reference', reference_of,
+                                       (case.name, times), weight=math.inf)
+        plan.add_reference(f'{case.name}/reference check', reference_of,
+                           (case.name, times, True), weight=math.inf)
         for method in methods:
             for dt in dts:
-                steps = runs[dt]
-                run = (_Mujoco if method in MUJOCO_INTEGRATORS else _Ours)(case, method, dt)
-                error, cpu = _measure(run, steps, reference[steps * dt], config)
-                records.append(asdict(ForcedRecord(
-                    case.name, method, run.family, dt, 0.0, steps, error,
-                    cpu / steps * 1e6, cpu / (steps * dt), not math.isfinite(error))))
-                if progress is not None:
-                    progress(f'{case.name}: {method} dt={dt:g}')
-        steps = runs[tick]
+                order.append(plan.add_cell(
+                    f'{case.name}/{method}/dt={dt:g}', measure_forced_run,
+                    (case.name, method, dt, None, runs[dt], config), reference,
+                    lambda rotations, time=runs[dt] * dt: rotations[time], weight=runs[dt]))
         for tolerance in config.tolerances:
-            run = _Ours(case, 'buss', tick, tolerance)
-            error, cpu = _measure(run, steps, reference[steps * tick], config)
-            records.append(asdict(ForcedRecord(
-                case.name, 'buss_controlled', 'ours', tick, tolerance, steps, error,
-                cpu / steps * 1e6, cpu / (steps * tick), not math.isfinite(error))))
-            if progress is not None:
-                progress(f'{case.name}: buss tolerance {tolerance:g}')
-    return {'records': records, 'references': references, 'methods': methods,
-            'mujoco': mujoco_status}
+            order.append(plan.add_cell(
+                f'{case.name}/buss_controlled/tolerance={tolerance:g}', measure_forced_run,
+                (case.name, 'buss_controlled', tick, tolerance, runs[tick], config), reference,
+                lambda rotations, time=runs[tick] * tick: rotations[time], weight=runs[tick]))
+    return plan
+
+
+def run_forces(config, with_mujoco=True, progress=None):
+    """Run the forced sweep here; return {'records', 'references', 'methods', 'mujoco'}."""
+    return run_in_process(forces_plan(config, with_mujoco), progress)
 
 
 def forces_goal_table(result, levels=LEVELS):

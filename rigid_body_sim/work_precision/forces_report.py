@@ -1,14 +1,18 @@
 """Write the forced benchmark's results: forces.md, forces.json, forces.csv, the plot."""
 
-import csv
 import json
 import math
 from pathlib import Path
 
 from .forces import forces_goal_table
 from .forces import LEVELS
+from .report import case_panels
+from .report import method_styles
+from .report import save_figure
+from .report import workers_line
+from .report import write_records_csv
 
-__all__ = ['write_forces_outputs', 'forces_goal_counts']
+__all__ = ['forces_figure', 'write_forces_outputs', 'forces_goal_counts']
 
 
 def forces_goal_counts(rows):
@@ -48,7 +52,7 @@ def _markdown(result, rows):
         f'{result["machine"].get("git_commit", "unknown")}) in {result["wall_seconds"]:.0f} s '
         f'on {result["machine"].get("cpu_model", "this machine")} (load average at the end '
         f'{", ".join(f"{v:.2f}" for v in result["machine"]["load_average_end"])}). '
-        f'MuJoCo peer: {result["mujoco"]}.',
+        f'MuJoCo peer: {result["mujoco"]}. ' + workers_line(result['machine']),
         '',
         f'Orientation error (rad) at {config["horizon"]:g} s against a reference solve '
         f'({_reference_words(result)}); CPU seconds per simulated second (median of fresh '
@@ -88,30 +92,27 @@ def _markdown(result, rows):
     return '\n'.join(lines) + '\n'
 
 
-def _plot(result, path):
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
+def forces_figure(result):
+    """Return the forced benchmark's figure (matplotlib): error against cost, per case."""
+    from matplotlib.lines import Line2D
 
     cases = list(result['references'])
-    columns = 3
-    rows = math.ceil(len(cases) / columns)
-    figure, axes = plt.subplots(rows, columns, figsize=(5.2 * columns, 4.2 * rows),
-                                squeeze=False)
+    figure, panels, _ = case_panels(len(cases), 3, (5.2, 4.2))
     methods = sorted({r['method'] for r in result['records']})
-    colours = plt.get_cmap('tab10')
-    for index, case in enumerate(cases):
-        axis = axes[index // columns][index % columns]
-        for number, method in enumerate(methods):
+    styles = method_styles(methods)
+    for axis, case in zip(panels, cases):
+        for method in methods:
             runs = sorted((r for r in result['records'] if r['case'] == case
                            and r['method'] == method and math.isfinite(r['error'])
                            and r['error'] > 0), key=lambda r: r['cpu_per_sim_second'])
             if not runs:
                 continue
+            style = styles[method]
             axis.loglog([r['cpu_per_sim_second'] for r in runs], [r['error'] for r in runs],
-                        marker='s' if method.startswith('mujoco') else 'o', markersize=4,
-                        linestyle='--' if method.startswith('mujoco') else '-',
-                        color=colours(number % 10), label=method)
+                        marker=style['marker'], markersize=4, linestyle=style['linestyle'],
+                        color=style['color'],
+                        markerfacecolor=style['markerfacecolor'] or style['color'],
+                        label=method)
         axis.axhspan(1e-16, max(result['references'][case]['uncertainty'], 1e-16),
                      color='0.85', zorder=0)
         axis.set_title(case)
@@ -119,15 +120,20 @@ def _plot(result, path):
         axis.set_ylabel(f'orientation error at {result["config"]["horizon"]:g} s (rad)')
         axis.set_ylim(1e-13, 10)
         axis.grid(True, which='major', alpha=0.3)
-    for index in range(len(cases), rows * columns):
-        axes[index // columns][index % columns].axis('off')
-    handles, labels = axes[0][0].get_legend_handles_labels()
-    figure.legend(handles, labels, loc='lower right', fontsize=8, ncol=2)
+    # Every method in the legend, also one that the first case lacks.
+    handles = [Line2D([], [], color=styles[m]['color'], marker=styles[m]['marker'],
+                      linestyle=styles[m]['linestyle'],
+                      markerfacecolor=styles[m]['markerfacecolor'] or styles[m]['color'],
+                      label=m) for m in methods]
+    figure.legend(handles=handles, loc='lower right', fontsize=8, ncol=2)
     figure.suptitle("Forced bodies: error against cost (grey: below the reference's "
                     'uncertainty)')
     figure.tight_layout()
-    figure.savefig(path, dpi=90)
-    plt.close(figure)
+    return figure
+
+
+def _plot(result, path):
+    save_figure(forces_figure(result), path, dpi=90)
 
 
 def write_forces_outputs(result, out):
@@ -142,9 +148,6 @@ def write_forces_outputs(result, out):
     document['goal'] = [{'case': r['case'], 'level': r['level'], 'verdict': r['verdict'],
                          'ours': r['ours'], 'mujoco': r['mujoco']} for r in rows]
     paths['forces_json'].write_text(json.dumps(document, indent=1, default=float) + '\n')
-    with open(paths['forces_csv'], 'w', newline='') as stream:
-        writer = csv.DictWriter(stream, fieldnames=list(result['records'][0]))
-        writer.writeheader()
-        writer.writerows(result['records'])
+    write_records_csv(result['records'], paths['forces_csv'])
     _plot(result, paths['forces_plot'])
     return paths

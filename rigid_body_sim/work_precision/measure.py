@@ -14,25 +14,33 @@ integrator) and one time step dt:
   error of the world vector L, max |L(t) - L(0)| / |L(0)|.
 - timing runs: a fresh start, then N_long steps in ONE call (``Simulator.run`` for ours,
   ``mujoco.mj_step(..., nstep=N_long)`` for MuJoCo: each its own compiled loop where it has
-  one), timed with ``time.process_time`` (CPU time of this process, so other processes on a
-  shared machine count less).  One timing sample is the mean over as many such fresh runs as
-  it takes to spend :data:`MIN_SAMPLE_CPU` (a run of 10 steps of dt = 10 s takes only
-  microseconds, too close to the timer's own cost); samples are repeated and the median
+  one), timed with :data:`.cells.CPU_CLOCK` (CPU time of the thread that runs it, so other
+  processes on a shared machine, and a Dask worker's own threads, count less).  One timing
+  sample is the mean over as many such fresh runs as it takes to spend
+  :data:`MIN_SAMPLE_CPU` (a run of 10 steps of dt = 10 s takes only microseconds, too close
+  to the timer's own cost); samples are repeated and the median
   kept.  The accuracy run before it is the warm-up, so numba compilation is never timed.
   Reported: us per step and CPU seconds per simulated second.
+
+The sweep is a :class:`.cells.Plan` (:func:`benchmark_plan`): a reference per case, then a
+cell per (case, method, dt), which any process can run (``bench`` gives them to Dask
+workers); :func:`run_benchmark` runs it here.
 """
 
 from dataclasses import asdict
 from dataclasses import dataclass
+import functools
 import math
 import statistics
-import time
 
 import numpy as np
 
 from .bodies import benchmark_cases
 from .bodies import CASE_NAMES
 from .bodies import QUICK_CASE_NAMES
+from .cells import CPU_CLOCK
+from .cells import Plan
+from .cells import run_in_process
 from .extended_reference import key_string
 from .peer_mujoco import mujoco_available
 from .peer_mujoco import MUJOCO_INTEGRATORS
@@ -43,12 +51,12 @@ from ..physics import Simulator
 from ..physics.simulator import DivergedError
 
 __all__ = ['BenchmarkConfig', 'FULL', 'QUICK', 'step_counts', 'measure_run', 'run_benchmark',
-           'our_integrators', 'reference_keys', 'work_units']
+           'benchmark_plan', 'our_integrators', 'reference_keys', 'work_units']
 
 # Simulated time (s) between the energy / momentum samples of an accuracy run.
 SAMPLE_INTERVAL = 0.1
 # Least CPU time (s) of one timing sample: short runs are repeated (fresh each time) until
-# they add up to this, so the timer's own cost (~1 us) stays below 0.1 % of a sample.
+# they add up to this, so the timer's own cost stays a negligible part of a sample.
 MIN_SAMPLE_CPU = 2e-3
 
 
@@ -215,9 +223,9 @@ def _timing(run, steps, repeats, budget):
         elapsed, runs = 0.0, 0
         while runs == 0 or elapsed < MIN_SAMPLE_CPU:
             run.reset()
-            started = time.process_time()
+            started = CPU_CLOCK()
             run.advance(steps)
-            elapsed += time.process_time() - started
+            elapsed += CPU_CLOCK() - started
             runs += 1
         samples.append(elapsed / runs)
         spent += elapsed
@@ -263,9 +271,75 @@ def reference_keys(config):
     return sorted(keys)
 
 
+def _methods(with_mujoco):
+    """Return (the methods measured, what became of the MuJoCo peer)."""
+    methods = our_integrators()
+    if with_mujoco and mujoco_available():
+        return methods + list(MUJOCO_INTEGRATORS), 'included'
+    if with_mujoco:
+        return methods, 'not installed (import mujoco failed): peer skipped'
+    return methods, 'skipped on request (--no-mujoco)'
+
+
+@functools.lru_cache(maxsize=None)
+def _benchmark_case(name):
+    """Return the BenchmarkCase of a name, built once per process."""
+    return benchmark_cases([name])[0]
+
+
+def case_reference(name, keys):
+    """Return the Reference of the named case after N steps of dt, each (N, dt) in keys."""
+    case = _benchmark_case(name)
+    return reference_rotations(case.body, case.state, keys)
+
+
+def measure_cell(name, method, dt, config, reference):
+    """Measure one (named case, method, dt) against its Reference; return its record."""
+    return asdict(measure_run(_benchmark_case(name), method, dt, reference, config))
+
+
+def benchmark_plan(config, with_mujoco=True):
+    """
+    Return the sweep of `config` as a Plan: a reference per case, a cell per run.
+
+    Its result: see :func:`run_benchmark`.
+    """
+    methods, mujoco_status = _methods(with_mujoco)
+    keys = reference_keys(config)
+    cases = benchmark_cases(config.cases)
+    plan = None
+
+    def assemble(references, values):
+        def by_key(values):
+            return None if values is None else {key_string(*key): value
+                                                for key, value in values.items()}
+        found = {}
+        for case in cases:
+            reference = references[f'{plan.part}/{case.name}/reference']
+            found[case.name] = {
+                'origin': reference.origin, 'drift': reference.drift,
+                'uncertainty': by_key(reference.uncertainty),
+                'exact_gap': by_key(reference.exact_gap), 'ode_gap': by_key(reference.ode_gap),
+            }
+        return {'methods': methods, 'mujoco': mujoco_status, 'references': found,
+                'records': [values[name] for name in order]}
+
+    plan = Plan('work_precision', assemble)
+    order = []
+    for case in cases:
+        reference = plan.add_reference(f'{case.name}/reference', case_reference,
+                                       (case.name, keys), weight=math.inf)
+        for method in methods:
+            for dt in config.dts:
+                order.append(plan.add_cell(f'{case.name}/{method}/dt={dt:g}', measure_cell,
+                                           (case.name, method, dt, config), reference,
+                                           weight=step_counts(dt, config.horizons)[1]))
+    return plan
+
+
 def run_benchmark(config, with_mujoco=True, progress=None):
     """
-    Run the whole sweep; return a dict with the records and the reference checks.
+    Run the whole sweep in this process; return a dict with the records and the references.
 
     Parameters
     ----------
@@ -286,37 +360,7 @@ def run_benchmark(config, with_mujoco=True, progress=None):
         of dict, see RunRecord).
 
     """
-    methods = our_integrators()
-    if with_mujoco and mujoco_available():
-        methods += list(MUJOCO_INTEGRATORS)
-        mujoco_status = 'included'
-    elif with_mujoco:
-        mujoco_status = 'not installed (import mujoco failed): peer skipped'
-    else:
-        mujoco_status = 'skipped on request (--no-mujoco)'
-    keys = reference_keys(config)
-    references = {}
-    records = []
-    for case in benchmark_cases(config.cases):
-        reference = reference_rotations(case.body, case.state, keys)
-
-        def by_key(values):
-            return None if values is None else {key_string(*key): value
-                                                for key, value in values.items()}
-        references[case.name] = {
-            'origin': reference.origin, 'drift': reference.drift,
-            'uncertainty': by_key(reference.uncertainty),
-            'exact_gap': by_key(reference.exact_gap), 'ode_gap': by_key(reference.ode_gap),
-        }
-        if progress is not None:
-            progress(f'{case.name}: reference')
-        for method in methods:
-            for dt in config.dts:
-                records.append(asdict(measure_run(case, method, dt, reference, config)))
-                if progress is not None:
-                    progress(f'{case.name}: {method} dt={dt:g}')
-    return {'methods': methods, 'mujoco': mujoco_status, 'references': references,
-            'records': records}
+    return run_in_process(benchmark_plan(config, with_mujoco), progress)
 
 
 def work_units(config, with_mujoco=True):

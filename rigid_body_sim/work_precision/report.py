@@ -25,17 +25,22 @@ import datetime
 import json
 import math
 import os
+from pathlib import Path
 import platform
 import statistics
 import subprocess
 
 import numpy as np
 
+from .cells import CPU_CLOCK_NAME
+from .cells import cpu_model
 from .extended_reference import key_string
 from .reference import MEASUREMENT_FLOOR
 
-__all__ = ['machine_info', 'cost_to_reach', 'Reach', 'verdict', 'goal_table', 'goal_summary',
-           'augmentation_table', 'step_costs', 'write_outputs', 'GOAL_LEVELS', 'SATURATION']
+__all__ = ['machine_info', 'workers_line', 'cost_to_reach', 'Reach', 'verdict', 'goal_table',
+           'goal_summary', 'augmentation_table', 'step_costs', 'write_outputs', 'case_panels',
+           'save_figure', 'write_records_csv', 'method_styles', 'read_results',
+           'work_precision_figure', 'GOAL_LEVELS', 'SATURATION']
 
 # Orientation error levels (rad) at which the CPU cost of ours and MuJoCo's are compared.
 GOAL_LEVELS = tuple(10.0 ** -k for k in range(2, 13))
@@ -49,27 +54,6 @@ SATURATION = 0.5
 ISSUE_DTS = (0.1, 0.03, 0.01, 0.003, 0.001)
 VERDICTS = ('holds', 'holds*', 'not decided', 'fails', 'neither reaches', 'unresolved',
             'no peer')
-
-
-def _cpu_model():
-    """Return (CPU model name, number of physical cores or None) from /proc/cpuinfo."""
-    model, cores, current = None, set(), {}
-    try:
-        with open('/proc/cpuinfo') as cpuinfo:
-            for line in cpuinfo:
-                key, _, value = (part.strip() for part in line.partition(':'))
-                if key == 'model name' and model is None:
-                    model = value
-                elif key in ('physical id', 'core id'):
-                    current[key] = value
-                elif not key and current:
-                    cores.add((current.get('physical id'), current.get('core id')))
-                    current = {}
-    except OSError:
-        pass
-    if current:
-        cores.add((current.get('physical id'), current.get('core id')))
-    return model or platform.processor() or 'unknown', len(cores) or None
 
 
 def _version(module_name):
@@ -101,13 +85,34 @@ def _git_commit():
     return commit, sorted(line[3:] for line in (status or '').splitlines() if line.strip())
 
 
+def workers_line(info):
+    """
+    Return the sentence saying where the cells ran, from a result's machine info.
+
+    info['cells_ran_on'] (set by the bench command): 'engine' (in words), 'workers' (worker
+    processes), 'hosts' ([{'host', 'cpu_model', 'workers', 'cells'}]) and 'start_seconds'
+    (the cluster's start, its workers' kernels loaded); without it, the cells ran in the
+    process that wrote the report.
+    """
+    ran_on = info.get('cells_ran_on')
+    if not ran_on or not ran_on.get('hosts'):
+        return 'Cells ran in this process, one after another.'
+    hosts = '; '.join(f'{h["host"]} ({h["cpu_model"]}): {h["workers"]} worker(s), '
+                      f'{h["cells"]} cells' for h in ran_on['hosts'])
+    started = ran_on.get('start_seconds')
+    return (f'Cells ran on {ran_on["engine"]}, {ran_on["workers"]} worker process(es), each '
+            f'cell timed on the worker that ran it: {hosts}'
+            + ('.' if started is None else
+               f' (the cluster started, kernels loaded, in {started:.1f} s).'))
+
+
 def machine_info():
     """Return a dict describing this machine and the software versions."""
     try:
         usable = len(os.sched_getaffinity(0))
     except AttributeError:
         usable = os.cpu_count()
-    model, physical = _cpu_model()
+    model, physical = cpu_model()
     commit, modified = _git_commit()
     return {
         'cpu_model': model,
@@ -122,7 +127,7 @@ def machine_info():
         'mujoco': _version('mujoco'),
         'git_commit': commit,
         'git_modified': modified,
-        'timer': 'time.process_time (CPU time of this process)',
+        'timer': CPU_CLOCK_NAME,
         'date_utc': datetime.datetime.now(datetime.timezone.utc).strftime('%Y-%m-%d %H:%M UTC'),
         'load_average_start': list(os.getloadavg()),
     }
@@ -489,8 +494,9 @@ def _markdown(result, goal_rows, long_rows, augmentation_rows, issue_rows=()):
         '- Load average (1, 5, 15 min) at start: '
         + ', '.join(f'{v:.2f}' for v in info['load_average_start'])
         + '; at end: ' + ', '.join(f'{v:.2f}' for v in info['load_average_end'])
-        + f'. Wall time of the whole run: {result["wall_seconds"]:.0f} s; CPU time of this '
-        f'process: {result.get("cpu_seconds", math.nan):.0f} s.',
+        + f'. Wall time of the whole run: {result["wall_seconds"]:.0f} s; CPU time of the '
+        f'command\'s own process: {result.get("cpu_seconds", math.nan):.0f} s.',
+        f'- {workers_line(info)}',
         f'- Timer: {info.get("timer", "time.process_time")}.  On a loaded machine the CPU '
         'times still vary by tens of percent from run to run (caches and frequency are '
         'shared): read costs to about a factor 1.5.',
@@ -681,44 +687,93 @@ def _markdown(result, goal_rows, long_rows, augmentation_rows, issue_rows=()):
 
 
 # Ours: filled markers, solid lines, tab10 colours; MuJoCo: open markers, dashed lines,
-# dark colours of their own, so the peer reads apart from ours at a glance.
+# dark colours of their own, so the peer reads apart from ours at a glance.  Ten colours and
+# nine markers: coprime counts, so stepping both with the method's index gives ninety
+# distinct pairs before one repeats (with nine of each, the tenth method drew as the first).
 _OUR_COLOURS = ('tab:blue', 'tab:orange', 'tab:green', 'tab:red', 'tab:purple', 'tab:brown',
-                'tab:pink', 'tab:cyan', 'tab:olive')
+                'tab:pink', 'tab:cyan', 'tab:olive', 'navy')
 _OUR_MARKERS = ('o', 'v', '^', '<', '>', 'D', 'p', 'h', '*')
 _PEER_COLOURS = ('black', '0.45', 'darkgoldenrod')
-_PEER_MARKERS = ('s', 'o', 'D')
+_PEER_MARKERS = ('s', 'o', 'D', 'P')
 
 
-def _styles(methods):
+def method_styles(methods):
+    """
+    Return {method: matplotlib line style} with every method told apart by colour and marker.
+
+    MuJoCo's methods (``mujoco_*``) are dashed with open markers in dark colours; ours solid
+    with filled markers.  Each method gets a (colour, marker) pair no other method has.
+
+    Raises
+    ------
+    ValueError
+        If there are more methods of one kind than distinct pairs.
+
+    """
     styles = {}
     ours = [m for m in methods if not m.startswith('mujoco_')]
     peers = [m for m in methods if m.startswith('mujoco_')]
-    for index, method in enumerate(ours):
-        styles[method] = {'color': _OUR_COLOURS[index % len(_OUR_COLOURS)],
-                          'marker': _OUR_MARKERS[index % len(_OUR_MARKERS)],
-                          'linestyle': '-', 'markerfacecolor': None}
-    for index, method in enumerate(peers):
-        styles[method] = {'color': _PEER_COLOURS[index % len(_PEER_COLOURS)],
-                          'marker': _PEER_MARKERS[index % len(_PEER_MARKERS)],
-                          'linestyle': '--', 'markerfacecolor': 'white'}
+    for group, colours, markers, line, face in (
+            (ours, _OUR_COLOURS, _OUR_MARKERS, '-', None),
+            (peers, _PEER_COLOURS, _PEER_MARKERS, '--', 'white')):
+        if len(group) > math.lcm(len(colours), len(markers)):
+            raise ValueError(f'{len(group)} methods to draw; the styles tell apart '
+                             f'{math.lcm(len(colours), len(markers))}')
+        for index, method in enumerate(group):
+            styles[method] = {'color': colours[index % len(colours)],
+                              'marker': markers[index % len(markers)],
+                              'linestyle': line, 'markerfacecolor': face}
     return styles
 
 
-def _plot(result, path, horizon='short'):
+def case_panels(count, columns, panel_size, spare=0):
+    """
+    Return (figure, panels, spares): a grid of plot panels, one for each of `count` cases.
+
+    `columns` panels a row, each `panel_size` (width, height) inches; `spare` more panels
+    (for a legend) and the grid's unused ones are switched off and returned as `spares`.
+    The benchmark's figures are drawn off screen (matplotlib's Agg backend).
+    """
     import matplotlib
     matplotlib.use('Agg')
     from matplotlib import pyplot
+
+    rows = math.ceil((count + spare) / columns)
+    figure, axes = pyplot.subplots(rows, columns, squeeze=False,
+                                   figsize=(panel_size[0] * columns, panel_size[1] * rows))
+    panels = list(axes.flat)
+    for axis in panels[count:]:
+        axis.axis('off')
+    return figure, panels[:count], panels[count:]
+
+
+def write_records_csv(records, path):
+    """Write `records` (dicts with the same keys, in order) to `path` as CSV, a row each."""
+    with open(path, 'w', newline='') as table:
+        writer = csv.DictWriter(table, fieldnames=list(records[0]))
+        writer.writeheader()
+        writer.writerows(records)
+
+
+def save_figure(figure, path, dpi):
+    """Lay out `figure`, write it to `path` at `dpi` and free it."""
+    from matplotlib import pyplot
+
+    figure.tight_layout()
+    figure.savefig(path, dpi=dpi)
+    pyplot.close(figure)
+
+
+def work_precision_figure(result, horizon='short'):
+    """Return the work-precision figure (matplotlib) of a benchmark result at a horizon."""
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
     cases = list(result['references'])
-    columns = 3
-    rows = (len(cases) + 1 + columns - 1) // columns
-    figure, axes = pyplot.subplots(rows, columns, figsize=(6.0 * columns, 4.8 * rows),
-                                   squeeze=False)
-    styles = _styles(result['methods'])
+    figure, panels, spare = case_panels(len(cases), 3, (6.0, 4.8), spare=1)
+    styles = method_styles(result['methods'])
     seconds = result['config']['horizons'][HORIZONS.index(horizon)]
-    for axis, case in zip(axes.flat, cases):
+    for axis, case in zip(panels, cases):
         floor = resolution(result, case, horizon)
         for method in result['methods']:
             points = _curve(result, case, method, horizon)
@@ -753,9 +808,6 @@ def _plot(result, path, horizon='short'):
         axis.set_xlabel('CPU seconds per simulated second')
         axis.set_ylabel(f'orientation error at {seconds:g} s (rad)')
         axis.grid(True, which='major', alpha=0.3)
-    spare = list(axes.flat)[len(cases):]
-    for axis in spare:
-        axis.axis('off')
     handles = []
     for method in result['methods']:
         style = styles[method]
@@ -773,8 +825,11 @@ def _plot(result, path, horizon='short'):
                     f'second; dt from {max(result["config"]["dts"]):g} s (left) to '
                     f'{min(result["config"]["dts"]):g} s (right)')
     figure.tight_layout()
-    figure.savefig(path, dpi=100)
-    pyplot.close(figure)
+    return figure
+
+
+def _plot(result, path, horizon='short'):
+    save_figure(work_precision_figure(result, horizon), path, dpi=100)
 
 
 def _json_safe(value):
@@ -787,6 +842,19 @@ def _json_safe(value):
     if isinstance(value, np.generic):
         return _json_safe(value.item())
     return value
+
+
+def read_results(path):
+    """
+    Return the results a benchmark wrote to JSON (results.json, forces.json, ...).
+
+    The JSON writes an infinite value as the string 'inf' (JSON has no infinity): the
+    records' are read back as floats, so the plots can be drawn again from the file.
+    """
+    result = json.loads(Path(path).read_text(encoding='utf-8'))
+    result['records'] = [{key: float(value) if value in ('inf', '-inf') else value
+                          for key, value in record.items()} for record in result['records']]
+    return result
 
 
 def _issue_dts(result):
@@ -820,10 +888,7 @@ def write_outputs(result, directory):
                               'goal_long': long_rows,
                               'augmentation': augmentation_rows}), data, indent=1)
         data.write('\n')
-    with open(paths['results.csv'], 'w', newline='') as table:
-        writer = csv.DictWriter(table, fieldnames=list(result['records'][0]))
-        writer.writeheader()
-        writer.writerows(result['records'])
+    write_records_csv(result['records'], paths['results.csv'])
     _plot(result, paths['work_precision.png'], 'short')
     _plot(result, paths[long_plot], 'long')
     return paths

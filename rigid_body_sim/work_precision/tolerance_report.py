@@ -9,16 +9,19 @@ bracket the level, both tracking the motion), and their ratio; the goal is a rat
 most :data:`GOAL_RATIO` (the price of not knowing the right step in advance).
 """
 
-import csv
 import json
 import math
 import os
 
+from .report import case_panels
 from .report import cost_to_reach
 from .report import SATURATION
+from .report import save_figure
+from .report import workers_line
+from .report import write_records_csv
 
-__all__ = ['control_goal_table', 'sweep_markdown', 'write_sweep_outputs', 'CONTROL_LEVELS',
-           'GOAL_RATIO']
+__all__ = ['control_goal_table', 'sweep_markdown', 'tolerance_figure', 'write_sweep_outputs',
+           'CONTROL_LEVELS', 'GOAL_RATIO']
 
 CONTROL_LEVELS = tuple(10.0 ** -k for k in range(2, 9))
 """Error levels (rad over the span) at which controlled and fixed-step buss are compared."""
@@ -80,7 +83,8 @@ def sweep_markdown(result, rows):
         '',
         f'Produced by `{result["command"]}` (the sweep after the work-precision benchmark) on '
         f'{result["machine"]["date_utc"]}; machine, load and timer as in results.md.  '
-        f'Wall time of the sweep: {result["wall_seconds"]:.0f} s.',
+        f'Wall time of the sweep: {result["wall_seconds"]:.0f} s.  '
+        + workers_line(result['machine']),
         '',
         'Each built-in scene at its own tick (1 / rate) over '
         f"{config['span']:g} s: `buss` under error control at each tolerance (rad per "
@@ -90,8 +94,8 @@ def sweep_markdown(result, rows):
         f'{config["sample_interval"]:g} s, against the reference (the extended-precision '
         'Taylor solve for torque-free rotation, else rk4 at 128 substeps per tick; its '
         'uncertainty is listed per scene).  **steps/tick**: integrator steps per tick, the '
-        "estimates' extra steps included.  **CPU s/sim s**: `time.process_time` of one "
-        '`Simulator.run` over the span (tick by tick for `driven`, whose pushed wrench '
+        "estimates' extra steps included.  **CPU s/sim s**: CPU time (`time.thread_time`) of "
+        'one `Simulator.run` over the span (tick by tick for `driven`, whose pushed wrench '
         f'changes every tick), median of {config["repeats"]}.',
         '',
         '## The goal: error control costs at most 1.5x the best fixed step',
@@ -146,17 +150,13 @@ _STYLES = {'buss+control': ('tab:red', 'o', '-'), 'buss': ('tab:blue', 's', '--'
            'splitting': ('tab:green', '^', '--'), 'rk4': ('tab:purple', 'D', '--')}
 
 
-def _plot(result, path):
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
+def tolerance_figure(result):
+    """Return the tolerance sweep's figure (matplotlib): error against cost, per case."""
     cases = list(result['references'])
     columns = 4
     rows = math.ceil(len(cases) / columns)
-    figure, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 3.6 * rows),
-                                squeeze=False)
-    for index, case in enumerate(cases):
-        axis = axes[index // columns][index % columns]
+    figure, panels, _ = case_panels(len(cases), columns, (4.2, 3.6))
+    for index, (axis, case) in enumerate(zip(panels, cases)):
         for method, (colour, marker, line) in _STYLES.items():
             curve = _curve(result, case, method)
             if not curve:
@@ -179,14 +179,15 @@ def _plot(result, path):
             axis.set_ylabel('largest error over the span (rad)')
         if index // columns == rows - 1:
             axis.set_xlabel('CPU s per simulated s')
-    for index in range(len(cases), rows * columns):
-        axes[index // columns][index % columns].axis('off')
-    axes[0][0].legend(fontsize=7)
+    panels[0].legend(fontsize=7)
     figure.suptitle(f'Error control: error over {result["config"]["span"]:g} s against '
                     'CPU per simulated second', fontsize=11)
     figure.tight_layout()
-    figure.savefig(path, dpi=110)
-    plt.close(figure)
+    return figure
+
+
+def _plot(result, path):
+    save_figure(tolerance_figure(result), path, dpi=110)
 
 
 def write_sweep_outputs(result, directory):
@@ -201,10 +202,7 @@ def write_sweep_outputs(result, directory):
     with open(paths['tolerance_sweep.json'], 'w') as data:
         json.dump(_json_safe({**result, 'goal': rows}), data, indent=1)
         data.write('\n')
-    with open(paths['tolerance_sweep.csv'], 'w', newline='') as table:
-        writer = csv.DictWriter(table, fieldnames=list(result['records'][0]))
-        writer.writeheader()
-        writer.writerows(result['records'])
+    write_records_csv(result['records'], paths['tolerance_sweep.csv'])
     _plot(result, paths['tolerance_sweep.png'])
     return paths
 

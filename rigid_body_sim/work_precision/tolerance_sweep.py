@@ -12,9 +12,13 @@ For each case :func:`tolerance_sweep` runs
 and measures for each run: the orientation error (rad, rotation angle to the reference)
 at its largest over samples every :data:`SAMPLE_INTERVAL` s of the span; the integrator
 steps per tick (the estimates' extra steps included); the substeps' range; and the CPU time
-per simulated second (``time.process_time`` around one call that takes the whole span:
+per simulated second (:data:`.cells.CPU_CLOCK` around one call that takes the whole span:
 ``Simulator.run``, so the compiled kernel takes every tick; a forced case steps tick by
 tick, as the node does).
+
+The sweep is a :class:`.cells.Plan` (:func:`sweep_plan`): a reference per case, then a cell
+per (case, method), the method's runs in order (each decides whether the next is worth
+running), which any process can run; :func:`tolerance_sweep` runs it here.
 
 References (:func:`case_reference`):
 
@@ -31,12 +35,15 @@ Errors below the reference's uncertainty are not resolved (the report marks them
 """
 
 from dataclasses import dataclass
+import functools
 import math
 import statistics
-import time
 
 import numpy as np
 
+from .cells import CPU_CLOCK
+from .cells import Plan
+from .cells import run_in_process
 from .extended_reference import reference_quaternions
 from .reference import MEASUREMENT_FLOOR
 from .reference import rotation_angle
@@ -45,9 +52,10 @@ from ..scenes import load_scene
 from ..scenes import scene_names
 
 __all__ = ['SweepCase', 'scene_cases', 'case_reference', 'measure_case_run', 'advance',
-           'tolerance_sweep', 'sweep_units', 'is_torque_free', 'SAMPLE_INTERVAL',
-           'TOLERANCES', 'FIXED_SUBSTEPS', 'FIXED_METHODS', 'NATURAL_SPANS', 'SWEEP_SPAN',
-           'FINEST_ERROR', 'MOST_STEPS_PER_SECOND', 'case_reference_keys']
+           'measure_method_runs', 'reference_of', 'tolerance_sweep', 'sweep_plan',
+           'sweep_units', 'is_torque_free', 'SAMPLE_INTERVAL', 'TOLERANCES', 'FIXED_SUBSTEPS',
+           'FIXED_METHODS', 'NATURAL_SPANS', 'SWEEP_SPAN', 'FINEST_ERROR', 'MOST_STEPS_PER_SECOND',
+           'case_reference_keys']
 
 SAMPLE_INTERVAL = 0.5
 """Simulated time (s) between the samples at which the error is measured."""
@@ -61,8 +69,8 @@ FIXED_SUBSTEPS = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 3
 """Substeps per tick of the fixed-step runs (a dense grid: costs are interpolated on it)."""
 FIXED_METHODS = ('buss', 'splitting', 'rk4')
 REFERENCE_SUBSTEPS = 64
-# A method's sweep stops once its error is below this (rad): 10x under the finest level the
-# report compares (1e-8).
+# A method's sweep stops once its error is below this (rad): a decade under the finest level
+# the report compares (1e-8).
 FINEST_ERROR = 1e-9
 # Nor does it go on past this many integrator steps per simulated second of the span.
 MOST_STEPS_PER_SECOND = 5.0e5
@@ -238,9 +246,9 @@ def measure_case_run(case, reference, integrator, tolerance=None, substeps=1, re
     samples = []
     while len(samples) < repeats and not (samples and sum(samples) > TIMING_BUDGET):
         timed = case.simulator(integrator, tolerance, substeps)
-        started = time.process_time()
+        started = CPU_CLOCK()
         advance(timed, case, 0, case.ticks)
-        samples.append(time.process_time() - started)
+        samples.append(CPU_CLOCK() - started)
     cpu = statistics.median(samples) / case.span
     steps = figures['steps'] / figures['ticks'] if tolerance else float(substeps)
     return {
@@ -252,44 +260,93 @@ def measure_case_run(case, reference, integrator, tolerance=None, substeps=1, re
     }
 
 
+@functools.lru_cache(maxsize=None)
+def _sweep_case(name, span):
+    """Return the SweepCase of a built-in scene over `span` s, built once per process."""
+    return scene_cases([name], span)[0]
+
+
+def reference_of(name, span):
+    """Return :func:`case_reference` of a built-in scene's case over `span` s."""
+    return case_reference(_sweep_case(name, span))
+
+
+def measure_method_runs(name, span, integrator, runs, repeats, reference):
+    """
+    Measure one method's runs of a built-in scene over `span` s in order; return the records.
+
+    runs: (tolerance or None, substeps) each.  A fixed-step run past MOST_STEPS_PER_SECOND
+    is not run; the runs end after one whose error falls below FINEST_ERROR or whose steps
+    pass MOST_STEPS_PER_SECOND.  reference: the rotations of :func:`case_reference`.
+    """
+    case = _sweep_case(name, span)
+    records = []
+    for tolerance, substeps in runs:
+        if tolerance is None and substeps / case.tick > MOST_STEPS_PER_SECOND:
+            break
+        record = measure_case_run(case, reference, integrator, tolerance, substeps, repeats)
+        records.append(record)
+        if record['error'] < FINEST_ERROR or (
+                record['steps_per_tick'] / case.tick > MOST_STEPS_PER_SECOND):
+            break
+    return records
+
+
+def _rotations(reference):
+    return reference[0]
+
+
+def sweep_plan(cases, tolerances=TOLERANCES, fixed_methods=FIXED_METHODS,
+               fixed_substeps=FIXED_SUBSTEPS, repeats=3):
+    """
+    Return the sweep over `cases` as a Plan (its result: see :func:`tolerance_sweep`).
+
+    The cases are built-in scenes (:func:`scene_cases`): a cell names its scene and span, and
+    the process that runs it builds the case again (a Scene does not travel pickled).
+    """
+    plan = None
+
+    def assemble(references, values):
+        found, records = {}, []
+        for case in cases:
+            _, uncertainty, origin = references[f'{plan.part}/{case.name}/reference']
+            found[case.name] = {'uncertainty': uncertainty, 'origin': origin,
+                                'span': case.span, 'tick': case.tick}
+            for name in order[case.name]:
+                records.extend(values[name])
+        return {'references': found, 'records': records}
+
+    plan = Plan('tolerance_sweep', assemble)
+    order = {}
+    methods = [('buss', [(tolerance, 1) for tolerance in tolerances])] + [
+        (method, [(None, substeps) for substeps in fixed_substeps]) for method in fixed_methods]
+    for case in cases:
+        reference = plan.add_reference(f'{case.name}/reference', reference_of,
+                                       (case.name, case.span), weight=math.inf)
+        order[case.name] = [
+            plan.add_cell(f'{case.name}/{integrator}{"+control" if runs[0][0] else ""}',
+                          measure_method_runs, (case.name, case.span, integrator, runs, repeats),
+                          reference,
+                          _rotations, weight=case.ticks * len(runs))
+            for integrator, runs in methods if runs]
+    return plan
+
+
 def tolerance_sweep(cases, tolerances=TOLERANCES, fixed_methods=FIXED_METHODS,
                     fixed_substeps=FIXED_SUBSTEPS, repeats=3, progress=None):
     """
-    Run the sweep over `cases`; return {'references': {...}, 'records': [...]}.
+    Run the sweep over `cases` here; return {'references': {...}, 'records': [...]}.
 
     Error-controlled ``buss`` at each tolerance, and each of `fixed_methods` at each count
     of `fixed_substeps`, each in order until a run's error falls below FINEST_ERROR or its
-    steps pass MOST_STEPS_PER_SECOND of simulated time.  `progress(label)` is called after
-    each case's reference and each run.
+    steps pass MOST_STEPS_PER_SECOND of simulated time (:func:`measure_method_runs`).
+    `progress(label)` is called after each case's reference and each method's runs.
     """
-    references, records = {}, []
-    for case in cases:
-        rotations, uncertainty, origin = case_reference(case)
-        references[case.name] = {'uncertainty': uncertainty, 'origin': origin,
-                                 'span': case.span, 'tick': case.tick}
-        if progress is not None:
-            progress(f'{case.name}: reference')
-        runs = [('buss', tolerance, 1) for tolerance in tolerances] + [
-            (method, None, substeps) for method in fixed_methods for substeps in fixed_substeps]
-        stopped = set()
-        for integrator, tolerance, substeps in runs:
-            method = integrator + ('+control' if tolerance else '')
-            if method in stopped or (tolerance is None and
-                                     substeps / case.tick > MOST_STEPS_PER_SECOND):
-                stopped.add(method)
-                continue
-            record = measure_case_run(case, rotations, integrator, tolerance, substeps, repeats)
-            records.append(record)
-            if progress is not None:
-                progress(f'{case.name}: {method} '
-                         + (f'tol {tolerance:g}' if tolerance else f'x{substeps}'))
-            if record['error'] < FINEST_ERROR or (
-                    record['steps_per_tick'] / case.tick > MOST_STEPS_PER_SECOND):
-                stopped.add(method)
-    return {'references': references, 'records': records}
+    return run_in_process(sweep_plan(cases, tolerances, fixed_methods, fixed_substeps,
+                                     repeats), progress)
 
 
 def sweep_units(cases, tolerances=TOLERANCES, fixed_methods=FIXED_METHODS,
                 fixed_substeps=FIXED_SUBSTEPS):
-    """Return an upper bound of the progress units tolerance_sweep reports."""
-    return len(cases) * (1 + len(tolerances) + len(fixed_methods) * len(fixed_substeps))
+    """Return the progress units tolerance_sweep reports (a reference, then each method)."""
+    return sweep_plan(cases, tolerances, fixed_methods, fixed_substeps).units

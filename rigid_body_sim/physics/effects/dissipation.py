@@ -26,6 +26,8 @@ gyroscopic one, |eps m x (m x Omega)| / |m x Omega| = damping; 0.01 to 0.1 gives
 migration over tens to hundreds of spin periods.
 """
 
+from __future__ import annotations
+
 import math
 
 import numpy as np
@@ -34,13 +36,16 @@ from .registry import check_number
 from .registry import Effect
 from .registry import ParameterError
 from .registry import register_effect
+from ..body import RigidBody
 from ..kernels.algebra import cross
 from ..kernels.algebra import exp_map
 from ..kernels.algebra import quaternion_product
 from ..kernels.algebra import rotate_back
 from ..kernels.layout import inverse_inertia_times
+from ..kernels.model import Array
 from ..kernels.model import flow_function
 from ..rotations import cross as cross_product
+from ..state import State
 
 
 MAX_DAMPING = 1.0e6
@@ -48,7 +53,7 @@ MAX_DAMPING = 1.0e6
 
 
 @flow_function
-def relax(state, parameters, duration):
+def relax(state: Array, parameters: Array, duration: float) -> None:
     """
     Turn the packed state's orientation by `duration` s of the dissipation flow, in place.
 
@@ -57,7 +62,8 @@ def relax(state, parameters, duration):
     dm/dt = m x u as R turns.  Explicit midpoint, second order: the midpoint's m is predicted
     by m + (h/2) m x u(m), and R <- R exp(h u(m_half)) turns on SO(3) exactly (R stays a
     rotation to round-off, L is not touched).  One turn per flow: the flow costs about what a
-    Buss step does (two turns, the midpoint's as a rotation too, cost 1.4x as much).
+    Buss step does (two turns, the midpoint's as a rotation too, would cost more for nothing
+    the order needs).
     """
     lx, ly, lz = state[10], state[11], state[12]
     momentum_norm = math.sqrt(lx * lx + ly * ly + lz * lz)
@@ -102,7 +108,7 @@ class Dissipation(Effect):
     units = {'damping': '1 (dimensionless)'}
     example = {'damping': 0.1}
 
-    def __init__(self, damping):
+    def __init__(self, damping: float) -> None:
         self.damping = check_number(damping, 'damping', positive=True)
         # Above 1 the body already relaxes within a turn; the flow stays finite up to 1e6
         # and beyond (measured on flat_spin), but products with it overflow near 1e308: far from
@@ -111,11 +117,11 @@ class Dissipation(Effect):
             raise ParameterError('damping', f'must be at most {MAX_DAMPING:g} (a ratio of '
                                             f'turning rates), got {self.damping:g}')
 
-    def flow_parameters(self, body):
+    def flow_parameters(self, body: RigidBody) -> Array:
         """Return the damping and I_b^-1 (row-major) of the integrated body."""
         return np.concatenate([[self.damping], body.inertia_inverse.reshape(9)])
 
-    def energy_rate(self, body, state):
+    def energy_rate(self, body: RigidBody, state: State) -> float:
         """Return dE/dt = -eps |m x Omega|^2 in W (<= 0) of the dissipation law."""
         momentum_norm = math.sqrt(state.angular_momentum @ state.angular_momentum)
         if momentum_norm == 0.0:

@@ -1,5 +1,7 @@
 """drag: linear and quadratic resistance of the surrounding fluid, on translation and rotation."""
 
+from __future__ import annotations
+
 import math
 
 import numpy as np
@@ -7,9 +9,12 @@ import numpy as np
 from .registry import check_number
 from .registry import Effect
 from .registry import register_effect
+from ..body import RigidBody
 from ..kernels.algebra import rotate
 from ..kernels.algebra import rotate_back
 from ..kernels.layout import inverse_inertia_times
+from ..kernels.model import Array
+from ..kernels.model import Wrench
 from ..kernels.model import wrench_term
 
 
@@ -19,7 +24,7 @@ MAX_COEFFICIENT = 1.0e6
 
 
 @wrench_term
-def fluid_resistance(state, time, parameters):
+def fluid_resistance(state: Array, time: float, parameters: Array) -> Wrench:
     """
     Return the drag force (N) and torque (N m), world frame, of a packed physical state.
 
@@ -77,8 +82,8 @@ class Drag(Effect):
     example = {'linear': 0.2, 'quadratic': 0.05, 'rotational_linear': 0.01,
                'rotational_quadratic': 0.002}
 
-    def __init__(self, linear=0.0, quadratic=0.0, rotational_linear=0.0,
-                 rotational_quadratic=0.0):
+    def __init__(self, linear: float = 0.0, quadratic: float = 0.0,
+                 rotational_linear: float = 0.0, rotational_quadratic: float = 0.0) -> None:
         self.linear = check_number(linear, 'linear', 'N s/m', minimum=0.0,
                                    maximum=MAX_COEFFICIENT)
         self.quadratic = check_number(quadratic, 'quadratic', 'N s^2/m^2', minimum=0.0,
@@ -93,7 +98,7 @@ class Drag(Effect):
         if not (translational or self.exerts_torque):
             raise ValueError('drag: every coefficient is zero; give one, or drop the effect')
 
-    def damping_rate(self, body):
+    def damping_rate(self, body: RigidBody) -> tuple[float, str]:
         """
         Return (the fastest linear decay rate in 1/s, what it is) on `body`.
 
@@ -108,7 +113,7 @@ class Drag(Effect):
                                 f'least moment {float(body.principal_moments[0]):.4g} kg m^2')
         return translational, f'linear {self.linear:g} N s/m over the mass {body.mass:.4g} kg'
 
-    def wrench_parameters(self, body):
+    def wrench_parameters(self, body: RigidBody) -> Array:
         """Return c1, c2, k1, k2, 1/m and I_b^-1 (row-major) of `body`."""
         return np.concatenate([[self.linear, self.quadratic, self.rotational_linear,
                                 self.rotational_quadratic, 1.0 / body.mass],

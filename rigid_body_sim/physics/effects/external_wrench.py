@@ -7,11 +7,15 @@ hold_wrench), so this effect computes nothing: it marks that a scene accepts out
 the input is clamped to before it is held.
 """
 
+from __future__ import annotations
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .registry import check_number
 from .registry import Effect
 from .registry import register_effect
+from ..kernels.model import Array
 
 
 @register_effect('external_wrench')
@@ -36,18 +40,18 @@ class ExternalWrench(Effect):
     units = {'max_force': 'N', 'max_torque': 'N m'}
     example = {'max_force': 10.0, 'max_torque': 1.0}
 
-    def __init__(self, max_force=None, max_torque=None):
+    def __init__(self, max_force: float | None = None, max_torque: float | None = None) -> None:
         self.max_force = None if max_force is None else check_number(
             max_force, 'max_force', 'N', positive=True, maximum=1e12)
         self.max_torque = None if max_torque is None else check_number(
             max_torque, 'max_torque', 'N m', positive=True, maximum=1e12)
 
-    def limit(self, force, torque):
+    def limit(self, force: ArrayLike, torque: ArrayLike) -> tuple[Array, Array]:
         """Return (force, torque) scaled down, direction kept, to the magnitude limits."""
         return _clamped(force, self.max_force), _clamped(torque, self.max_torque)
 
 
-def _clamped(vector, limit):
+def _clamped(vector: ArrayLike, limit: float | None) -> Array:
     vector = np.array(vector, dtype=float)
     if limit is None:
         return vector

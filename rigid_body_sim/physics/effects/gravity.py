@@ -1,9 +1,17 @@
 """gravity: a uniform gravitational field, a constant force m g through the COM."""
 
+from __future__ import annotations
+
+from numpy.typing import ArrayLike
+
 from .registry import check_vector
 from .registry import Effect
 from .registry import register_effect
+from ..body import RigidBody
+from ..kernels.model import Array
+from ..kernels.model import Wrench
 from ..kernels.model import wrench_term
+from ..state import State
 
 MAX_ACCELERATION = 1.0e6
 """The largest field accepted, m/s^2 (1e5 g: far beyond a planet's)."""
@@ -12,7 +20,7 @@ STANDARD_ACCELERATION = (0.0, 0.0, -9.81)
 
 
 @wrench_term
-def weight(state, time, parameters):
+def weight(state: Array, time: float, parameters: Array) -> Wrench:
     """Return (m g, 0): the weight acts at the COM, so it has no torque about it."""
     return parameters[0], parameters[1], parameters[2], 0.0, 0.0, 0.0
 
@@ -40,14 +48,14 @@ class Gravity(Effect):
     units = {'acceleration': 'm/s^2, world frame'}
     example = {}
 
-    def __init__(self, acceleration=STANDARD_ACCELERATION):
+    def __init__(self, acceleration: ArrayLike = STANDARD_ACCELERATION) -> None:
         self.acceleration = check_vector(acceleration, 'acceleration', 'm/s^2',
                                          largest=MAX_ACCELERATION)
 
-    def wrench_parameters(self, body):
+    def wrench_parameters(self, body: RigidBody) -> Array:
         """Return the weight m g in N (world frame)."""
         return body.mass * self.acceleration
 
-    def potential_energy(self, body, state):
+    def potential_energy(self, body: RigidBody, state: State) -> float:
         """Return -m g . x_com in J (m g z for the default field), zero at the origin."""
         return -body.mass * float(self.acceleration @ state.position)

@@ -24,7 +24,10 @@ In the kernels (kernels/model.py) the pivot is a constraint of two compiled func
 tau + r x F).
 """
 
+from __future__ import annotations
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .registry import check_vector
 from .registry import Effect
@@ -33,8 +36,10 @@ from ..body import RigidBody
 from ..kernels.algebra import cross
 from ..kernels.algebra import rotate
 from ..kernels.layout import inverse_inertia_times
+from ..kernels.model import Array
 from ..kernels.model import expand_function
 from ..kernels.model import transmit_function
+from ..kernels.model import Wrench
 from ..rotations import cross as cross_product
 from ..state import State
 
@@ -44,7 +49,7 @@ MAX_DISTANCE = 1.0e6
 
 
 @expand_function
-def expand(integrated, parameters, physical):
+def expand(integrated: Array, parameters: Array, physical: Array) -> None:
     """
     Write the physical state of a packed pivot-system state into `physical` (SI, world).
 
@@ -71,7 +76,7 @@ def expand(integrated, parameters, physical):
 
 
 @transmit_function
-def transmit(state, wrench, parameters):
+def transmit(state: Array, wrench: Wrench, parameters: Array) -> Wrench:
     """
     Return the wrench about the pivot of one at the COM: (0, tau + r x F), r = R d (world).
 
@@ -105,15 +110,15 @@ class Pivot(Effect):
     units = {'point': 'm from the COM, body frame', 'anchor': 'm, world frame'}
     example = {'point': [0.02, -0.01, -0.05], 'anchor': [0.0, 0.0, 1.0]}
 
-    def __init__(self, point, anchor=(0.0, 0.0, 0.0)):
+    def __init__(self, point: ArrayLike, anchor: ArrayLike = (0.0, 0.0, 0.0)) -> None:
         self.point = check_vector(point, 'point', 'm', largest=MAX_DISTANCE)
         self.anchor = check_vector(anchor, 'anchor', 'm', largest=MAX_DISTANCE)
 
-    def constrain(self, body):
+    def constrain(self, body: RigidBody) -> PivotConstraint:
         """Return the :class:`PivotConstraint` of this pivot on `body`."""
         return PivotConstraint(body, self.point, self.anchor)
 
-    def angular_momentum_about_pivot(self, body, state):
+    def angular_momentum_about_pivot(self, body: RigidBody, state: State) -> Array:
         """Return L_pivot = L_com + r x p in kg m^2/s, world frame (r = R d)."""
         return self.constrain(body).angular_momentum_about_pivot(state)
 
@@ -133,7 +138,7 @@ class PivotConstraint:
 
     """
 
-    def __init__(self, body, point, anchor):
+    def __init__(self, body: RigidBody, point: ArrayLike, anchor: ArrayLike) -> None:
         d = -np.array(point, dtype=float)
         # Parallel-axis theorem: the inertia about the pivot, body frame.
         inertia = body.inertia + body.mass * ((d @ d) * np.eye(3) - np.outer(d, d))
@@ -149,7 +154,7 @@ class PivotConstraint:
         self.expand_function = expand
         self.transmit_function = transmit
 
-    def project(self, state):
+    def project(self, state: State) -> State:
         """
         Return `state` moved onto the constraint: R and omega kept, x and p derived.
 
@@ -161,7 +166,7 @@ class PivotConstraint:
                                   self._mass * cross_product(omega, r),
                                   np.array(state.angular_momentum))
 
-    def reduce(self, state):
+    def reduce(self, state: State) -> State:
         """
         Return the pivot-system state of a physical state on the constraint.
 
@@ -170,17 +175,17 @@ class PivotConstraint:
         return State._from_arrays(np.array(state.quaternion), self.anchor.copy(), np.zeros(3),
                                   self.angular_momentum_about_pivot(state))
 
-    def expand(self, pivot_state):
+    def expand(self, pivot_state: State) -> State:
         """Return the physical state (COM position and momenta) of a pivot-system state."""
         return State._from_values(self.expand_values(np.concatenate(pivot_state._fields())))
 
-    def expand_values(self, pivot_values):
+    def expand_values(self, pivot_values: Array) -> Array:
         """Return the physical state of a packed pivot-system state, packed (compiled)."""
         physical = np.empty(13)
         expand(pivot_values, self.parameters, physical)
         return physical
 
-    def angular_momentum_about_pivot(self, state):
+    def angular_momentum_about_pivot(self, state: State) -> Array:
         """Return L_pivot = L_com + r x p of a physical state, kg m^2/s, world frame."""
         r = state.rotation @ self.offset_body
         return state.angular_momentum + cross_product(r, state.linear_momentum)

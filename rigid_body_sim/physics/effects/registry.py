@@ -50,12 +50,21 @@ outside the package is a plugin (:mod:`.plugins`): :data:`EFFECTS` finds a name 
 hold among the installed plugins' entry points when it is first asked for it.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable
+from collections.abc import Iterator
+from collections.abc import Mapping
 from collections.abc import MutableMapping
 import inspect
 import math
+from typing import Any
+from typing import TypeVar
 
 import numpy as np
+from numpy.typing import NDArray
 
+from ..body import RigidBody
 from ..state import State
 
 __all__ = [
@@ -73,7 +82,7 @@ __all__ = [
 ]
 
 
-class EffectRegistry(MutableMapping):
+class EffectRegistry(MutableMapping[str, 'type[Effect]']):
     """
     Effect name -> effect class: the built-in effects and the plugins found so far.
 
@@ -83,19 +92,19 @@ class EffectRegistry(MutableMapping):
     only the plugin of that name, and importing the package loads none.
     """
 
-    def __init__(self):
-        self._classes = {}
-        self._discover = None
+    def __init__(self) -> None:
+        self._classes: dict[str, type[Effect]] = {}
+        self._discover: Callable[[str | None], None] | None = None
         self._discovered_all = False
         self._discovering = False
-        self.problems = {}
+        self.problems: dict[str, str] = {}
         """Effect name -> the one line saying why the plugin that declares it did not load."""
 
-    def set_discover(self, discover):
+    def set_discover(self, discover: Callable[[str | None], None]) -> None:
         """Set ``discover(name)``: load the plugins of effect `name` (None: every plugin)."""
         self._discover = discover
 
-    def _find(self, name):
+    def _find(self, name: str | None) -> None:
         if self._discover is None or self._discovering or self._discovered_all:
             return
         self._discovering = True
@@ -106,39 +115,39 @@ class EffectRegistry(MutableMapping):
         finally:
             self._discovering = False
 
-    def __getitem__(self, name):
+    def __getitem__(self, name: str) -> type[Effect]:
         """Return the class of effect `name`, discovering its plugin if needed."""
         if name not in self._classes and isinstance(name, str):
             self._find(name)
         return self._classes[name]
 
-    def __setitem__(self, name, cls):
+    def __setitem__(self, name: str, cls: type[Effect]) -> None:
         """Register `cls` as effect `name` (register_effect checks for a name given twice)."""
         self._classes[name] = cls
 
-    def __delitem__(self, name):
+    def __delitem__(self, name: str) -> None:
         """Forget effect `name` (a test's effect, a plugin found broken)."""
         del self._classes[name]
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[str]:
         """Iterate over the names, every plugin discovered first."""
         self._find(None)
         return iter(list(self._classes))
 
-    def __len__(self):
+    def __len__(self) -> int:
         """Return how many effects there are, every plugin discovered first."""
         self._find(None)
         return len(self._classes)
 
-    def registered(self, name):
+    def registered(self, name: str) -> bool:
         """Return whether `name` is registered already (no discovery)."""
         return name in self._classes
 
-    def registered_names(self):
+    def registered_names(self) -> list[str]:
         """Return the names registered so far (no discovery)."""
         return list(self._classes)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         """Return the registered names (without discovering)."""
         return f'EffectRegistry({sorted(self._classes)})'
 
@@ -150,15 +159,19 @@ EFFECTS = EffectRegistry()
 class ParameterError(ValueError):
     """A bad effect parameter: `key` names the parameter, `problem` says what is wrong."""
 
-    def __init__(self, key, problem):
+    def __init__(self, key: str, problem: str) -> None:
         super().__init__(f'{key}: {problem}')
         self.key = key
         self.problem = problem
 
 
-def register_effect(name):
+# An effect class, given back by the decorator that registers it.
+_Effect = TypeVar('_Effect', bound='Effect')
+
+
+def register_effect(name: str) -> Callable[[type[_Effect]], type[_Effect]]:
     """Register the decorated effect class under `name`; it gains ``effect_name``."""
-    def decorate(cls):
+    def decorate(cls: type[_Effect]) -> type[_Effect]:
         if EFFECTS.registered(name):
             raise ValueError(f'effect {name!r} is registered twice')
         cls.effect_name = name
@@ -167,7 +180,7 @@ def register_effect(name):
     return decorate
 
 
-def effect_parameters(name):
+def effect_parameters(name: str) -> dict[str, Any]:
     """
     Return {parameter: default} of the effect `name`; a required one has no default.
 
@@ -177,7 +190,7 @@ def effect_parameters(name):
     return {key: parameter.default for key, parameter in signature.parameters.items()}
 
 
-def create_effect(name, parameters=None):
+def create_effect(name: str, parameters: Mapping[str, Any] | None = None) -> Effect:
     """
     Return the effect `name` built from a mapping of its parameters.
 
@@ -202,14 +215,14 @@ def create_effect(name, parameters=None):
     return cls(**parameters)
 
 
-def _effect_class(name):
+def _effect_class(name: str) -> type[Effect]:
     try:
         return EFFECTS[name]
     except (KeyError, TypeError):
         raise ValueError(unknown_effect(name)) from None
 
 
-def unknown_effect(name):
+def unknown_effect(name: object) -> str:
     """Return the message for an unknown effect: the valid names, or why its plugin failed."""
     valid = ', '.join(sorted(EFFECTS))
     problem = EFFECTS.problems.get(name) if isinstance(name, str) else None
@@ -228,41 +241,51 @@ class Effect:
     repr shows the parameters in force.
     """
 
-    effect_name = None
+    effect_name: str | None = None
     momentum_dependent = False
     reads_state = False
     exerts_torque = True
     accepts_external_wrench = False
-    compiled_wrench = None
-    compiled_flow = None
-    example = None
-    units = {}
-    conserves = ()
+    compiled_wrench: Callable[..., Any] | None = None
+    compiled_flow: Callable[..., Any] | None = None
+    example: dict[str, Any] | None = None
+    units: dict[str, str] = {}
+    conserves: tuple[str, ...] = ()
     keeps_pivot_invariants = False
+    # Optional members, absent unless an effect defines them (read with getattr): declared
+    # here for their types only.
+    constrain: Callable[[RigidBody], Any]
+    damping_rate: Callable[[RigidBody], tuple[float, str]]
+    potential_energy: Callable[[RigidBody, State], float]
 
-    def wrench_parameters(self, body):
+    def wrench_parameters(self, body: RigidBody) -> NDArray[np.float64]:
         """Return the parameters (1-D float array) of the compiled wrench on `body`."""
         raise NotImplementedError
 
-    def flow_parameters(self, body):
+    def flow_parameters(self, body: RigidBody) -> NDArray[np.float64]:
         """Return the parameters (1-D float array) of the compiled flow on `body`."""
         raise NotImplementedError
 
-    def wrench(self, body, state, time):
+    def wrench(self, body: RigidBody, state: State,
+               time: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Return (force N, torque N m) about the COM, world frame, at `state` and `time` s."""
+        if self.compiled_wrench is None:
+            raise NotImplementedError
         values = np.concatenate(state._fields())
         result = self.compiled_wrench(values, float(time), np.ascontiguousarray(
             self.wrench_parameters(body), dtype=float))
         return np.array(result[:3]), np.array(result[3:])
 
-    def flow(self, body, state, dt):
+    def flow(self, body: RigidBody, state: State, dt: float) -> State:
         """Return the state after dt s of this effect's flow alone."""
+        if self.compiled_flow is None:
+            raise NotImplementedError
         values = np.concatenate(state._fields())
         self.compiled_flow(values, np.ascontiguousarray(self.flow_parameters(body),
                                                         dtype=float), float(dt))
         return State._from_values(values)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         """Return ``Name(parameter=value, ...)`` with the parameters in force."""
         signature = inspect.signature(type(self))
         parts = []
@@ -276,7 +299,7 @@ class Effect:
 
 # -- parameter checks (the loader's messages come from here, prefixed with the key path)
 
-def describe_value(value):
+def describe_value(value: object) -> str:
     """Return how a (YAML) value reads in a message: "the string '0.3'", "a list of 2"."""
     if isinstance(value, str):
         return f'the string {value!r}'
@@ -291,13 +314,14 @@ def describe_value(value):
     return f'{type(value).__name__} {value!r}'
 
 
-def _is_number(value):
+def _is_number(value: object) -> bool:
     # bool is an int in Python, but `true` in a scene file is never meant as 1.
     return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
         value, (bool, np.bool_))
 
 
-def check_number(value, key, unit='', minimum=None, positive=False, maximum=None):
+def check_number(value: Any, key: str, unit: str = '', minimum: float | None = None,
+                 positive: bool = False, maximum: float | None = None) -> float:
     """
     Return `value` as a finite float, else raise ParameterError naming `key`.
 
@@ -319,7 +343,8 @@ def check_number(value, key, unit='', minimum=None, positive=False, maximum=None
     return number
 
 
-def check_vector(value, key, unit='', size=3, largest=None):
+def check_vector(value: object, key: str, unit: str = '', size: int = 3,
+                 largest: float | None = None) -> NDArray[np.float64]:
     """
     Return `value` as a float array of `size` finite numbers, else raise ParameterError.
 
@@ -350,5 +375,5 @@ def check_vector(value, key, unit='', size=3, largest=None):
     return array
 
 
-def _unit(unit):
+def _unit(unit: str) -> str:
     return f' in {unit}' if unit else ''

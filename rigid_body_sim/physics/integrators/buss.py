@@ -18,6 +18,10 @@ The step forms the paper's world-frame turn from body-frame vectors and applies 
 right (exp(h [w]x) R = R exp(h [R^T w]x)), never building I_w = R I_b R^T.
 """
 
+from __future__ import annotations
+
+from typing import Any
+
 from .registry import KICK_STAGE
 from .registry import register_integrator
 from ..kernels import inline
@@ -28,21 +32,25 @@ from ..kernels.layout import angular_momentum_of
 from ..kernels.layout import BODY_MASS
 from ..kernels.layout import inverse_inertia_times
 from ..kernels.layout import quaternion_of
+from ..kernels.loop import MethodConstants
 from ..kernels.loop import run_kernel
 from ..kernels.loop import run_steps
+from ..kernels.model import Array
 from ..kernels.model import kick
+from ..kernels.model import Model
 from ..kernels.model import NO_ESTIMATE
 
 __all__ = ['buss', 'buss_plain']
 
 
 @inline
-def step(state, forcing, method, dt, time, pushed, translates):
+def step(state: Array, forcing: Any, method: MethodConstants, dt: float, time: float,
+         pushed: bool, translates: bool) -> None:
     """
     Take Buss's step on a packed state in place (method[0]: 1 augmented, 0 plain).
 
-    Scalars and tuples only between the kicks: numba keeps them in registers (0.05 us per
-    torque-free step: benchmarks/step_cost.py).
+    Scalars and tuples only between the kicks: numba keeps them in registers (the cost per
+    step: benchmarks/step_cost.py).
     """
     half = 0.5 * dt
     estimate = NO_ESTIMATE
@@ -69,7 +77,8 @@ def step(state, forcing, method, dt, time, pushed, translates):
 
 
 @run_kernel(compile_seconds=10.0)
-def run(state, model, method, dt, steps, time):
+def run(state: Array, model: Model, method: MethodConstants, dt: float, steps: int,
+        time: float) -> int:
     """Take `steps` Buss steps of dt s from `time` (kernels/loop.py)."""
     return run_steps(step, state, model, method, dt, steps, time)
 

@@ -70,29 +70,29 @@ normalised to first order in |q|^2 - 1 and turned about the body axis m x omega 
 that gives it the kinetic energy of q(0) exactly (the flow conserves it).  An exact version
 of this rounding (integers over a power of two: every double is a dyadic rational) is the
 test suite's oracle (test/exact_rounding_reference.py): the same bits but in the rarest
-ties.  That turn removes round-off, ~0.01-4 ulp; it is skipped above 16 ulp (not round-off:
+ties.  That turn removes round-off, a few ulp; it is skipped above 16 ulp (not round-off:
 a long step's error, or an energy rounded into k'^2 next to the unstable axis, where
 m x omega -> 0).  So a short step rounds the state once, like an ideal stepper that
 evaluates the exact flow in extended precision and stores (q, L) in double, and the energy
 error is that rounding's random walk, not a drift.  What remains above that ideal: the
 constants of the motion (nu, k^2, A, B, C) are rounded each step from the rounded state, the
-same way each step, a phase bias of ~0.04 ulp of L per step at dt = 0.01 s on van Zon &
-Schofield's body.
+same way each step: a small phase bias of L per step.
 
-Measured against an independent 30-digit Taylor integration (test/taylor_reference.py) at
-10 s, median over eight starts 1 ulp apart (benchmarks/exact_roundoff_floor.py, which also
-runs that ideal stepper, the floor): van Zon & Schofield's body 2.0e-13 / 2.4e-12 / 9.1e-12
-rad at dt = 0.1 / 0.01 / 0.001 s, floor 3.0e-13 / 2.3e-12 / 6.5e-12 (before this
-construction: 7.1e-12 / 4.3e-11 / 4.0e-10); the T-handle 1.5e-14 / 1.1e-14 / 2.2e-14, floor
-4e-16 / 2e-15 / 1.2e-14 (its start spins about a world axis, whose rounding turns it about L
-alone: a floor no computed step reaches).
+Measured against an independent 30-digit Taylor integration (test/taylor_reference.py),
+over eight starts 1 ulp apart, the error stays close to that ideal stepper's, the floor
+(benchmarks/exact_roundoff_floor.py runs both; the figures, and those of the construction
+before this one, are in docs/physics_api.md): on the T-handle above it, as its start spins
+about a world axis, whose rounding turns it about L alone, a floor no computed step reaches.
 
 Everything is world frame except m (principal or circulation frame); SI units.  One
 construction, compiled (scalars): :func:`free_rotation`, composed with the kicks by
 :func:`step`.
 """
 
+from __future__ import annotations
+
 import math
+from typing import Any
 
 from .registry import KICK_STAGE
 from .registry import register_integrator
@@ -104,15 +104,20 @@ from ..kernels import inline
 from ..kernels import outlined
 from ..kernels.algebra import cross
 from ..kernels.algebra import normalised
+from ..kernels.algebra import Quaternion
 from ..kernels.algebra import quaternion_product
 from ..kernels.algebra import rotate_back
+from ..kernels.algebra import Vector
 from ..kernels.layout import BODY_AXES
 from ..kernels.layout import BODY_KIND
 from ..kernels.layout import BODY_MASS
 from ..kernels.layout import BODY_MOMENTS
+from ..kernels.loop import MethodConstants
 from ..kernels.loop import run_kernel
 from ..kernels.loop import run_steps
+from ..kernels.model import Array
 from ..kernels.model import kick
+from ..kernels.model import Model
 from ..kernels.model import NO_ESTIMATE
 from ..principal_frame import ASYMMETRIC
 from ..principal_frame import OBLATE
@@ -127,13 +132,15 @@ _WELL_CONDITIONED = 0.25
 _LARGEST_CORRECTION = 16.0 * 2.0 ** -52
 # Dekker's splitting constant 2^27 + 1: a = hi + lo with 26-bit halves, so hi * hi is exact.
 _SPLITTER = 134217729.0
+DoubleDouble = tuple[float, float]
+"""The annotations' type of a double-double: (hi, lo), the value hi + lo."""
 
 
 # -- double-double arithmetic (a value is a pair hi + lo, |lo| <= ulp(hi)/2) -------------
 
 
 @helper
-def _two_sum(a, b):
+def _two_sum(a: float, b: float) -> DoubleDouble:
     """Return (s, e) with s = fl(a + b) and s + e = a + b exactly (Knuth)."""
     s = a + b
     v = s - a
@@ -141,14 +148,14 @@ def _two_sum(a, b):
 
 
 @helper
-def _fast_two_sum(a, b):
+def _fast_two_sum(a: float, b: float) -> DoubleDouble:
     """Return (s, e), s + e = a + b exactly, for |a| >= |b| (Dekker)."""
     s = a + b
     return s, b - (s - a)
 
 
 @helper
-def _two_product(a, b):
+def _two_product(a: float, b: float) -> DoubleDouble:
     """Return (p, e) with p = fl(a b) and p + e = a b exactly (Dekker, Veltkamp split)."""
     p = a * b
     t = _SPLITTER * a
@@ -161,38 +168,40 @@ def _two_product(a, b):
 
 
 @helper
-def _dd_add(a, b):
+def _dd_add(a: DoubleDouble, b: DoubleDouble) -> DoubleDouble:
     s, e = _two_sum(a[0], b[0])
     return _fast_two_sum(s, e + (a[1] + b[1]))
 
 
 @helper
-def _dd_sub(a, b):
+def _dd_sub(a: DoubleDouble, b: DoubleDouble) -> DoubleDouble:
     return _dd_add(a, (-b[0], -b[1]))
 
 
 @helper
-def _dd_mul(a, b):
+def _dd_mul(a: DoubleDouble, b: DoubleDouble) -> DoubleDouble:
     p, e = _two_product(a[0], b[0])
     return _fast_two_sum(p, e + (a[0] * b[1] + a[1] * b[0]))
 
 
 @helper
-def _dd_scale(a, b):
+def _dd_scale(a: DoubleDouble, b: float) -> DoubleDouble:
     """Return a b for a double-double a and a double b."""
     p, e = _two_product(a[0], b)
     return _fast_two_sum(p, e + a[1] * b)
 
 
 @helper
-def _dd_div(a, b):
+def _dd_div(a: DoubleDouble, b: DoubleDouble) -> DoubleDouble:
     q1 = a[0] / b[0]
     r = _dd_sub(a, _dd_scale(b, q1))
     return _fast_two_sum(q1, (r[0] + r[1]) / b[0])
 
 
 @helper
-def _twice_energy(qx, qy, qz, qw, lx, ly, lz, axes, moments):
+def _twice_energy(qx: DoubleDouble, qy: DoubleDouble, qz: DoubleDouble, qw: DoubleDouble,
+                  lx: float, ly: float, lz: float, axes: Array,
+                  moments: Array) -> tuple[DoubleDouble, DoubleDouble]:
     """
     Return (2T, |q|^2) as double-doubles for the orientation q/|q|, q given as double-doubles.
 
@@ -228,14 +237,14 @@ def _twice_energy(qx, qy, qz, qw, lx, ly, lz, axes, moments):
 
 
 @helper
-def _half_turn_increment(ax, ay, az, angle):
+def _half_turn_increment(ax: float, ay: float, az: float, angle: float) -> Quaternion:
     quarter = math.sin(0.25 * angle)
     s = math.sin(0.5 * angle)
     return s * ax, s * ay, s * az, -2.0 * quarter * quarter
 
 
 @helper
-def _compose_increments(x, y):
+def _compose_increments(x: Quaternion, y: Quaternion) -> Quaternion:
     xx, xy, xz, xw = x
     yx, yy, yz, yw = y
     return (xx + yx + xw * yx + yw * xx + (xy * yz - xz * yy),
@@ -245,7 +254,8 @@ def _compose_increments(x, y):
 
 
 @helper
-def _symmetric_increment(mx, my, mz, momentum_norm, moments, axes, kind, duration):
+def _symmetric_increment(mx: float, my: float, mz: float, momentum_norm: float, moments: Array,
+                         axes: Array, kind: float, duration: float) -> Quaternion:
     if kind == PROLATE:
         column, axial, transverse = 2, moments[2], moments[0]
     elif kind == OBLATE:
@@ -260,12 +270,14 @@ def _symmetric_increment(mx, my, mz, momentum_norm, moments, axes, kind, duratio
 
 
 @helper
-def _third_kind_part(sn, cn, dn, b_over_a):
+def _third_kind_part(sn: float, cn: float, dn: float, b_over_a: float) -> float:
     return sn ** 3 * carlson_rj(cn * cn, dn * dn, 1.0, 1.0 + b_over_a * sn * sn)
 
 
 @helper
-def _increments_by_addition(s0, c0, d0, sh, ch, dh, parameter, b_over_a):
+def _increments_by_addition(s0: float, c0: float, d0: float, sh: float, ch: float, dh: float,
+                            parameter: float, b_over_a: float
+                            ) -> tuple[bool, float, float, float, float, float]:
     """
     Return (ok, dsn, dcn, ddn, dTheta, dP) over a step of h from u0, by addition theorems.
 
@@ -312,7 +324,9 @@ def _increments_by_addition(s0, c0, d0, sh, ch, dh, parameter, b_over_a):
 
 
 @helper
-def _increments_from_the_ends(s0, c0, d0, reduced, parameter, complement, b_over_a):
+def _increments_from_the_ends(s0: float, c0: float, d0: float, reduced: float,
+                              parameter: float, complement: float, b_over_a: float
+                              ) -> tuple[float, float, float, float, float]:
     """Return (dsn, dcn, ddn, dTheta, dP) from the values at both ends of the step (u0, u0 + h)."""
     u0 = s0 * carlson_rf(c0 * c0, d0 * d0, 1.0)
     end = u0 + reduced
@@ -335,7 +349,8 @@ def _increments_from_the_ends(s0, c0, d0, reduced, parameter, complement, b_over
 
 
 @helper
-def _turn_about_momentum_increment(nx, ny, nz, dx, dy, dz, angle):
+def _turn_about_momentum_increment(nx: float, ny: float, nz: float, dx: float, dy: float,
+                                   dz: float, angle: float) -> Quaternion:
     """Return D - 1 = R_n(angle) S(n + d -> n) - 1 as a quaternion increment (body frame)."""
     tx, ty, tz = dy * nz - dz * ny, dz * nx - dx * nz, dx * ny - dy * nx
     tilt_squared = tx * tx + ty * ty + tz * tz
@@ -347,7 +362,8 @@ def _turn_about_momentum_increment(nx, ny, nz, dx, dy, dz, angle):
 
 
 @helper
-def _pole_turn_increment(nx, ny, nz, dx, dy, dz, precession):
+def _pole_turn_increment(nx: float, ny: float, nz: float, dx: float, dy: float, dz: float,
+                         precession: float) -> Quaternion:
     lz = nz + 1.0
     start_squared = nx * nx + ny * ny + lz * lz
     start_length = math.sqrt(start_squared)
@@ -371,7 +387,8 @@ def _pole_turn_increment(nx, ny, nz, dx, dy, dz, precession):
 
 
 @helper
-def _asymmetric_increment(bx, by, bz, momentum_norm, moments, axes, duration):
+def _asymmetric_increment(bx: float, by: float, bz: float, momentum_norm: float,
+                          moments: Array, axes: Array, duration: float) -> Quaternion:
     # Principal coordinates: axes^T m_body.
     p1 = axes[0, 0] * bx + axes[1, 0] * by + axes[2, 0] * bz
     p2 = axes[0, 1] * bx + axes[1, 1] * by + axes[2, 1] * bz
@@ -452,7 +469,8 @@ def _asymmetric_increment(bx, by, bz, momentum_norm, moments, axes, duration):
 
 
 @helper
-def _to_body(vx, vy, vz, f1, f2, f3, column1, column2, column3, axes):
+def _to_body(vx: float, vy: float, vz: float, f1: float, f2: float, f3: float, column1: int,
+             column2: int, column3: int, axes: Array) -> Vector:
     """Return F v = sum_k f_k v_k axes[:, column_k] (circulation frame to body frame)."""
     ux, uy, uz = f1 * vx, f2 * vy, f3 * vz
     return (ux * axes[0, column1] + uy * axes[0, column2] + uz * axes[0, column3],
@@ -461,7 +479,8 @@ def _to_body(vx, vy, vz, f1, f2, f3, column1, column2, column3, axes):
 
 
 @helper
-def _rounded_step(q, increment, lx, ly, lz, moments, axes, kind):
+def _rounded_step(q: Quaternion, increment: Quaternion, lx: float, ly: float, lz: float,
+                  moments: Array, axes: Array, kind: float) -> Quaternion:
     """Round q + q (D - 1) once, normalised, with the energy of q (the module docstring)."""
     x, y, z, w = q
     vx, vy, vz, s = increment
@@ -499,7 +518,8 @@ def _rounded_step(q, increment, lx, ly, lz, moments, axes, kind):
 
 
 @outlined
-def free_rotation(q, lx, ly, lz, moments, axes, kind, duration):
+def free_rotation(q: Quaternion, lx: float, ly: float, lz: float, moments: Array, axes: Array,
+                  kind: float, duration: float) -> Quaternion:
     """
     Return the unit quaternion after `duration` s of torque-free rotation, exactly.
 
@@ -536,7 +556,8 @@ def free_rotation(q, lx, ly, lz, moments, axes, kind, duration):
 
 
 @inline
-def step(state, forcing, method, dt, time, pushed, translates):
+def step(state: Array, forcing: Any, method: MethodConstants, dt: float, time: float,
+         pushed: bool, translates: bool) -> None:
     """Take kick(dt/2), exact free flow(dt), kick(dt/2) on a packed state in place."""
     body = forcing.body
     mass = body[BODY_MASS]
@@ -563,7 +584,8 @@ def step(state, forcing, method, dt, time, pushed, translates):
 
 
 @run_kernel(compile_seconds=25.0)
-def run(state, model, method, dt, steps, time):
+def run(state: Array, model: Model, method: MethodConstants, dt: float, steps: int,
+        time: float) -> int:
     """Take `steps` exact steps of dt s from `time` (kernels/loop.py)."""
     return run_steps(step, state, model, method, dt, steps, time)
 

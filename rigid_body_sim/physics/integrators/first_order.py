@@ -12,6 +12,10 @@ exp(h [omega]x) R = R exp(h [Omega]x), Omega = R^T omega = I_b^{-1} R^T L, never
 I_w = R I_b R^T.
 """
 
+from __future__ import annotations
+
+from typing import Any
+
 from .registry import register_integrator
 from ..kernels import inline
 from ..kernels.algebra import rotate_back
@@ -20,15 +24,19 @@ from ..kernels.layout import angular_momentum_of
 from ..kernels.layout import BODY_MASS
 from ..kernels.layout import inverse_inertia_times
 from ..kernels.layout import quaternion_of
+from ..kernels.loop import MethodConstants
 from ..kernels.loop import run_kernel
 from ..kernels.loop import run_steps_specialised
+from ..kernels.model import Array
 from ..kernels.model import integrated_wrench
+from ..kernels.model import Model
 
 __all__ = ['first_order']
 
 
 @inline
-def step(state, forcing, method, dt, time, pushed, translates):
+def step(state: Array, forcing: Any, method: MethodConstants, dt: float, time: float,
+         pushed: bool, translates: bool) -> None:
     """Take the first-order step on a packed state in place (no method constants)."""
     mass = forcing.body[BODY_MASS]
     omega_body = inverse_inertia_times(
@@ -49,7 +57,8 @@ def step(state, forcing, method, dt, time, pushed, translates):
 
 
 @run_kernel(compile_seconds=3.5)
-def run(state, model, method, dt, steps, time):
+def run(state: Array, model: Model, method: MethodConstants, dt: float, steps: int,
+        time: float) -> int:
     """Take `steps` first-order steps of dt s from `time` (kernels/loop.py)."""
     return run_steps_specialised(step, state, model, method, dt, steps, time)
 

@@ -13,12 +13,18 @@ Adding an integrator: its module, calling :func:`register_integrator`, and its i
 ``integrators/__init__.py``.
 """
 
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import Any
+
+from ..kernels import LazyKernel
 from ..kernels.loop import method_constants
 
 __all__ = ['INTEGRATORS', 'Integrator', 'register_integrator', 'get_integrator',
            'CONSERVED_QUANTITIES', 'KICK_STAGE']
 
-INTEGRATORS = {}
+INTEGRATORS: dict[str, Integrator] = {}
 """Integrator name -> :class:`Integrator`, in the order of registration."""
 
 CONSERVED_QUANTITIES = ('angular_momentum', 'rotational_energy')
@@ -73,9 +79,11 @@ class Integrator:
 
     """
 
-    def __init__(self, name, order, run, method=(), summary='', kicks=(),
-                 wrench_samples=None, conserves=(), exact_torque_free=False,
-                 momentum_dependent_order=None):
+    def __init__(self, name: str, order: int, run: LazyKernel, method: Iterable[float] = (),
+                 summary: str = '', kicks: Iterable[float] = (),
+                 wrench_samples: Iterable[tuple[float, float]] | None = None,
+                 conserves: Iterable[str] = (), exact_torque_free: bool = False,
+                 momentum_dependent_order: int | None = None) -> None:
         unknown = set(conserves) - set(CONSERVED_QUANTITIES)
         if unknown:
             raise ValueError(f'integrator {name!r}: unknown conserved quantities {unknown}; '
@@ -103,26 +111,26 @@ class Integrator:
         self.method = method_constants(method)
 
     @property
-    def run(self):
+    def run(self) -> Any:
         """Get the compiled run kernel (compiled, or loaded from the cache, on first use)."""
         return self.run_kernel.dispatcher
 
     @property
-    def compile_job(self):
+    def compile_job(self) -> str:
         """Get the compile job of its run kernel: ``run-<the module that declares it>``."""
         return 'run-' + self.run_kernel.__module__.rsplit('.', 1)[-1]
 
     @property
-    def compile_seconds(self):
+    def compile_seconds(self) -> float | None:
         """Get the CPU seconds its run kernel takes to compile, as declared with it."""
         return self.run_kernel.compile_seconds
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         """Return ``Integrator('buss', order=2)``."""
         return f'Integrator({self.name!r}, order={self.order})'
 
 
-def _kick_samples(kicks):
+def _kick_samples(kicks: Iterable[float]) -> tuple[tuple[float, float], ...]:
     """Return the wrench samples of kick-drift-kick stages c_i: each kick at its stage's end."""
     samples, start = [], 0.0
     for c in kicks:
@@ -131,8 +139,11 @@ def _kick_samples(kicks):
     return tuple(samples)
 
 
-def register_integrator(name, order, run, method=(), summary='', kicks=(), wrench_samples=None,
-                        conserves=(), exact_torque_free=False, momentum_dependent_order=None):
+def register_integrator(name: str, order: int, run: LazyKernel, method: Iterable[float] = (),
+                        summary: str = '', kicks: Iterable[float] = (),
+                        wrench_samples: Iterable[tuple[float, float]] | None = None,
+                        conserves: Iterable[str] = (), exact_torque_free: bool = False,
+                        momentum_dependent_order: int | None = None) -> Integrator:
     """
     Register the method `name` (see :class:`Integrator` for the arguments) and return it.
 
@@ -148,7 +159,7 @@ def register_integrator(name, order, run, method=(), summary='', kicks=(), wrenc
     return integrator
 
 
-def get_integrator(name):
+def get_integrator(name: str) -> Integrator:
     """Return the :class:`Integrator` registered as `name`; ValueError lists the valid names."""
     try:
         return INTEGRATORS[name]

@@ -15,14 +15,18 @@ quaternion).  After the step q is normalised and the world angular momentum is L
 Why the body frame: in it the fast part of the motion, the spin, is only the linear
 kinematics of q, and Euler's equations carry the slow tumble of m.  The former formulation
 (world L and q, with omega = R I_b^{-1} R^T L recomputed at each stage) differentiated the
-rotation matrix inside the stages and was 10^2-10^5 x less accurate near the separatrix
-(T-handle, dt 0.01 s, 30 s: 1.7e-4 rad; tennis racket: 1.15 rad; MuJoCo's RK4 2.7e-9 and
-3.7e-5 rad).
+rotation matrix inside the stages and was orders of magnitude less accurate near the
+separatrix than this form and than MuJoCo's RK4 (docs/benchmark.md, "rk4 as users know it",
+has the figures: benchmarks/rk4_before_after.py).
 
 A baseline, not a geometric method: it conserves neither |q| (restored after each step)
 nor the energy, nor, torque-free, the world angular momentum (L = R m drifts at the
 method's order, ~h^4); it is fourth order.
 """
+
+from __future__ import annotations
+
+from typing import Any
 
 from .registry import register_integrator
 from ..kernels import helper
@@ -30,30 +34,36 @@ from ..kernels import inline
 from ..kernels.algebra import conjugate
 from ..kernels.algebra import cross
 from ..kernels.algebra import normalised
+from ..kernels.algebra import Quaternion
 from ..kernels.algebra import quaternion_product
 from ..kernels.algebra import rotate
 from ..kernels.algebra import rotate_back
 from ..kernels.algebra import rotate_unnormalised
+from ..kernels.algebra import Vector
 from ..kernels.layout import angular_momentum_of
 from ..kernels.layout import BODY_MASS
 from ..kernels.layout import inverse_inertia_times
 from ..kernels.layout import quaternion_of
+from ..kernels.loop import MethodConstants
 from ..kernels.loop import run_kernel
 from ..kernels.loop import run_steps_specialised
+from ..kernels.model import Array
 from ..kernels.model import integrated_wrench
+from ..kernels.model import Model
 
 __all__ = ['rk4', 'world_momentum_change']
 
 
 @helper
-def world_momentum_change(quaternion, quaternion_change, momentum_body, momentum_change):
+def world_momentum_change(quaternion: Quaternion, quaternion_change: Quaternion,
+                          momentum_body: Vector, momentum_change: Vector) -> Vector:
     """
     Return R0^T (L1 - L0) = R(d) m1 - m0 (body frame at the start), from increments alone.
 
     The step ends at L1 = R(q1) m1 with q1 = (q0 + dq) / |q0 + dq| and m1 = m0 + dm.  Formed
     as R(q1) m1 in double, L1 would carry the rounding of the round trip m0 = R0^T L0, ~1 ulp
-    of |L| per step; that random walk of L is amplified near the separatrix (T-handle,
-    dt 0.001 s: 1.2e-6 rad after 100 s, 70x MuJoCo's RK4).  Written as
+    of |L| per step; that random walk of L is amplified near the separatrix (on the T-handle
+    at small steps it left rk4 far behind MuJoCo's RK4 over 100 s).  Written as
     L1 = L0 + R0 (dm + (R(d) - 1) m1), d = q0^* q1 ~ (q0^* dq) + (0, 0, 0, 1), every term
     is an increment known to its relative precision, so L changes only by the step's own
     change (torque-free, ~h^5: below half an ulp, L then stays bit-identical).
@@ -73,19 +83,21 @@ def world_momentum_change(quaternion, quaternion_change, momentum_body, momentum
 
 
 @helper
-def _stage4(y, k, h):
+def _stage4(y: Quaternion, k: Quaternion, h: float) -> Quaternion:
     """Return the 4-tuple y + h k."""
     return (y[0] + h * k[0], y[1] + h * k[1], y[2] + h * k[2], y[3] + h * k[3])
 
 
 @helper
-def _stage3(y, k, h):
+def _stage3(y: Vector, k: Vector, h: float) -> Vector:
     """Return the 3-tuple y + h k."""
     return (y[0] + h * k[0], y[1] + h * k[1], y[2] + h * k[2])
 
 
 @inline
-def _derivatives(q, momentum_body, position, linear_momentum, time, forcing, pushed):
+def _derivatives(q: Quaternion, momentum_body: Vector, position: Vector,
+                 linear_momentum: Vector, time: float, forcing: Any,
+                 pushed: bool) -> tuple[Quaternion, Vector, Vector]:
     """
     Return (dq, dm, F) of the stage at the (unnormalised) stage quaternion q (a 4-tuple).
 
@@ -117,7 +129,8 @@ def _derivatives(q, momentum_body, position, linear_momentum, time, forcing, pus
 
 
 @inline
-def step(state, forcing, method, dt, time, pushed, translates):
+def step(state: Array, forcing: Any, method: MethodConstants, dt: float, time: float,
+         pushed: bool, translates: bool) -> None:
     """Take the classical RK4 step on a packed state in place (no method constants)."""
     mass = forcing.body[BODY_MASS]
     half, sixth = 0.5 * dt, dt / 6.0
@@ -158,7 +171,8 @@ def step(state, forcing, method, dt, time, pushed, translates):
 
 
 @run_kernel(compile_seconds=22.0)
-def run(state, model, method, dt, steps, time):
+def run(state: Array, model: Model, method: MethodConstants, dt: float, steps: int,
+        time: float) -> int:
     """Take `steps` RK4 steps of dt s from `time` (kernels/loop.py)."""
     return run_steps_specialised(step, state, model, method, dt, steps, time)
 

@@ -14,18 +14,17 @@ L and |L| exactly (to round-off), and, being symplectic, keeps the energy error 
 
 `splitting` is the Strang composition 1(h/2) 2(h/2) 3(h) 2(h/2) 1(h/2), axes numbered by
 ascending moment: the largest moment in the middle, the smallest outside.  Of the six
-orderings this one had the smallest orientation error on the benchmark bodies and on 30
-random bodies (median 1.0x the best ordering per case, worst 3x; the axis of middle moment
-outside is worst, median 3.2x, up to 27x).
+orderings this one had the smallest orientation error on the benchmark bodies and on random
+bodies (the axis of middle moment outside was the worst).
 
 `splitting4` is Suzuki's five-stage fractal composition (Phys. Lett. A 146:319, 1990):
 S(p h) S(p h) S((1 - 4p) h) S(p h) S(p h), p = 1 / (4 - 4^(1/3)), of the symmetric
 second-order step S.  Yoshida's three-stage triple jump costs 3 instead of 5 stages, but its
-large negative middle stage (-1.70 h) gives error constants ~50-100x larger at equal step,
-so at equal cost (equal number of stages) Suzuki's is still ~10x more accurate on each of
-the five benchmark bodies (measured 8-11x; tested).  Its base step puts the middle moment
-in the middle, 1(h/2) 3(h/2) 2(h) 3(h/2) 1(h/2): measured best for the composition (median
-1.0x, worst 5.6x; the `splitting` ordering: median 2.0x, worst 28x).
+large negative middle stage (-1.70 h) gives error constants far larger at equal step, so
+at equal cost (equal number of stages) Suzuki's is still the more accurate on each of the
+five benchmark bodies (test/test_splitting.py holds it to that).  Its base step puts the
+middle moment in the middle, 1(h/2) 3(h/2) 2(h) 3(h/2) 1(h/2): the ordering that was best for
+the composition (the `splitting` ordering was worse there).
 
 Wrenches enter as kicks: kick(h/2) free flow(h) kick(h/2), so `splitting` is second order
 with any wrench; `splitting4` composes that whole symmetric step and is fourth order for
@@ -37,7 +36,12 @@ cancels the stage's h^3 term (its coefficients' cubes sum to zero), not the h^4 
 One free flow (:func:`free_flow`), composed with the kicks by :func:`step`.
 """
 
+from __future__ import annotations
+
+from collections.abc import Iterable
+from collections.abc import Sequence
 import math
+from typing import Any
 
 from .registry import KICK_STAGE
 from .registry import register_integrator
@@ -46,14 +50,18 @@ from ..kernels import inline
 from ..kernels import outlined
 from ..kernels.algebra import conjugate
 from ..kernels.algebra import normalised
+from ..kernels.algebra import Quaternion
 from ..kernels.algebra import quaternion_product
 from ..kernels.algebra import rotate_back
 from ..kernels.layout import BODY_FRAME
 from ..kernels.layout import BODY_MASS
 from ..kernels.layout import BODY_MOMENTS
+from ..kernels.loop import MethodConstants
 from ..kernels.loop import run_kernel
 from ..kernels.loop import run_steps_specialised
+from ..kernels.model import Array
 from ..kernels.model import impulse
+from ..kernels.model import Model
 from ..kernels.model import NO_ESTIMATE
 
 __all__ = ['STRANG_AXES', 'SUZUKI_AXES', 'SUZUKI_COEFFICIENTS', 'free_flow', 'splitting',
@@ -70,7 +78,8 @@ _METHOD_SIZE = 10
 
 
 @outlined
-def free_flow(q, lx, ly, lz, moments, frame, axes, dt):
+def free_flow(q: Quaternion, lx: float, ly: float, lz: float, moments: Array,
+              frame: Quaternion, axes: MethodConstants, dt: float) -> Quaternion:
     """
     Return q after the torque-free Strang step of dt s (world L unchanged), as a 4-tuple.
 
@@ -118,7 +127,7 @@ def free_flow(q, lx, ly, lz, moments, frame, axes, dt):
 
 
 @helper
-def _compensated_add(total, addend, compensation):
+def _compensated_add(total: float, addend: float, compensation: float) -> tuple[float, float]:
     """Return (total + addend, new compensation): one step of Kahan summation."""
     corrected = addend - compensation
     result = total + corrected
@@ -126,7 +135,8 @@ def _compensated_add(total, addend, compensation):
 
 
 @inline
-def step(state, forcing, method, dt, time, pushed, translates):
+def step(state: Array, forcing: Any, method: MethodConstants, dt: float, time: float,
+         pushed: bool, translates: bool) -> None:
     """
     Take the splitting step on a packed state in place.
 
@@ -138,8 +148,8 @@ def step(state, forcing, method, dt, time, pushed, translates):
     displacement are summed apart, small, and each added to its momentum or position once
     per step, with Kahan's compensation carried across the steps of a run (forcing.carry).
     Added stage by stage, each add rounded at |p| or |x| and a held force made the COM
-    drift in proportion to the step count (splitting4: 3.2e-7 m after 2e5 steps of 1 N on
-    1 kg, 9x rk4's; now 0 m, and the momentum 3.9e-9 -> 7.1e-15).
+    drift in proportion to the step count, beyond rk4's (docs/benchmark.md, "Round-off under
+    a held force", has the figures: benchmarks/splitting4_round_off.py).
     """
     body = forcing.body
     mass = body[BODY_MASS]
@@ -196,12 +206,13 @@ def step(state, forcing, method, dt, time, pushed, translates):
 
 
 @run_kernel(compile_seconds=8.0)
-def run(state, model, method, dt, steps, time):
+def run(state: Array, model: Model, method: MethodConstants, dt: float, steps: int,
+        time: float) -> int:
     """Take `steps` splitting steps of dt s from `time` (kernels/loop.py)."""
     return run_steps_specialised(step, state, model, method, dt, steps, time)
 
 
-def _method(axes, coefficients):
+def _method(axes: Iterable[float], coefficients: Sequence[float]) -> MethodConstants:
     """Return the method constants of a composition of Strang steps (see :func:`step`)."""
     constants = tuple(axes) + (len(coefficients),) + tuple(coefficients)
     return tuple(float(value) for value in constants) + (0.0,) * (_METHOD_SIZE - len(constants))

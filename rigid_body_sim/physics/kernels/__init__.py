@@ -14,6 +14,12 @@ Compiled functions are cached by what they are compiled from, once per machine, 
 package sits (:mod:`.cache`); the decorators here tell numba so.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+from typing import TypeVar
+
 import numba
 
 from . import cache
@@ -21,17 +27,20 @@ from . import cache
 __all__ = ['kernel', 'helper', 'outlined', 'inline', 'LazyKernel', 'cache', 'interpreting',
            'set_interpreted']
 
+# A compiled function is typed as its source: numba's dispatcher takes the same arguments.
+_Compiled = TypeVar('_Compiled', bound=Callable[..., Any])
+
 
 class _Mode:
     interpreted = False
 
 
-def interpreting():
+def interpreting() -> bool:
     """Return whether entry points called from Python run their source interpreted."""
     return _Mode.interpreted
 
 
-def set_interpreted(interpreted):
+def set_interpreted(interpreted: bool) -> None:
     """
     Run every entry point called from Python as its source, interpreted (or compiled again).
 
@@ -42,7 +51,8 @@ def set_interpreted(interpreted):
     _Mode.interpreted = bool(interpreted)
 
 
-def _njit(signature=None, cached=True, **options):
+def _njit(signature: Any = None, cached: bool = True,
+          **options: Any) -> Callable[[Callable[..., Any]], Any]:
     """Return numba's njit decorator with this package's options (cached where possible)."""
     cache.install_locator()
     options = dict(cache=cached and cache.caching_enabled(), nogil=True, error_model='numpy',
@@ -57,34 +67,34 @@ def _njit(signature=None, cached=True, **options):
 # says why); it also spares every division its zero test.
 
 
-def kernel(function):
+def kernel(function: Callable[..., Any]) -> LazyKernel:
     """Decorate an entry point called from Python: compiled on first use, cached to disk."""
     return LazyKernel(None, function)
 
 
-def helper(function):
+def helper(function: _Compiled) -> _Compiled:
     """
     Decorate a compiled helper called from other compiled code (also callable from Python).
 
     Inlined into its callers at numba's IR level: left to LLVM, calls of the algebra's small
-    tuple functions cost 5 of a Buss step's 48 ns (numba's calling convention around each); a
+    tuple functions were a visible part of a Buss step (numba's calling convention around each); a
     Python caller gets the helper compiled on its own, cached.
     """
     return _njit(inline='always')(function)
 
 
-def outlined(function):
+def outlined(function: _Compiled) -> _Compiled:
     """
     Decorate a compiled helper too large to inline: compiled once and called.
 
-    The call costs a few ns, nothing beside the work of a helper such as the exact torque-free
-    flow (~500 ns); inlined at the IR level into each copy of each loop, that one made the
-    exact integrator's kernels take 288 s to compile (25 s called).
+    The call costs nothing beside the work of a helper such as the exact torque-free flow;
+    inlined at the IR level into each copy of each loop, that one made the exact integrator's
+    kernels many times slower to compile.
     """
     return _njit()(function)
 
 
-def inline(function):
+def inline(function: _Compiled) -> _Compiled:
     """
     Decorate a compiled function that takes other compiled functions as arguments.
 
@@ -121,7 +131,8 @@ class LazyKernel:
 
     """
 
-    def __init__(self, signature, function, cached=True, compile_seconds=None):
+    def __init__(self, signature: Any, function: Callable[..., Any], cached: bool = True,
+                 compile_seconds: float | None = None) -> None:
         self.signature = signature
         self.py_func = function
         self.cached = cached
@@ -130,18 +141,18 @@ class LazyKernel:
         self.__qualname__ = function.__qualname__
         self.__module__ = function.__module__
         self.__doc__ = function.__doc__
-        self._dispatcher = None
-        self._source = None
+        self._dispatcher: Any = None
+        self._source: Callable[..., Any] | None = None
 
     @property
-    def dispatcher(self):
+    def dispatcher(self) -> Any:
         """Get the compiled function (compiling it, or loading it from the cache, once)."""
         if self._dispatcher is None:
             self._dispatcher = _njit(self.signature, self.cached)(self.py_func)
         return self._dispatcher
 
     @property
-    def source(self):
+    def source(self) -> Callable[..., Any]:
         """Get its source as Python, every compiled function it calls interpreted too."""
         if self._source is None:
             from .interpreted import source_function
@@ -149,16 +160,16 @@ class LazyKernel:
         return self._source
 
     @property
-    def loaded(self):
+    def loaded(self) -> bool:
         """Get whether :attr:`dispatcher` was made in this process."""
         return self._dispatcher is not None
 
-    def __call__(self, *arguments):
+    def __call__(self, *arguments: Any) -> Any:
         """Call the compiled function, or the source while interpreting."""
         if _Mode.interpreted:
             return self.source(*arguments)
         return self.dispatcher(*arguments)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         """Return ``LazyKernel(module.name)``."""
         return f'LazyKernel({self.__module__}.{self.__qualname__})'

@@ -8,13 +8,30 @@ Every function here is also callable from Python (with tuples or arrays), at num
 dispatch cost; :mod:`rigid_body_sim.physics.rotations` gives them numpy faces.
 """
 
+from __future__ import annotations
+
 import math
+
+import numpy as np
+from numpy.typing import NDArray
 
 from . import helper
 
 __all__ = ['quaternion_product', 'conjugate', 'normalised', 'rotation_matrix', 'rotate',
            'rotate_unnormalised', 'rotate_back', 'cross', 'dot', 'exp_map', 'turned',
-           'SERIES_SQUARE']
+           'SERIES_SQUARE', 'Quaternion', 'Vector', 'Matrix', 'QuaternionLike', 'VectorLike']
+
+# The types of the annotations: what compiled code holds, and what a Python caller may pass.
+Quaternion = tuple[float, float, float, float]
+"""A quaternion (x, y, z, w) as a 4-tuple."""
+Vector = tuple[float, float, float]
+"""A 3-vector as a 3-tuple."""
+Matrix = tuple[float, float, float, float, float, float, float, float, float]
+"""A 3x3 matrix as a row-major 9-tuple."""
+QuaternionLike = Quaternion | NDArray[np.float64]
+"""A quaternion as a 4-tuple or a (4,) array, which the helpers index alike."""
+VectorLike = Vector | NDArray[np.float64]
+"""A 3-vector as a 3-tuple or a (3,) array."""
 
 SERIES_SQUARE = 1e-4
 """Below this |v|^2 (|v| < 0.01 rad) :func:`exp_map` takes the Taylor series of sin(|v|/2)/|v|
@@ -24,7 +41,7 @@ round-off; it replaces a sqrt, a sin and a cos in the small turns of split ticks
 
 
 @helper
-def quaternion_product(a, b):
+def quaternion_product(a: QuaternionLike, b: QuaternionLike) -> Quaternion:
     """Return the Hamilton product of two quaternions (x, y, z, w): first times second."""
     ax, ay, az, aw = a[0], a[1], a[2], a[3]
     bx, by, bz, bw = b[0], b[1], b[2], b[3]
@@ -35,20 +52,20 @@ def quaternion_product(a, b):
 
 
 @helper
-def conjugate(q):
+def conjugate(q: QuaternionLike) -> Quaternion:
     """Return the inverse rotation of a unit quaternion, (-x, -y, -z, w)."""
     return (-q[0], -q[1], -q[2], q[3])
 
 
 @helper
-def normalised(q):
+def normalised(q: QuaternionLike) -> Quaternion:
     """Return q / |q| as a 4-tuple."""
     norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     return (q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm)
 
 
 @helper
-def rotation_matrix(q):
+def rotation_matrix(q: QuaternionLike) -> Matrix:
     """Return R(q) of a unit quaternion as a row-major 9-tuple (body to world)."""
     x, y, z, w = q[0], q[1], q[2], q[3]
     return (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w),
@@ -57,7 +74,7 @@ def rotation_matrix(q):
 
 
 @helper
-def rotate(q, v):
+def rotate(q: QuaternionLike, v: VectorLike) -> Vector:
     """Return R(q) v (body to world) as a 3-tuple, q a unit quaternion."""
     r = rotation_matrix(q)
     return (r[0] * v[0] + r[1] * v[1] + r[2] * v[2],
@@ -66,13 +83,13 @@ def rotate(q, v):
 
 
 @helper
-def rotate_unnormalised(q, v):
+def rotate_unnormalised(q: QuaternionLike, v: VectorLike) -> Vector:
     """
     Return R(q / |q|) v (body to world) as a 3-tuple, for any non-zero quaternion q.
 
     R's homogeneous form (quadratic in q) over |q|^2: no square root, so the product need
     not wait for q's normalisation (rk4's stage quaternions are not unit; its stages' L
-    then comes 12 % sooner in a step under drag: benchmarks/effect_cost.py).  Equal to
+    then comes sooner in a step under drag: benchmarks/effect_cost.py times it).  Equal to
     rotate(normalised(q), v) to a few ulps.
     """
     x, y, z, w = q[0], q[1], q[2], q[3]
@@ -87,7 +104,7 @@ def rotate_unnormalised(q, v):
 
 
 @helper
-def rotate_back(q, v):
+def rotate_back(q: QuaternionLike, v: VectorLike) -> Vector:
     """Return R(q)^T v (world to body) as a 3-tuple, q a unit quaternion."""
     r = rotation_matrix(q)
     return (r[0] * v[0] + r[3] * v[1] + r[6] * v[2],
@@ -96,19 +113,19 @@ def rotate_back(q, v):
 
 
 @helper
-def cross(a, b):
+def cross(a: VectorLike, b: VectorLike) -> Vector:
     """Return a x b as a 3-tuple."""
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
 @helper
-def dot(a, b):
+def dot(a: VectorLike, b: VectorLike) -> float:
     """Return a . b of 3-vectors."""
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 @helper
-def exp_map(v):
+def exp_map(v: VectorLike) -> Quaternion:
     """
     Return the unit quaternion of the rotation vector v (rad): exp([v]x) = R(q).
 
@@ -128,7 +145,7 @@ def exp_map(v):
 
 
 @helper
-def turned(q, v):
+def turned(q: QuaternionLike, v: VectorLike) -> Quaternion:
     """
     Return q * exp(v), normalised: R turned by the body-frame rotation vector v (rad).
 

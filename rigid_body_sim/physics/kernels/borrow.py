@@ -2,7 +2,7 @@
 Borrowed array views: the kernels' hot loops without reference counting.
 
 numba counts references to every array it passes or stores (an atomic increment and
-decrement, ~5 ns a pair here), and the kernels pass the Model's arrays down through their
+decrement a pair), and the kernels pass the Model's arrays down through their
 steps, kicks and wrench terms several times a step.  A borrowed view is the same array
 without its reference (numba's own views of foreign memory, numba.carray, are made the same
 way): counting it is a no-op.  It is valid while the array it borrows from is alive, which
@@ -17,14 +17,23 @@ and says so if a numba release changes it.  Run as Python (the kernels interpret
 borrowed view is the array itself.
 """
 
+from __future__ import annotations
+
 import os
+from typing import Any
+from typing import TypeVar
 
 from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 from numba.extending import overload
+import numpy as np
+from numpy.typing import NDArray
 
 __all__ = ['borrowed', 'BORROWED_MEMBERS', 'borrowing']
+
+# A borrowed view has the type of the array it borrows from.
+_Array = TypeVar('_Array', bound=NDArray[np.float64] | NDArray[np.int64])
 
 BORROWED_MEMBERS = ('meminfo', 'parent')
 """The members of numba's array structure a borrowed view sets to null, by position 0, 1."""
@@ -35,17 +44,17 @@ array: for benchmarks/borrowed_views.py only, which compiles such kernels in a c
 of their own (the cache's key does not see this switch)."""
 
 
-def borrowed(array):
+def borrowed(array: _Array) -> _Array:
     """Return `array` as a view without a reference (see the module docstring)."""
     return array
 
 
 @intrinsic
-def _view_without_reference(typingctx, array):
+def _view_without_reference(typingctx: Any, array: Any) -> Any:
     if not isinstance(array, types.Array):
         return None
 
-    def codegen(context, builder, signature, arguments):
+    def codegen(context: Any, builder: Any, signature: Any, arguments: Any) -> Any:
         view = arguments[0]
         for position in range(len(BORROWED_MEMBERS)):
             member = view.type.elements[position]
@@ -55,8 +64,10 @@ def _view_without_reference(typingctx, array):
     return array(array), codegen
 
 
+# Not annotated: numba requires the implementation it returns (a lambda, which cannot be
+# annotated) to have the same parameters as this function, annotations included.
 @overload(borrowed, inline='always')
-def _borrowed_compiled(array):
+def _borrowed_compiled(array):  # type: ignore[no-untyped-def]
     if not isinstance(array, types.Array):
         return None
     if not borrowing:

@@ -39,7 +39,7 @@ every process (minutes) and :data:`PROBLEM` says, in one line, what to set.
 Trust: a compile (the ``compile`` command, tools/compile.py) writes the folder under an
 exclusive lock, then seals it: ``manifest.json`` records each file's size and SHA-256, and
 a marker per job (``compiled/<job>``) says what is complete.  :func:`verify` re-hashes the
-sealed files (4 ms for the 3 MB of kernels); a file that differs is damaged (a truncated
+sealed files (cheap beside loading them); a file that differs is damaged (a truncated
 copy, a disk error), is dropped with the markers, and compiled again by a compile in another
 process: a damaged object file would abort the process that loads it (LLVM reads it
 unchecked).  Folders of other sources are removed once unused for :data:`KEEP_DAYS` days.
@@ -49,6 +49,11 @@ setting, documented in its caching notes), for this package's files only; any ot
 function keeps numba's own locators.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable
+from collections.abc import Iterable
+from collections.abc import Iterator
 import contextlib
 import errno
 import fcntl
@@ -60,6 +65,7 @@ import pickle
 import shutil
 import sys
 import time
+from typing import Any
 
 import llvmlite
 import llvmlite.binding
@@ -91,7 +97,7 @@ _LAST_USED = 'last-used'
 _CACHE_SUFFIXES = ('.nbi', '.nbc')
 
 
-def source_key(root=PHYSICS_ROOT):
+def source_key(root: Path = PHYSICS_ROOT) -> str:
     """
     Return the SHA-256 (hex) of what the kernels are compiled from.
 
@@ -110,7 +116,7 @@ def source_key(root=PHYSICS_ROOT):
     return digest.hexdigest()
 
 
-def cpu_key():
+def cpu_key() -> str:
     """Return a short hash of the CPU numba compiles for (its name and features)."""
     config = numba.config
     name = config.CPU_NAME or llvmlite.binding.get_host_cpu_name()
@@ -119,7 +125,7 @@ def cpu_key():
     return hashlib.sha256(f'{name}\0{features}'.encode()).hexdigest()[:12]
 
 
-def cache_root():
+def cache_root() -> Path:
     """Return the folder the kernel folders live in (see the module docstring)."""
     explicit = os.environ.get(CACHE_DIR_VARIABLE)
     if explicit:
@@ -135,12 +141,12 @@ SOURCES = source_key()
 """The key of the sources this process compiles and loads (read once, at import)."""
 
 
-def kernel_dir(sources=None):
+def kernel_dir(sources: str | None = None) -> Path:
     """Return the folder of the kernels of `sources` (default: this process's) for this CPU."""
     return cache_root() / f'kernels-{(sources or SOURCES)[:20]}-{cpu_key()}'
 
 
-def _usable(folder):
+def _usable(folder: Path) -> str | None:
     """Return None if `folder` can be created and written, else the reason (one phrase)."""
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -152,7 +158,7 @@ def _usable(folder):
     return None
 
 
-def _problem():
+def _problem() -> str | None:
     reason = _usable(kernel_dir())
     if reason is None:
         return None
@@ -165,15 +171,15 @@ PROBLEM = _problem()
 """None, or the one line that says why the kernels cannot be cached and what to set."""
 
 
-def caching_enabled():
+def caching_enabled() -> bool:
     """Return whether compiled kernels are cached (False: see :data:`PROBLEM`)."""
     return PROBLEM is None
 
 
-_claimed = {}
+_claimed: dict[str, tuple[str, Path] | None] = {}
 
 
-def claim_file(path):
+def claim_file(path: str) -> None:
     """
     Cache the compiled functions of the source file `path` with the kernels.
 
@@ -184,7 +190,7 @@ def claim_file(path):
     _claimed.setdefault(os.path.realpath(path), None)
 
 
-def plugin_source_key(path):
+def plugin_source_key(path: str | Path) -> tuple[str, Path]:
     """
     Return (SHA-256 hex of a plugin's sources, the folder of `path` relative to them).
 
@@ -192,22 +198,22 @@ def plugin_source_key(path):
     `path` is in (its folder and the folders above it with an ``__init__.py``), or of the
     file alone if its folder is no package (a module file beside a scene).
     """
-    path = Path(path)
-    root = path.parent
+    file = Path(path)
+    root = file.parent
     if (root / '__init__.py').is_file():
         while (root.parent / '__init__.py').is_file() and root.parent != root:
             root = root.parent
         files = sorted(root.rglob('*.py'))
     else:
-        files = [path]
+        files = [file]
     digest = hashlib.sha256()
     for source in files:
         digest.update(str(source.relative_to(root)).encode() + b'\0')
         digest.update(source.read_bytes())
-    return digest.hexdigest(), path.parent.relative_to(root)
+    return digest.hexdigest(), file.parent.relative_to(root)
 
 
-def _plugin_folder(real, module):
+def _plugin_folder(real: str, module: str | None) -> Path:
     """
     Return the folder (relative to the kernel folder) of the claimed file `real`.
 
@@ -215,9 +221,10 @@ def _plugin_folder(real, module):
     code imports its module by that name when it loads, so a file imported under two names
     (a scene's plugin file, then ``import`` of the same file) keeps two caches.
     """
-    if _claimed.get(real) is None:
-        _claimed[real] = plugin_source_key(real)
-    key, relative = _claimed[real]
+    sources = _claimed.get(real)
+    if sources is None:
+        sources = _claimed[real] = plugin_source_key(real)
+    key, relative = sources
     named = hashlib.sha256(f'{key}\0{module}'.encode()).hexdigest()
     return Path(PLUGINS_FOLDER) / named[:20] / relative
 
@@ -233,7 +240,7 @@ class KernelCacheLocator(caching.InTreeCacheLocator):
     is left to numba's other locators.
     """
 
-    def __init__(self, py_func, py_file):
+    def __init__(self, py_func: Callable[..., Any], py_file: str) -> None:
         super().__init__(py_func, py_file)
         real = os.path.realpath(py_file)
         path = Path(real)
@@ -243,12 +250,13 @@ class KernelCacheLocator(caching.InTreeCacheLocator):
             relative = _plugin_folder(real, getattr(py_func, '__module__', None))
         self._kernel_folder = str(kernel_dir() / relative)
 
-    def get_cache_path(self):
+    def get_cache_path(self) -> str:
         """Return the folder this function's cache files go to."""
         return self._kernel_folder
 
     @classmethod
-    def from_function(cls, py_func, py_file):
+    def from_function(cls, py_func: Callable[..., Any],
+                      py_file: str) -> KernelCacheLocator | None:
         """Return a locator for a function of this package, else None (numba's decide)."""
         if not caching_enabled() or not os.path.isfile(py_file):
             return None
@@ -265,7 +273,7 @@ _NUMBA_LOCATORS = ('UserProvidedCacheLocator,InTreeCacheLocator,UserWideCacheLoc
                    'IPythonCacheLocator,ZipCacheLocator')
 
 
-def install_locator():
+def install_locator() -> None:
     """
     Tell numba to ask :class:`KernelCacheLocator` first, then its own locators.
 
@@ -285,7 +293,8 @@ def install_locator():
 
 
 @contextlib.contextmanager
-def compile_lock(folder=None, waiting=None):
+def compile_lock(folder: Path | None = None,
+                 waiting: Callable[[Path], object] | None = None) -> Iterator[Path]:
     """
     Hold the exclusive lock of a kernel folder while compiling into it.
 
@@ -309,31 +318,31 @@ def compile_lock(folder=None, waiting=None):
             fcntl.flock(handle, fcntl.LOCK_UN)
 
 
-def _cache_files(folder):
+def _cache_files(folder: Path) -> list[Path]:
     """Return the kernels' cache files of the folder (the plugins' are not sealed)."""
     return sorted(path for path in folder.rglob('*')
                   if path.suffix in _CACHE_SUFFIXES and path.is_file()
                   and path.relative_to(folder).parts[0] != PLUGINS_FOLDER)
 
 
-def _digest(path):
+def _digest(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def _write_atomically(path, text):
+def _write_atomically(path: Path, text: str) -> None:
     temporary = path.with_name(f'.{path.name}.{os.getpid()}.tmp')
     temporary.write_text(text)
     os.replace(temporary, path)
 
 
-def _manifest(folder):
+def _manifest(folder: Path) -> dict[str, list[Any]]:
     try:
         return json.loads((folder / _MANIFEST).read_text())
     except (OSError, ValueError):
         return {}
 
 
-def seal(folder=None):
+def seal(folder: Path | None = None) -> int:
     """Record the size and SHA-256 of every cache file in the folder (under the lock)."""
     folder = folder or kernel_dir()
     entries = {str(path.relative_to(folder)): [path.stat().st_size, _digest(path)]
@@ -342,7 +351,7 @@ def seal(folder=None):
     return len(entries)
 
 
-def _index_readable(path):
+def _index_readable(path: Path) -> bool:
     """Return whether an index file (numba's: pickles one after another) reads to its end."""
     try:
         with open(path, 'rb') as handle:
@@ -354,7 +363,7 @@ def _index_readable(path):
     return True
 
 
-def verify(folder=None):
+def verify(folder: Path | None = None) -> list[str]:
     """
     Return the sealed files of the folder that are missing or damaged (relative paths).
 
@@ -378,7 +387,7 @@ def verify(folder=None):
     return damaged
 
 
-def drop(names, folder=None):
+def drop(names: Iterable[str], folder: Path | None = None) -> None:
     """Delete the named cache files and every marker (their jobs compile again)."""
     folder = folder or kernel_dir()
     for name in names:
@@ -387,7 +396,7 @@ def drop(names, folder=None):
     unmark_all(folder)
 
 
-def drop_unsealed(folder=None):
+def drop_unsealed(folder: Path | None = None) -> int:
     """Delete the cache files the seal does not know (a compile whose sources changed)."""
     folder = folder or kernel_dir()
     sealed = set(_manifest(folder))
@@ -400,29 +409,29 @@ def drop_unsealed(folder=None):
     return count
 
 
-def marker(job, folder=None):
+def marker(job: str, folder: Path | None = None) -> Path:
     """Return the marker file that says `job`'s kernels are compiled and sealed."""
     return (folder or kernel_dir()) / _MARKERS / job
 
 
-def is_marked(job, folder=None):
+def is_marked(job: str, folder: Path | None = None) -> bool:
     """Return whether `job`'s kernels are compiled and sealed in the folder."""
     return marker(job, folder).exists()
 
 
-def mark(job, seconds, folder=None):
+def mark(job: str, seconds: float, folder: Path | None = None) -> None:
     """Mark `job` compiled; the marker holds the CPU seconds it took (estimates read it)."""
     path = marker(job, folder)
     path.parent.mkdir(parents=True, exist_ok=True)
     _write_atomically(path, f'{seconds:.3f}\n')
 
 
-def unmark_all(folder=None):
+def unmark_all(folder: Path | None = None) -> None:
     """Delete every marker of the folder."""
     shutil.rmtree((folder or kernel_dir()) / _MARKERS, ignore_errors=True)
 
 
-def measured_seconds(job):
+def measured_seconds(job: str) -> float | None:
     """
     Return the CPU seconds `job` took to compile on this machine, or None if never measured.
 
@@ -444,14 +453,14 @@ def measured_seconds(job):
     return None
 
 
-def touch_used(folder=None):
+def touch_used(folder: Path | None = None) -> None:
     """Stamp the folder as used now (pruning keeps what is used)."""
     folder = folder or kernel_dir()
     with contextlib.suppress(OSError):
         (folder / _LAST_USED).touch()
 
 
-def prune(keep_days=KEEP_DAYS):
+def prune(keep_days: float = KEEP_DAYS) -> list[Path]:
     """Remove the kernel folders of other sources unused for `keep_days` days; return them."""
     removed = []
     now = time.time()
@@ -470,7 +479,7 @@ def prune(keep_days=KEEP_DAYS):
     return removed
 
 
-def clear():
+def clear() -> int:
     """Remove every cached kernel folder under the root; return how many."""
     folders = [folder for folder in cache_root().glob('kernels-*') if folder.is_dir()]
     for folder in folders:

@@ -7,7 +7,10 @@ they compute the same numbers the same way, so a bag written offline and a live 
 the bit.  Frames and units as everywhere: world frame unless named body, SI.
 """
 
+from __future__ import annotations
+
 import numpy as np
+from numpy.typing import NDArray
 
 from . import kernel
 from .algebra import normalised
@@ -26,7 +29,8 @@ same in the body frame, and the marker's orientation (x, y, z, w)."""
 
 
 @kernel
-def derived_quantities(rows, inverse_inertia, mass, marker_axes):
+def derived_quantities(rows: NDArray[np.float64], inverse_inertia: NDArray[np.float64],
+                       mass: float, marker_axes: NDArray[np.float64]) -> NDArray[np.float64]:
     """
     Return (n, 16) rows of COLUMNS for n packed states (rows (n, 13): q, x, p, L).
 

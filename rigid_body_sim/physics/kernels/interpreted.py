@@ -5,8 +5,8 @@ numba compiles each kernel from a Python function (``py_func``).  :func:`source_
 gives that function back with every compiled function it reaches replaced by its own
 source in turn, and numba's objects that have no Python form replaced by their stand-ins
 (:func:`stand_in`: a Model is a named tuple of the same fields).  It is what runs while the
-kernels compile (the node's first seconds on a machine that never compiled them), about a
-thousand times slower than the kernels and computing the same steps: the same operations in
+kernels compile (the node's first seconds on a machine that never compiled them), orders of
+magnitude slower than the kernels and computing the same steps: the same operations in
 the same order (numba does not reorder or fuse them), so the results agree to the last bits
 but where a library function (sqrt, sin) or numpy rounds differently.
 
@@ -15,7 +15,11 @@ math function raises in Python (ZeroDivisionError, OverflowError, ValueError) wh
 kernels give inf or nan; the Simulator takes either as a state that is not finite.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable
 import types
+from typing import Any
 
 from numba.extending import is_jitted
 
@@ -24,20 +28,20 @@ __all__ = ['source_function', 'stand_in', 'ARITHMETIC_ERRORS']
 ARITHMETIC_ERRORS = (ArithmeticError, ValueError)
 """What the interpreter raises where the compiled kernels give inf or nan."""
 
-_stand_ins = {}
-_sources = {}
+_stand_ins: dict[int, tuple[object, object]] = {}
+_sources: dict[Callable[..., Any], Callable[..., Any]] = {}
 
 
-def stand_in(compiled_object, python_object):
+def stand_in(compiled_object: object, python_object: object) -> None:
     """Make the interpreted kernels see `python_object` wherever they name `compiled_object`."""
     _stand_ins[id(compiled_object)] = (compiled_object, python_object)
 
 
-def _is_compiled(value):
+def _is_compiled(value: Any) -> bool:
     return is_jitted(value) or type(value).__name__ == 'LazyKernel'
 
 
-def _interpreted(value):
+def _interpreted(value: Any) -> Any:
     """Return what the interpreted kernels use for `value` (itself if nothing else)."""
     entry = _stand_ins.get(id(value))
     if entry is not None and entry[0] is value:
@@ -47,7 +51,7 @@ def _interpreted(value):
     return value
 
 
-def _names(code):
+def _names(code: types.CodeType) -> set[str]:
     names = set(code.co_names)
     for constant in code.co_consts:
         if isinstance(constant, types.CodeType):
@@ -55,7 +59,7 @@ def _names(code):
     return names
 
 
-def source_function(function):
+def source_function(function: Callable[..., Any]) -> Callable[..., Any]:
     """
     Return the Python source function of a compiled function, its callees interpreted too.
 

@@ -12,9 +12,16 @@ The principal frame is :func:`~rigid_body_sim.physics.principal_frame.principal_
 so every method that solves in it (the splittings, the exact flow) uses the very same axes.
 """
 
+from __future__ import annotations
+
 import numpy as np
+from numpy.typing import ArrayLike
+from numpy.typing import NDArray
 
 from . import helper
+from .algebra import Quaternion
+from .algebra import Vector
+from .algebra import VectorLike
 from ..principal_frame import principal_frame
 
 __all__ = ['STATE_SIZE', 'QUATERNION', 'POSITION', 'LINEAR_MOMENTUM', 'ANGULAR_MOMENTUM',
@@ -30,7 +37,8 @@ BODY_SIZE = 27
 BODY_MASS, BODY_MOMENTS, BODY_FRAME, BODY_AXES, BODY_KIND = 9, 10, 13, 17, 26
 
 
-def body_values(inertia_body, inertia_body_inverse, mass):
+def body_values(inertia_body: ArrayLike, inertia_body_inverse: ArrayLike,
+                mass: float) -> NDArray[np.float64]:
     """Return the packed body (27,) of a body's mass properties (body frame, SI)."""
     frame = principal_frame(inertia_body)
     return np.concatenate([np.asarray(inertia_body_inverse, dtype=float).reshape(9),
@@ -39,7 +47,7 @@ def body_values(inertia_body, inertia_body_inverse, mass):
 
 
 @helper
-def inverse_inertia_times(body, v):
+def inverse_inertia_times(body: NDArray[np.float64], v: VectorLike) -> Vector:
     """Return I_b^-1 v (body frame) as a 3-tuple; I_b^-1 row-major in the packed body."""
     return (body[0] * v[0] + body[1] * v[1] + body[2] * v[2],
             body[3] * v[0] + body[4] * v[1] + body[5] * v[2],
@@ -47,12 +55,12 @@ def inverse_inertia_times(body, v):
 
 
 @helper
-def quaternion_of(state):
+def quaternion_of(state: NDArray[np.float64]) -> Quaternion:
     """Return the orientation of a packed state as a 4-tuple (x, y, z, w)."""
     return (state[0], state[1], state[2], state[3])
 
 
 @helper
-def angular_momentum_of(state):
+def angular_momentum_of(state: NDArray[np.float64]) -> Vector:
     """Return L of a packed state as a 3-tuple (world frame)."""
     return (state[10], state[11], state[12])

@@ -24,15 +24,23 @@ them as a first-class function (error_control.controlled).  numba compiles each 
 use and caches it.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable
+from collections.abc import Iterable
 import math
+from typing import Any
 
 from numba import types
+import numpy as np
+from numpy.typing import NDArray
 
 from . import inline
 from . import LazyKernel
 from .borrow import borrowed
 from .layout import STATE_SIZE
 from .model import apply_flows
+from .model import Model
 from .model import MODEL_TYPE
 from .model import unpacked
 
@@ -44,14 +52,16 @@ METHOD_SIZE = 10
 the fourth-order splitting's (3 axes, its stage count and 5 coefficients)."""
 METHOD_TYPE = types.UniTuple(types.float64, METHOD_SIZE)
 """numba's type of the method constants: a tuple, passed by value, so that the compiler knows
-them constant over the loop and hoists what it computes from them (measured: 3.5 ns of a
-48 ns Buss step, against an array it must read again after each store to the state)."""
+them constant over the loop and hoists what it computes from them (an array it must read
+again after each store to the state)."""
+MethodConstants = tuple[float, ...]
+"""The annotations' type of a method's constants: METHOD_SIZE floats."""
 RUN_SIGNATURE = types.int64(types.float64[::1], MODEL_TYPE, METHOD_TYPE, types.float64,
                             types.int64, types.float64)
 """run(state, model, method, dt, steps, time) -> steps taken, or -1 (see run_steps)."""
 
 
-def run_kernel(compile_seconds):
+def run_kernel(compile_seconds: float) -> Callable[[Callable[..., int]], LazyKernel]:
     """
     Declare an integrator's run kernel: compiled for :data:`RUN_SIGNATURE` on first use.
 
@@ -59,12 +69,12 @@ def run_kernel(compile_seconds):
     (``rigid-body-sim compile`` prints each job's figure), the estimate where this machine
     has not compiled it yet (physics/warm_up.py).
     """
-    def declare(function):
+    def declare(function: Callable[..., int]) -> LazyKernel:
         return LazyKernel(RUN_SIGNATURE, function, compile_seconds=compile_seconds)
     return declare
 
 
-def method_constants(values=()):
+def method_constants(values: Iterable[float] = ()) -> MethodConstants:
     """Return a method's constants as the run kernels take them (padded with zeros)."""
     values = tuple(float(value) for value in values)
     if len(values) > METHOD_SIZE:
@@ -73,7 +83,8 @@ def method_constants(values=()):
 
 
 @inline
-def run_steps(step, state, model, method, dt, steps, time):
+def run_steps(step: Callable[..., None], state: NDArray[np.float64], model: Model,
+              method: MethodConstants, dt: float, steps: int, time: float) -> int:
     """
     Take `steps` steps of dt s from `time` (s) on the packed state, in place.
 
@@ -94,13 +105,14 @@ def run_steps(step, state, model, method, dt, steps, time):
 
 
 @inline
-def run_steps_specialised(step, state, model, method, dt, steps, time):
+def run_steps_specialised(step: Callable[..., None], state: NDArray[np.float64], model: Model,
+                          method: MethodConstants, dt: float, steps: int, time: float) -> int:
     """
     Take the steps of :func:`run_steps` in two copies of the loop, `pushed` a constant in each.
 
     numba compiles the step twice (it does not drop the torque-free copy's kick code before
     LLVM does), for the methods whose torque-free step LLVM does not separate from the
-    wrench in one loop (first_order, rk4: 7 % and 11 % slower torque-free in one loop).
+    wrench in one loop (first_order, rk4: slower torque-free in one loop).
     """
     forcing, state, pushed, translates = _start(state, model)
     if pushed:
@@ -111,7 +123,8 @@ def run_steps_specialised(step, state, model, method, dt, steps, time):
 
 
 @inline
-def _start(state, model):
+def _start(state: NDArray[np.float64],
+           model: Model) -> tuple[Any, NDArray[np.float64], bool, bool]:
     """Return (forcing, the state borrowed, pushed, translates) at the start of a run."""
     forcing = unpacked(model)
     state = borrowed(state)
@@ -123,7 +136,7 @@ def _start(state, model):
 
 
 @inline
-def _finish(state, steps):
+def _finish(state: NDArray[np.float64], steps: int) -> int:
     """Return `steps`, or -1 if the state holds a value that is not finite."""
     for i in range(STATE_SIZE):
         if not math.isfinite(state[i]):
@@ -132,7 +145,9 @@ def _finish(state, steps):
 
 
 @inline
-def _steps(step, state, forcing, method, dt, steps, time, pushed, translates):
+def _steps(step: Callable[..., None], state: NDArray[np.float64], forcing: Any,
+           method: MethodConstants, dt: float, steps: int, time: float, pushed: bool,
+           translates: bool) -> None:
     """Take the steps of :func:`run_steps` (`pushed` a value, or a constant in each copy)."""
     flowing = forcing.flow_count > 0
     half = 0.5 * dt

@@ -22,24 +22,34 @@ scene pays only for the terms it has (a loop over ``term_count`` entries).  Effe
 their functions with the decorators here (:func:`wrench_term`, :func:`flow_function`, ...),
 which compile them for the one signature each kind has.
 
-Numbers, per call of a kernel: unboxing a Model costs ~0.3 us (its function pointers were
-unboxed once, when it was built: ~50 us each); an indirect call ~2.5 ns more than an inlined
-one (benchmarks/effect_cost.py measures what each effect adds to a step).
+Per call of a kernel the Model is unboxed, cheaply: its function pointers, the dear part,
+were unboxed once, when it was built; an effect's term is an indirect call, a little dearer
+than an inlined one (benchmarks/effect_cost.py measures what each effect adds to a step).
 """
 
+from __future__ import annotations
+
 import collections
+from collections.abc import Callable
+from collections.abc import Iterable
+from collections.abc import Sequence
 import os
+from typing import Any
+from typing import cast
 import warnings
 
 from numba import types
 from numba.core.errors import NumbaExperimentalFeatureWarning
 from numba.experimental import structref
 import numpy as np
+from numpy.typing import ArrayLike
+from numpy.typing import NDArray
 
 from . import cache as kernel_cache
 from . import inline
 from . import kernel
 from . import LazyKernel
+from .algebra import Quaternion
 from .algebra import rotate
 from .borrow import borrowed
 from .interpreted import stand_in
@@ -61,6 +71,11 @@ MAX_FLOWS = 2
 # Rows of the held wrench (4, 3): fixed in the world or in the body (turning with it).
 HELD_FORCE_WORLD, HELD_TORQUE_WORLD, HELD_FORCE_BODY, HELD_TORQUE_BODY = range(4)
 
+Array = NDArray[np.float64]
+"""The annotations' type of a float array: a packed state, parameters, the held wrench."""
+Wrench = tuple[float, float, float, float, float, float]
+"""The annotations' type of a wrench (Fx, Fy, Fz, tx, ty, tz), or an impulse."""
+
 _vector = types.float64[::1]
 _wrench = types.UniTuple(types.float64, 6)
 TERM_SIGNATURE = _wrench(_vector, types.float64, _vector)
@@ -69,7 +84,7 @@ EXPAND_SIGNATURE = types.none(_vector, _vector, _vector)
 TRANSMIT_SIGNATURE = _wrench(_vector, _wrench, _vector)
 
 
-def _signed(signature, function):
+def _signed(signature: Any, function: Callable[..., Any]) -> LazyKernel:
     """
     Declare `function` compiled for `signature` on first use, cached with the kernels.
 
@@ -85,7 +100,8 @@ def _signed(signature, function):
     return LazyKernel(signature, function, cached)
 
 
-def compiled(function, interpreted=False):
+def compiled(function: LazyKernel | Callable[..., Any],
+             interpreted: bool = False) -> Callable[..., Any]:
     """
     Return what a Model holds of a declared term, flow or constraint function.
 
@@ -96,44 +112,44 @@ def compiled(function, interpreted=False):
     return function.source if interpreted else function.dispatcher
 
 
-def wrench_term(function):
+def wrench_term(function: Callable[[Array, float, Array], Wrench]) -> LazyKernel:
     """Compile `function` as a wrench term: ``(state, time, parameters) -> 6-tuple``."""
     return _signed(TERM_SIGNATURE, function)
 
 
-def flow_function(function):
+def flow_function(function: Callable[[Array, Array, float], None]) -> LazyKernel:
     """Compile `function` as a flow: ``(state, parameters, duration) -> None``, in place."""
     return _signed(FLOW_SIGNATURE, function)
 
 
-def expand_function(function):
+def expand_function(function: Callable[[Array, Array, Array], None]) -> LazyKernel:
     """Compile `function` as a constraint's ``expand(integrated, parameters, physical)``."""
     return _signed(EXPAND_SIGNATURE, function)
 
 
-def transmit_function(function):
+def transmit_function(function: Callable[[Array, Wrench, Array], Wrench]) -> LazyKernel:
     """Compile `function` as a constraint's ``transmit(state, wrench, parameters)``."""
     return _signed(TRANSMIT_SIGNATURE, function)
 
 
 @wrench_term
-def no_term(state, time, parameters):
+def no_term(state: Array, time: float, parameters: Array) -> Wrench:
     """Fill the unused entries of the terms (never called)."""
     return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
 
 
 @flow_function
-def no_flow(state, parameters, duration):
+def no_flow(state: Array, parameters: Array, duration: float) -> None:
     """Fill the unused entries of the flows (never called)."""
 
 
 @expand_function
-def no_expand(integrated, parameters, physical):
+def no_expand(integrated: Array, parameters: Array, physical: Array) -> None:
     """Stand for the expansion of an unconstrained body (never called)."""
 
 
 @transmit_function
-def no_transmit(state, wrench, parameters):
+def no_transmit(state: Array, wrench: Wrench, parameters: Array) -> Wrench:
     """Stand for the transmission of an unconstrained body (never called)."""
     return wrench
 
@@ -142,7 +158,8 @@ def no_transmit(state, wrench, parameters):
 class ModelType(types.StructRef):
     """numba's type of a :class:`Model`."""
 
-    def preprocess_fields(self, fields):
+    def preprocess_fields(self, fields: Iterable[tuple[str, Any]]
+                          ) -> tuple[tuple[str, Any], ...]:
         """Drop literal types: every Model has the one type."""
         return tuple((name, types.unliteral(kind)) for name, kind in fields)
 
@@ -178,17 +195,21 @@ MODEL_TYPE = ModelType(list(_FIELDS))
 """numba's type of every Model: one type, so each kernel compiles once."""
 
 # The Forcing adds what a call finds: whether the held wrench is not zero.
-Forcing = collections.namedtuple('Forcing', _NAMES + ('holding',))
+# Any to mypy, which types a namedtuple only from a literal list of fields.
+Forcing = cast(Any, collections.namedtuple('Forcing', _NAMES + ('holding',)))
 Forcing.__doc__ = """A Model's fields as one tuple of local values, unpacked once per kernel call.
 
 Reading a field of the Model in the hot loop costs a load through its reference each time
-(and a function pointer's ~10 ns); the kernels pass this tuple down instead (all inlined)."""
+(and a function pointer's unboxing); the kernels pass this tuple down instead (all inlined)."""
 
 
-def _model_of(body, held, terms, term_count, term_parameters, term_offsets,
-              momentum_dependent, flows, flow_count, flow_parameters, flow_offsets,
-              constrained, needs_physical, reads_state, expand, transmit,
-              constraint_parameters):
+def _model_of(body: Array, held: Array, terms: tuple[Any, ...], term_count: int,
+              term_parameters: Array, term_offsets: NDArray[np.int64],
+              momentum_dependent: bool, flows: tuple[Any, ...], flow_count: int,
+              flow_parameters: Array, flow_offsets: NDArray[np.int64],
+              constrained: bool, needs_physical: bool, reads_state: bool,
+              expand: Callable[..., None], transmit: Callable[..., Wrench],
+              constraint_parameters: Array) -> Model:
     return Model(body, held, terms, term_count, term_parameters, term_offsets,
                  momentum_dependent, flows, flow_count, flow_parameters, flow_offsets,
                  constrained, needs_physical, reads_state, expand, transmit,
@@ -200,27 +221,27 @@ _new_model = LazyKernel(MODEL_TYPE(*(kind for name, kind in _FIELDS[:17])), _mod
 
 
 @kernel
-def _body(model):
+def _body(model: Model) -> Array:
     return model.body
 
 
 @kernel
-def _term_count(model):
+def _term_count(model: Model) -> int:
     return model.term_count
 
 
 @kernel
-def _term_parameters(model):
+def _term_parameters(model: Model) -> Array:
     return model.term_parameters
 
 
 @kernel
-def _flow_count(model):
+def _flow_count(model: Model) -> int:
     return model.flow_count
 
 
 @kernel
-def _constrained(model):
+def _constrained(model: Model) -> bool:
     return model.constrained
 
 
@@ -234,7 +255,7 @@ Model.constrained = property(_constrained, doc='True under a constraint.')
 
 
 @inline
-def unpacked(model):
+def unpacked(model: Model) -> Any:
     """Return the :class:`Forcing` of a Model (its fields as values)."""
     return Forcing(borrowed(model.body), borrowed(model.held), model.terms,
                    model.term_count, borrowed(model.term_parameters),
@@ -247,7 +268,11 @@ def unpacked(model):
                    not held_is_zero(model.held))
 
 
-def _packed(functions, parameters, limit, filler, kind, interpreted):
+def _packed(functions: Iterable[LazyKernel | Callable[..., Any]],
+            parameters: Iterable[ArrayLike],
+            limit: int, filler: LazyKernel, kind: str,
+            interpreted: bool) -> tuple[tuple[Callable[..., Any], ...], int, Array,
+                                        NDArray[np.int64]]:
     functions = tuple(compiled(function, interpreted) for function in functions)
     if len(functions) > limit:
         raise ValueError(f'at most {limit} {kind} can act on a body; got {len(functions)}')
@@ -259,8 +284,12 @@ def _packed(functions, parameters, limit, filler, kind, interpreted):
             len(functions), values, offsets)
 
 
-def new_model(body, held, terms=(), flows=(), constraint=None, momentum_dependent=False,
-              reads_state=False, interpreted=False):
+def new_model(body: ArrayLike, held: Array,
+              terms: Sequence[tuple[LazyKernel | Callable[..., Any], ArrayLike]] = (),
+              flows: Sequence[tuple[LazyKernel | Callable[..., Any], ArrayLike]] = (),
+              constraint: tuple[LazyKernel, LazyKernel, Array] | None = None,
+              momentum_dependent: bool = False, reads_state: bool = False,
+              interpreted: bool = False) -> Model:
     """
     Return a :class:`Model`.
 
@@ -298,7 +327,7 @@ def new_model(body, held, terms=(), flows=(), constraint=None, momentum_dependen
 
 
 @inline
-def held_is_zero(held):
+def held_is_zero(held: Array) -> bool:
     """Return True if every entry of the held wrench (4, 3) is zero."""
     total = 0.0
     for row in range(4):
@@ -307,7 +336,7 @@ def held_is_zero(held):
 
 
 @inline
-def _held_wrench(q, held):
+def _held_wrench(q: Quaternion, held: Array) -> Wrench:
     """Return the held wrench at orientation q: F_w + R F_b, tau_w + R tau_b (world)."""
     # Entries read as scalars: a row view of the array would cost a reference count.
     fx, fy, fz = rotate(q, (held[HELD_FORCE_BODY, 0], held[HELD_FORCE_BODY, 1],
@@ -320,7 +349,7 @@ def _held_wrench(q, held):
 
 
 @inline
-def applied_wrench(physical, time, forcing):
+def applied_wrench(physical: Array, time: float, forcing: Any) -> Wrench:
     """
     Return the applied wrench on a physical state: held plus terms, about the COM (world).
 
@@ -339,7 +368,7 @@ def applied_wrench(physical, time, forcing):
 
 
 @inline
-def integrated_wrench(state, time, forcing):
+def integrated_wrench(state: Array, time: float, forcing: Any) -> Wrench:
     """
     Return the wrench the integrated system takes at the packed `state` and `time`.
 
@@ -362,7 +391,8 @@ NO_ESTIMATE = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 @inline
-def impulse(state, time, duration, forcing, estimate, estimated):
+def impulse(state: Array, time: float, duration: float, forcing: Any, estimate: Wrench,
+            estimated: bool) -> tuple[Wrench, Wrench]:
     """
     Return (h F, h tau), 6 numbers, of a kick of `duration` s from `state`, and an estimate.
 
@@ -375,11 +405,11 @@ def impulse(state, time, duration, forcing, estimate, estimated):
     the kick's end, 2 W_mid - W_0: a Strang step's closing kick starts from its opening
     kick's, which is within O(h) of the wrench at its state (the drift turned the body) and
     within O(h^2) in the momenta, so it keeps its order with one evaluation instead of two:
-    three a step, not four.  Against two evaluations a kick: the same error to +-2 % (its
-    z^3 term, for the test equation y' = -lambda y, is -z^3/8 in both), 3.0x -> 2.5x the
-    torque-free Buss step under drag (benchmarks/effect_cost.py), and a stiff linear decay's
-    stability limit lambda h 4.0 -> 3.09 (physics/stability.py measures it and the
-    Simulator refuses a step beyond it).  Without momentum dependence the estimate is the
+    three a step, not four.  Against two evaluations a kick: about the same error (its z^3
+    term, for the test equation y' = -lambda y, is -z^3/8 in both), a cheaper step under drag
+    (benchmarks/effect_cost.py), and a lower stability limit lambda h for a stiff linear
+    decay (physics/stability.py measures it and the Simulator refuses a step beyond it;
+    docs/physics_api.md has the figures).  Without momentum dependence the estimate is the
     wrench at the state, unused.
     """
     if not forcing.momentum_dependent:
@@ -416,7 +446,8 @@ def impulse(state, time, duration, forcing, estimate, estimated):
 
 
 @inline
-def kick(state, time, duration, forcing, estimate, estimated):
+def kick(state: Array, time: float, duration: float, forcing: Any, estimate: Wrench,
+         estimated: bool) -> Wrench:
     """
     Kick the momenta of the packed state in place: p += h F, L += h tau (see impulse).
 
@@ -430,7 +461,7 @@ def kick(state, time, duration, forcing, estimate, estimated):
 
 
 @inline
-def apply_flows(state, forcing, duration, reverse):
+def apply_flows(state: Array, forcing: Any, duration: float, reverse: bool) -> None:
     """Apply the flows to the packed state in place for `duration` s, in order or reversed."""
     count = forcing.flow_count
     offsets, parameters = forcing.flow_offsets, forcing.flow_parameters
@@ -440,6 +471,6 @@ def apply_flows(state, forcing, duration, reverse):
 
 
 @kernel
-def applied_wrench_of(physical, time, model):
+def applied_wrench_of(physical: Array, time: float, model: Model) -> Wrench:
     """Return :func:`applied_wrench` of a Model (the entry point for Python)."""
     return applied_wrench(physical, time, unpacked(model))
