@@ -29,6 +29,10 @@ only when the plugin or the physics core changes.  A plugin's compiled code may 
 compiled toolkit (``rigid_body_sim.physics.kernels``) and its own package's code.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable
+from collections.abc import Iterable
 import hashlib
 import importlib.metadata
 import importlib.util
@@ -37,8 +41,11 @@ import math
 from pathlib import Path
 import re
 import sys
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
+from numpy.typing import NDArray
 
 from .registry import create_effect
 from .registry import Effect
@@ -58,16 +65,16 @@ ENTRY_POINT_GROUP = 'rigid_body_sim.effects'
 
 _MESSAGE_LIMIT = 400
 
-_attempted = set()
-_problems = []
-_files = {}
+_attempted: set[tuple[str, str]] = set()
+_problems: list[str] = []
+_files: dict[Path, tuple[str, tuple[str, ...]]] = {}
 
 
 class PluginError(ValueError):
     """A plugin that cannot be used: the message is one line naming it and what is wrong."""
 
 
-def problems():
+def problems() -> list[str]:
     """Return the lines of the entry-point plugins that did not load in this process."""
     return list(_problems)
 
@@ -75,7 +82,7 @@ def problems():
 # -- the check of an effect
 
 
-def _sample_body_and_state():
+def _sample_body_and_state() -> tuple[RigidBody, State]:
     """Return a box and a state that moves, turns and is off the origin (SI, world frame)."""
     body = RigidBody.box(1.0, (0.3, 0.2, 0.1))
     state = State.from_velocity(body, rotation=(0.1, 0.2, 0.3, math.sqrt(0.86)),
@@ -84,7 +91,7 @@ def _sample_body_and_state():
     return body, state
 
 
-def _first_line(error):
+def _first_line(error: BaseException) -> str:
     """Return the line of an exception that says what is wrong (numba's first detail)."""
     text = re.sub(r'\x1b\[[0-9;]*m', '', str(error))
     lines = [line.strip() for line in text.splitlines() if line.strip()]
@@ -92,7 +99,8 @@ def _first_line(error):
     return f'{type(error).__name__}: {lines[0] if lines else ""}'.rstrip(': ')
 
 
-def _compiled(function, signature, attribute, decorator, cls):
+def _compiled(function: object, signature: object, attribute: str, decorator: str,
+              cls: type[Effect]) -> Callable[..., Any]:
     """Return the compiled `function`, or raise ValueError saying why it is not one."""
     if not (isinstance(function, LazyKernel) and function.signature == signature):
         raise ValueError(f'{attribute} of {cls.__name__} is not declared with @{decorator} '
@@ -108,14 +116,14 @@ _SIGNATURES = {'wrench_term': '(state, time, parameters) -> (Fx, Fy, Fz, tx, ty,
                'flow_function': '(state, parameters, duration), in place'}
 
 
-def _finite(values, what):
+def _finite(values: ArrayLike, what: str) -> NDArray[np.float64]:
     array = np.asarray(values, dtype=float)
     if not np.all(np.isfinite(array)):
         raise ValueError(f'{what} is not finite: {array.tolist()}')
     return array
 
 
-def check_effect(name, cls):
+def check_effect(name: str, cls: object) -> None:
     """
     Check that `cls`, registered as effect `name`, can be used; ValueError says why not.
 
@@ -166,11 +174,11 @@ def check_effect(name, cls):
 # -- loading
 
 
-def _registered():
+def _registered() -> set[str]:
     return set(EFFECTS.registered_names())
 
 
-def _take_checked(label, before):
+def _take_checked(label: str, before: set[str]) -> list[str]:
     """
     Check every effect registered since `before`; drop them all if one fails.
 
@@ -187,23 +195,23 @@ def _take_checked(label, before):
     return names
 
 
-def _forget(names):
+def _forget(names: Iterable[str]) -> None:
     for name in names:
         if EFFECTS.registered(name):
             del EFFECTS[name]
 
 
-def _import_failure(label, error):
+def _import_failure(label: str, error: BaseException) -> PluginError:
     return PluginError(one_line(f'{label}: cannot import it: {_first_line(error)}',
                                 _MESSAGE_LIMIT))
 
 
-def _module_name(path, digest):
+def _module_name(path: Path, digest: str) -> str:
     stem = re.sub(r'\W', '_', path.stem)
     return f'rigid_body_sim_plugin_{stem}_{digest[:12]}'
 
 
-def load_effect_file(path, shown=None):
+def load_effect_file(path: str | Path, shown: str | None = None) -> tuple[str, ...]:
     """
     Import the plugin module file `path` (once per process) and return its effects' names.
 
@@ -212,26 +220,28 @@ def load_effect_file(path, shown=None):
     effect it registers fails :func:`check_effect` (then none of its effects stays).
     """
     label = f'effect plugin {shown or path}'
-    path = Path(path).expanduser()
-    if path.suffix != '.py':
+    file = Path(path).expanduser()
+    if file.suffix != '.py':
         raise PluginError(f'{label}: not a Python file (.py)')
     try:
-        path = path.resolve()
-        source = path.read_bytes()
+        file = file.resolve()
+        source = file.read_bytes()
     except (OSError, RuntimeError) as error:
         raise PluginError(one_line(f'{label}: cannot read it: '
                                    f'{getattr(error, "strerror", None) or error}',
                                    _MESSAGE_LIMIT)) from None
     digest = hashlib.sha256(source).hexdigest()
-    known = _files.get(path)
+    known = _files.get(file)
     if known is not None:
         if known[0] != digest:
             raise PluginError(f'{label}: changed since this process imported it; start the '
                               'program again to load the new version')
         return known[1]
-    name = _module_name(path, digest)
+    name = _module_name(file, digest)
     before = _registered()
-    spec = importlib.util.spec_from_file_location(name, path)
+    spec = importlib.util.spec_from_file_location(name, file)
+    if spec is None or spec.loader is None:
+        raise PluginError(f'{label}: cannot import it: no module loader for the file')
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
     try:
@@ -249,13 +259,14 @@ def load_effect_file(path, shown=None):
         sys.modules.pop(name, None)
         raise PluginError(f'{label}: registers no effect (decorate an Effect class with '
                           "@register_effect('name'))")
-    _files[path] = (digest, tuple(names))
+    _files[file] = (digest, tuple(names))
     return tuple(names)
 
 
-def _entry_points():
+def _entry_points() -> list[importlib.metadata.EntryPoint]:
     """Return this group's entry points, each (name, value) once, in a stable order."""
-    seen, found = set(), []
+    seen: set[tuple[str, str]] = set()
+    found: list[importlib.metadata.EntryPoint] = []
     for entry_point in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
         key = (entry_point.name, entry_point.value)
         if key not in seen:
@@ -264,14 +275,14 @@ def _entry_points():
     return sorted(found, key=lambda entry_point: entry_point.name)
 
 
-def _entry_point_label(entry_point):
+def _entry_point_label(entry_point: importlib.metadata.EntryPoint) -> str:
     distribution = getattr(entry_point, 'dist', None)
     origin = '' if distribution is None else \
         f' of {distribution.metadata["Name"]} {distribution.version}'
     return f'effect plugin {entry_point.name!r} ({entry_point.value}{origin})'
 
 
-def _load_entry_point(entry_point):
+def _load_entry_point(entry_point: importlib.metadata.EntryPoint) -> None:
     """Load one entry point; a failure is recorded as a problem line, never raised."""
     label = _entry_point_label(entry_point)
     before = _registered()
@@ -299,14 +310,14 @@ def _load_entry_point(entry_point):
         _record(entry_point.name, error)
 
 
-def _record(name, error):
+def _record(name: str, error: BaseException) -> None:
     line = one_line(str(error), _MESSAGE_LIMIT)
     EFFECTS.problems[name] = line
     if line not in _problems:
         _problems.append(line)
 
 
-def discover(name=None):
+def discover(name: str | None = None) -> None:
     """Load the entry points of effect `name` (None: every one not tried yet)."""
     try:
         entry_points = _entry_points()
