@@ -2,7 +2,10 @@
 Every shell and Python example of the README and docs/ runs as written, so no page goes stale.
 
 The examples are the ```sh and ```python blocks of README.md and docs/*.md, taken from the
-pages at test time.  Each shell command runs verbatim with bash in a scratch copy of the
+pages at test time, and the file blocks: a ```python, ```yaml or ```toml block whose first
+line is ``# file: PATH`` is a file the page has the reader write (a plugin, a scene), written
+to PATH in the working directory before each later block of its page runs, and checked to
+parse.  Each shell command runs verbatim with bash in a scratch copy of the
 places the pages write to (the working directory: a fresh clone's root with .venv, config,
 benchmarks and a copy of docs/), after the one activation step the README states
 (``. .venv/bin/activate``); each Python block runs whole.  A command that cannot run here
@@ -37,7 +40,8 @@ from rigid_body_sim.cli import build_parser
 ROOT = Path(__file__).resolve().parent.parent
 PAGES = [ROOT / 'README.md', *sorted((ROOT / 'docs').glob('*.md'))]
 VENV = ROOT / '.venv'
-_BLOCK = re.compile(r'```(sh|python)\n(.*?)```', re.S)
+_BLOCK = re.compile(r'```(sh|python|yaml|toml)\n(.*?)```', re.S)
+_FILE = re.compile(r'# file: (\S+)\n')
 # Shell commands of the pages whose run would take too long, need a running node or would
 # never end; their arguments are parsed instead, by the tool's own parser.
 _PARSED_ONLY = {
@@ -48,10 +52,34 @@ _PARSED_ONLY = {
 
 
 def _examples():
-    """Yield (page, index, language, text) of every example block."""
+    """Yield (page, index, language, text) of every example block (yaml, toml: files only)."""
     for page in PAGES:
         for index, match in enumerate(_BLOCK.finditer(page.read_text()), 1):
-            yield page.relative_to(ROOT), index, match.group(1), match.group(2)
+            language, text = match.group(1), match.group(2)
+            if language in ('sh', 'python') or _FILE.match(text):
+                yield page.relative_to(ROOT), index, language, text
+
+
+def _write_files(directory, page, before):
+    """Write the file blocks of `page` that come before block `before` into `directory`."""
+    for other, index, _, text in EXAMPLES:
+        found = _FILE.match(text)
+        if other == page and index < before and found:
+            path = directory / found.group(1)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(text)
+
+
+def _check_file_block(language, name, text):
+    """Fail unless a file block parses as its language."""
+    if language == 'python':
+        compile(text, name, 'exec')
+    elif language == 'yaml':
+        import yaml
+        assert isinstance(yaml.safe_load(text), dict), name
+    else:
+        import tomllib
+        tomllib.loads(text)
 
 
 EXAMPLES = list(_examples())
@@ -86,7 +114,8 @@ def _reason_not_run(command):
         return 'talks to a running node (the ros2 CLI is here, no node is)', False
     if program == 'make':
         return 'make run starts the node until Ctrl-C; make test is this suite', False
-    if program in ('rigid_body_node', 'angular_momentum_arrow') and '--help' not in words:
+    if Path(program).name in ('rigid_body_node', 'angular_momentum_arrow') \
+            and '--help' not in words:
         return 'runs until Ctrl-C (test_launch.py starts it)', False
     if program in ('mkdir', 'cd', 'colcon', 'source', 'git') or '~/ros2_ws' in command:
         return 'sets up a ROS 2 workspace (test_colcon_build.py builds the package)', False
@@ -114,6 +143,11 @@ def scratch(tmp_path_factory):
 @pytest.mark.parametrize('page, index, language, text', EXAMPLES,
                          ids=[f'{page}#{index}' for page, index, _, _ in EXAMPLES])
 def test_every_example_of_the_pages_runs_as_written(scratch, page, index, language, text):
+    _write_files(scratch, page, index)
+    found = _FILE.match(text)
+    if found:
+        _check_file_block(language, found.group(1), text)
+        return
     if language == 'python':
         result = subprocess.run([str(VENV / 'bin' / 'python'), '-c', text], cwd=scratch,
                                 capture_output=True, text=True, timeout=600)
@@ -183,7 +217,7 @@ def test_the_node_help_lists_every_published_topic():
     from rigid_body_sim.node.help_text import help_text
     text = help_text()
     for topic in ('pose', 'twist', 'angular_momentum', 'odom', 'marker', 'imu',
-                  '/diagnostics', '/clock'):
+                  '/tf', '/diagnostics', '/clock'):
         assert re.search(rf'^  {re.escape(topic)} ', text, re.M), topic
 
 
@@ -286,3 +320,73 @@ def test_an_empty_bag_path_is_one_line_saying_so(capsys):
     assert main(['simulate', '--duration', '0.05', '--quiet', '--bag', '']) == 2
     error = capsys.readouterr().err
     assert error.count('\n') == 1 and '--bag is empty' in error, error
+
+
+# -- the docs as a new user read them (issue 32)
+
+def _page_file(page, name):
+    """Return the text of the file block `name` of `page` (docs/scenes.md's cylinder.yaml)."""
+    for other, _, _, text in EXAMPLES:
+        found = _FILE.match(text)
+        if other == Path(page) and found and found.group(1) == name:
+            return text
+    raise AssertionError(f'{page} has no file block {name}')
+
+
+def test_every_params_file_the_pages_name_is_where_they_say(scratch):
+    # A venv has no install/ tree: a page's --params-file is a path of the source tree, or
+    # the colcon install's, found by `ros2 pkg prefix` (the share/ tree mirrors config/).
+    prefix = '$(ros2 pkg prefix rigid_body_sim)/share/rigid_body_sim/'
+    named = []
+    for page, _, language, text in EXAMPLES:
+        if language != 'sh':
+            continue
+        for command in _commands(text):
+            for path in re.findall(r'--params-file (\$\(ros2 pkg prefix [^)]*\)\S*|\S+)',
+                                   command):
+                named.append(path)
+                relative = path[len(prefix):] if path.startswith(prefix) else path
+                assert (scratch / relative).is_file(), f'{page}: {command}'
+    assert any(path.startswith(prefix) for path in named)
+    assert any(not path.startswith(prefix) for path in named)
+
+
+def test_record_records_by_default_every_topic_simulate_writes(tmp_path):
+    from rigid_body_sim.cli import main
+    from rigid_body_sim.tools.record import default_record_topics
+    from rosbags.rosbag2 import Reader
+    bag = tmp_path / 'bag'
+    assert main(['simulate', '--duration', '0.05', '--quiet', '--bag', str(bag)]) == 0
+    with Reader(bag) as reader:
+        written = {connection.topic for connection in reader.connections}
+    from rigid_body_sim.messages.tf import transform_message_class
+    if transform_message_class()[0] is not None:
+        assert {'/tf', '/tf_static'} <= written
+    assert written <= set(default_record_topics('')), written - set(default_record_topics(''))
+
+
+def test_scenes_effects_gives_every_built_in_parameter_its_unit(capsys):
+    from rigid_body_sim.cli import main
+    from rigid_body_sim.physics.effects import effect_parameters
+    from rigid_body_sim.physics.effects import EFFECTS
+    assert main(['scenes', '--effects']) == 0
+    shown = capsys.readouterr().out
+    built_in = [name for name in EFFECTS
+                if EFFECTS[name].__module__.startswith('rigid_body_sim.physics.effects.')]
+    assert len(built_in) >= 6
+    for name in built_in:
+        for key in effect_parameters(name):
+            unit = EFFECTS[name].units[key]
+            assert re.search(rf'^    {key} \({re.escape(unit)}; (default .*|required)\)$',
+                             shown, re.M), (name, key)
+
+
+def test_scenes_shows_a_cylinders_moments_about_its_own_axes(tmp_path, capsys):
+    # Sorted, a cylinder's moments along z read as if its axis were x.
+    from rigid_body_sim.cli import main
+    path = tmp_path / 'cylinder.yaml'
+    path.write_text(_page_file('docs/scenes.md', 'cylinder.yaml'))
+    assert main(['scenes', str(path)]) == 0
+    shown = capsys.readouterr().out
+    # m = 0.4 kg, r = 0.05 m, h = 0.3 m: I_x = I_y = m (3 r^2 + h^2) / 12, I_z = m r^2 / 2.
+    assert 'moments about body x, y, z [0.00325, 0.00325, 0.0005 ] kg m^2' in shown, shown

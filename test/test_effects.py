@@ -56,10 +56,12 @@ def _random_state(body, rng, speed=1.0, spin=3.0):
 
 
 def test_registry_holds_the_effect_of_each_module_by_name():
-    # Each module of physics/effects/ but the registry registers one effect, named as the
-    # module (another registered from outside the package would be an addition).
+    # Each module of physics/effects/ but the registry and the plugin loader registers one
+    # effect, named as the module (another registered from outside the package would be an
+    # addition).
     folder = Path(effects_package.__file__).parent
-    modules = {path.stem for path in folder.glob('*.py')} - {'__init__', 'registry'}
+    modules = {path.stem for path in folder.glob('*.py')} - {'__init__', 'registry',
+                                                             'plugins'}
     assert modules <= set(EFFECTS)
     for name in modules:
         assert EFFECTS[name].__module__.rsplit('.', 1)[-1] == name

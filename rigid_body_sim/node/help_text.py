@@ -34,6 +34,8 @@ published (relative names; QoS reliable, keep-last 1000 (1 s at 1 kHz), volatile
   odom              nav_msgs/Odometry              pose (world), twist (body frame)
   marker            visualization_msgs/Marker      the scene's drawing, for RViz
   imu               sensor_msgs/Imu                the simulated IMU (frame imu_frame)
+  /tf               tf2_msgs/TFMessage             world_frame -> body_frame, every tick
+  /tf_static        tf2_msgs/TFMessage             body_frame -> imu_frame (transient local)
   /diagnostics      diagnostic_msgs/DiagnosticArray  1 Hz: rates, step time, drift
   /clock            rosgraph_msgs/Clock            only with publish_clock:=true
 subscribed (only with external_wrench; frame_id world_frame or empty: world-fixed,

@@ -63,6 +63,7 @@ from .bag_writer import CUSTOM_DATA_PREFIX
 from .bag_writer import typestore
 from ..physics import matrix_from_quaternion
 from ..physics.effects import EFFECTS
+from ..physics.effects import load_effect_file
 from ..physics.principal_frame import principal_frame
 
 __all__ = [
@@ -391,7 +392,7 @@ def conserved_quantities(motion):
     names = {effect['effect'] for effect in effects}
     # What each effect conserves, as its class declares it (physics/effects/registry.py); an
     # effect this version does not know conserves nothing.
-    classes = {name: EFFECTS.get(name) for name in names}
+    classes = effect_classes(motion, names)
     if 'pivot' in names:
         pivot = _effect(effects, 'pivot')
         kept = all(cls is not None and cls.keeps_pivot_invariants
@@ -419,6 +420,26 @@ def conserved_quantities(motion):
                 [magnitude, rotational])
     return (f'$T_{{rot}}$ and $|L|$: not conserved here ({", ".join(sorted(names))})',
             [rotational, magnitude])
+
+
+def effect_classes(motion, names):
+    """
+    Return {effect name: its class, or None if unknown here} of the bag's effects `names`.
+
+    An installed plugin's effect is found by its entry point; a plugin file that the bag's
+    scene named (``plugins:``, recorded by ``simulate`` as ``effect_plugins``) is loaded
+    first if it is still there (one that no longer loads leaves its effects unknown).
+    """
+    try:
+        files = json.loads(motion.custom('effect_plugins') or '[]')
+    except ValueError:
+        files = []
+    for path in files if isinstance(files, list) else []:
+        try:
+            load_effect_file(str(path))
+        except ValueError:
+            continue
+    return {name: EFFECTS.get(name) for name in names}
 
 
 def _pivot_quantities(motion, pivot, gravity):

@@ -458,6 +458,9 @@ def _set_custom_data(writer, scene, simulator, rate, substeps, start_time):
         'effect_parameters': effect_parameters_json(scene),
         'writer': 'rigid-body-sim simulate',
     }
+    if scene.plugins:
+        # The plot finds what a plugin's effect conserves by loading it again.
+        values['effect_plugins'] = json.dumps(list(scene.plugins))
     for key, value in values.items():
         writer.set_custom_data(CUSTOM_DATA_PREFIX + key, value)
 

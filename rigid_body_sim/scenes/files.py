@@ -118,7 +118,7 @@ def load_scene(name_or_path: str | os.PathLike[str] = DEFAULT_SCENE) -> Scene:
     except UnicodeDecodeError as error:
         raise ValueError(f'{source}: not UTF-8 text: byte {error.object[error.start]:#04x} at '
                          f'offset {error.start}') from None
-    return parse_scene(data, source)
+    return parse_scene(data, source, path.parent)
 
 
 def default_body() -> RigidBody:

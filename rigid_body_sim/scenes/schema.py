@@ -19,6 +19,7 @@ from collections.abc import Mapping
 import copy
 from dataclasses import dataclass
 from dataclasses import field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -37,12 +38,15 @@ from ..physics import State
 from ..physics.effects import create_effect
 from ..physics.effects import EFFECTS
 from ..physics.effects import ExternalWrench
+from ..physics.effects import load_effect_file
 from ..physics.effects import ParameterError
 from ..physics.effects import Pivot
+from ..physics.effects import PluginError
 from ..physics.effects.registry import check_number
 from ..physics.effects.registry import check_vector
 from ..physics.effects.registry import describe_value
 from ..physics.effects.registry import Effect
+from ..physics.effects.registry import unknown_effect
 from ..physics.imu import Imu
 from ..physics.imu import ImuModel
 from ..physics.rotations import quaternion_from_matrix
@@ -61,8 +65,8 @@ SHAPES = ('box', 'cylinder', 'sphere', 'ellipsoid')
 """Body shapes with a closed-form inertia (``body.shape``) and the shapes a scene draws."""
 
 # The keys each part of a scene may have; anything else is an error.
-_TOP_KEYS = ('name', 'description', 'body', 'initial', 'effects', 'integrator', 'rate',
-             'tolerance', 'imu', 'draw')
+_TOP_KEYS = ('name', 'description', 'plugins', 'body', 'initial', 'effects', 'integrator',
+             'rate', 'tolerance', 'imu', 'draw')
 _IMU_KEYS = ('position', 'orientation') + ImuModel.NOISE_KEYS + ('seed',)
 _IMU_UNITS = {'gyro_noise_density': 'rad/s/sqrt(Hz)', 'gyro_random_walk': 'rad/s^2/sqrt(Hz)',
               'gyro_bias_sigma': 'rad/s', 'accel_noise_density': 'm/s^2/sqrt(Hz)',
@@ -144,7 +148,10 @@ class Scene:
     source : str
         Where the scene came from (the file, for messages).
     data : dict
-        The scene's validated mapping, as in the file (used by :meth:`with_overrides`).
+        The scene's validated mapping, as in the file (used by :meth:`with_overrides`),
+        but its plugins' paths made absolute.
+    plugins : tuple of str
+        The absolute paths of the effect plugin files the scene loaded (``plugins:``).
 
     """
 
@@ -160,6 +167,7 @@ class Scene:
     imu: ImuModel = ImuModel()
     source: str = '<scene>'
     data: dict = field(default_factory=dict, repr=False, compare=False)
+    plugins: tuple[str, ...] = ()
 
     @property
     def dt(self) -> float:
@@ -293,24 +301,28 @@ class Scene:
 
 
 @one_line_errors
-def parse_scene(data: Any, source: str = '<scene>') -> Scene:
+def parse_scene(data: Any, source: str = '<scene>',
+                folder: str | Path | None = None) -> Scene:
     """
     Validate a scene's mapping (as from YAML) and return the :class:`Scene`.
 
-    `source` names the scene in error messages.  The schema: see the module docstring.
+    `source` names the scene in error messages; `folder` is the folder the paths of its
+    ``plugins:`` are relative to (None: they must be absolute).  The schema: see the module
+    docstring.
     """
     # Overflows (a 1e308 in a quaternion's norm, a mass times a size squared) give inf or
     # nan, which the reader's finiteness checks then refuse naming the key: numpy's
     # RuntimeWarnings on the way would only add lines without the key.
     with np.errstate(over='ignore', invalid='ignore', divide='ignore'):
-        return _SceneReader(source).read(data)
+        return _SceneReader(source, folder).read(data)
 
 
 class _SceneReader:
     """Validates one scene mapping; every error names the source and the key path."""
 
-    def __init__(self, source: str) -> None:
+    def __init__(self, source: str, folder: str | Path | None = None) -> None:
         self.source = source
+        self.folder = folder
 
     def error(self, path: str, problem: str) -> ValueError:
         # Escaped and cut to one line by parse_scene (one_line_errors).
@@ -326,6 +338,7 @@ class _SceneReader:
         name = self.text(mapping['name'], 'name', MAX_NAME_LENGTH)
         description = self.text(mapping['description'], 'description', MAX_DESCRIPTION_LENGTH)
         body, body_shape = self.body(mapping['body'])
+        plugins = self.plugins(mapping['plugins']) if 'plugins' in mapping else ()
         effects = self.effects(mapping.get('effects', []))
         pivot = next((e for e in effects if getattr(e, 'effect_name', None) == 'pivot'), None)
         self.pivot_path = next((f'effects[{index}].pivot' for index, e in enumerate(effects)
@@ -348,10 +361,13 @@ class _SceneReader:
                                           f'{TOLERANCE_RANGE[1]:g} rad/s, got {tolerance:g}')
         drawing = self.drawing(mapping.get('draw', {}), body, body_shape, mapping['body'])
         imu = self.imu(mapping.get('imu', {}))
+        data = copy.deepcopy(mapping)
+        if plugins:
+            data['plugins'] = list(plugins)
         return Scene(name=name, description=description, body=body, state=state,
                      effects=tuple(effects), integrator=integrator, rate=rate,
-                     drawing=drawing, source=self.source, data=copy.deepcopy(mapping),
-                     tolerance=tolerance or None, imu=imu)
+                     drawing=drawing, source=self.source, data=data,
+                     tolerance=tolerance or None, imu=imu, plugins=plugins)
 
     def reject_empty_sections(self, mapping: dict[str, Any]) -> None:
         """
@@ -361,7 +377,7 @@ class _SceneReader:
         lines below it were lost or mis-indented.  Leaving a section out is the documented
         way to get its defaults; ``effects: []`` says "no effects".
         """
-        for key in ('body', 'initial', 'imu', 'draw'):
+        for key in ('body', 'initial', 'imu', 'draw', 'plugins'):
             if key in mapping and mapping[key] is None:
                 remedy = ('the scene requires it' if key == 'body' else
                           'give its keys, or leave the line out for the defaults')
@@ -508,8 +524,7 @@ class _SceneReader:
                 raise self.error(path, 'expected an effect name or {name: {parameters}}, got '
                                        f'{describe_value(item)}')
             if name not in EFFECTS:
-                raise self.error(path, f'unknown effect {name!r}; valid effects: '
-                                       f'{", ".join(sorted(EFFECTS))}')
+                raise self.error(path, unknown_effect(name))
             if name in seen:
                 raise self.error(path, f'effect {name!r} is named twice')
             seen.add(name)
@@ -528,6 +543,36 @@ class _SceneReader:
             except ValueError as error:
                 raise self.error(f'{path}.{name}', str(error)) from None
         return effects
+
+    def plugins(self, value: Any) -> tuple[str, ...]:
+        """
+        Load the effect plugin files the scene names; return their absolute paths.
+
+        Each is a ``.py`` file, its path relative to the scene file's folder (or absolute),
+        imported once per process; a plugin that fails is an error naming it.
+        """
+        if not isinstance(value, list) or not value:
+            raise self.error('plugins', 'expected a list of effect plugin files (.py, paths '
+                                        f'relative to the scene file), got '
+                                        f'{describe_value(value)}')
+        loaded: list[str] = []
+        for index, item in enumerate(value):
+            path = f'plugins[{index}]'
+            if not isinstance(item, str) or not item.strip():
+                raise self.error(path, 'expected the path of a .py file, got '
+                                       f'{describe_value(item)}')
+            file = Path(item).expanduser()
+            if not file.is_absolute():
+                if self.folder is None:
+                    raise self.error(path, 'a relative path, but this scene is not read from '
+                                           'a file; give an absolute path')
+                file = Path(self.folder) / file
+            try:
+                load_effect_file(file, shown=item)
+            except PluginError as error:
+                raise self.error(path, str(error)) from None
+            loaded.append(str(file.resolve()))
+        return tuple(loaded)
 
     def initial(self, value: Any, body: RigidBody, pivot: Effect | None) -> State:
         initial = self.mapping(value, 'initial', _INITIAL_KEYS)

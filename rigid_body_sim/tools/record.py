@@ -25,6 +25,21 @@ from pathlib import Path
 from ..recording.bag_writer import STORAGES
 
 
+def default_record_topics(namespace: str = '') -> list[str]:
+    """
+    Return the topics ``record`` records by default: what the node publishes.
+
+    Its state topics under `namespace`, /diagnostics and /clock, its imu and TF (/tf,
+    /tf_static), whose types the recorder finds by discovery: what ``simulate`` writes, so
+    a live bag holds the same topics.
+    """
+    from ..messages.tf import TF_STATIC_TOPIC
+    from ..messages.tf import TF_TOPIC
+    from ..recording.recorder import default_topics
+    namespace = '/' + namespace.strip('/') if namespace.strip('/') else ''
+    return [*default_topics(namespace), f'{namespace}/imu', TF_TOPIC, TF_STATIC_TOPIC]
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of ``rigid-body-sim record``."""
     parser.add_argument('topics', nargs='*', metavar='TOPIC',
@@ -69,13 +84,7 @@ def main(args: argparse.Namespace) -> int:
     bag = args.bag or f'rigid_body_sim_{datetime.now().strftime("%Y_%m_%d-%H_%M_%S")}'
     if Path(bag).exists():
         raise ValueError(f'{bag} exists already; give a new --bag directory')
-    topics = args.topics
-    if not topics:
-        from ..recording.recorder import default_topics
-        # The node's topics, and its imu, whose type the recorder finds by discovery (what
-        # `simulate` writes, so a live bag holds the same topics).
-        namespace = '/' + args.namespace.strip('/') if args.namespace.strip('/') else ''
-        topics = [*default_topics(namespace), f'{namespace}/imu']
+    topics = args.topics or default_record_topics(args.namespace)
     summary = record(bag, topics=topics, storage=args.storage,
                      namespace=args.namespace, depth=args.depth,
                      flush_period=args.flush_period, sync=not args.no_fsync,

@@ -7,13 +7,15 @@ draw it.  Give a built-in name or a path to check a scene and print what it hold
 invalid file is reported with its key path and what is wrong (exit code 2).  --effects
 lists every effect a scene may name, with its parameters and their defaults: read from the
 effect registry, it is the complete list (the schema comment in config/scenes/default.yaml
-documents the first few and points here).
+documents the first few and points here), the installed effect plugins' effects included; a
+plugin that fails to load is one line on stderr naming it, and the rest are listed.
 """
 
 from __future__ import annotations
 
 import argparse
 import inspect
+import sys
 from typing import Any
 
 import numpy as np
@@ -21,8 +23,10 @@ from numpy.typing import ArrayLike
 from numpy.typing import NDArray
 
 from ..paths import scenes_dir
+from ..physics import RigidBody
 from ..physics.effects import effect_parameters
 from ..physics.effects import EFFECTS
+from ..physics.effects.plugins import problems
 from ..scenes import DEFAULT_SCENE
 from ..scenes import load_scene
 from ..scenes import Scene
@@ -74,8 +78,7 @@ def _print_scene(scene: Scene) -> None:
 
     print(f'{scene.name}: {scene.description}')
     print(f'  source:      {scene.source}')
-    print(f'  body:        mass {body.mass:g} kg, principal moments '
-          f'{vector(body.principal_moments)} kg m^2')
+    print(f'  body:        mass {body.mass:g} kg, {moments(body)}')
     print(f'  orientation: {vector(state.quaternion)} (x, y, z, w)')
     print(f'  omega body:  {vector(omega)} rad/s')
     # A pivot's COM velocity is omega x r: its round-off is relative to |omega| |r|.
@@ -96,6 +99,24 @@ def _print_scene(scene: Scene) -> None:
           f'{"yes" if scene.accepts_external_wrench else "no"}')
 
 
+def moments(body: RigidBody) -> str:
+    """
+    Return how the body's inertia reads: its moments about body x, y, z if diagonal.
+
+    A diagonal inertia (a shape's, or the scene's three moments) is given about the body
+    axes in their order (a cylinder's axis is z, whatever its moments' order); otherwise the
+    principal moments in ascending order, with their axes in the body frame.
+    """
+    inertia = body.inertia
+    if np.count_nonzero(inertia - np.diag(np.diag(inertia))) == 0:
+        values = np.array2string(np.diag(inertia), precision=6, separator=', ')
+        return f'moments about body x, y, z {values} kg m^2'
+    values = np.array2string(body.principal_moments, precision=6, separator=', ')
+    axes = np.array2string(without_round_off(body.principal_axes.T.ravel()).reshape(3, 3),
+                           precision=4, separator=', ').replace('\n', '')
+    return f'principal moments {values} kg m^2 about the body axes (rows) {axes}'
+
+
 def without_round_off(values: ArrayLike,
                       scale: float | np.floating[Any] | None = None) -> NDArray[np.float64]:
     """
@@ -113,9 +134,15 @@ def without_round_off(values: ArrayLike,
 
 
 def _print_effects() -> None:
-    for name in sorted(EFFECTS):
-        doc = inspect.getdoc(EFFECTS[name]) or ''
+    names = sorted(EFFECTS)
+    for line in problems():
+        print(f'rigid-body-sim scenes: {line}', file=sys.stderr)
+    for name in names:
+        cls = EFFECTS[name]
+        doc = inspect.getdoc(cls) or ''
         print(f'{name}: {doc.splitlines()[0] if doc else ""}')
+        units = getattr(cls, 'units', None) or {}
         for key, default in effect_parameters(name).items():
             value = 'required' if default is inspect.Parameter.empty else f'default {default}'
-            print(f'    {key} ({value})')
+            unit = units.get(key)
+            print(f'    {key} ({unit}; {value})' if unit else f'    {key} ({value})')

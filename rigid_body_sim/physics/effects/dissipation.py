@@ -105,6 +105,7 @@ class Dissipation(Effect):
     compiled_flow = staticmethod(relax)
     # Internal friction: no external torque, so |L| stays while T_rot drains.
     conserves = ('angular_momentum',)
+    units = {'damping': '1 (dimensionless)'}
     example = {'damping': 0.1}
 
     def __init__(self, damping: float) -> None:

@@ -77,6 +77,8 @@ class Drag(Effect):
     momentum_dependent = True
     reads_state = True
     compiled_wrench = staticmethod(fluid_resistance)
+    units = {'linear': 'N s/m', 'quadratic': 'N s^2/m^2', 'rotational_linear': 'N m s',
+             'rotational_quadratic': 'N m s^2'}
     example = {'linear': 0.2, 'quadratic': 0.05, 'rotational_linear': 0.01,
                'rotational_quadratic': 0.002}
 

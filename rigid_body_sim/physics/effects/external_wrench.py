@@ -37,6 +37,7 @@ class ExternalWrench(Effect):
     # It computes nothing: what conserves depends on the inputs, none offline.
     conserves = ('angular_momentum', 'rotational_energy')
     keeps_pivot_invariants = True
+    units = {'max_force': 'N', 'max_torque': 'N m'}
     example = {'max_force': 10.0, 'max_torque': 1.0}
 
     def __init__(self, max_force: float | None = None, max_torque: float | None = None) -> None:

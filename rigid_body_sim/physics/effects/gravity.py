@@ -45,6 +45,7 @@ class Gravity(Effect):
     conserves = ('angular_momentum', 'rotational_energy')
     keeps_pivot_invariants = True
     compiled_wrench = staticmethod(weight)
+    units = {'acceleration': 'm/s^2, world frame'}
     example = {}
 
     def __init__(self, acceleration: ArrayLike = STANDARD_ACCELERATION) -> None:

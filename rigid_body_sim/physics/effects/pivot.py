@@ -107,6 +107,7 @@ class Pivot(Effect):
 
     """
 
+    units = {'point': 'm from the COM, body frame', 'anchor': 'm, world frame'}
     example = {'point': [0.02, -0.01, -0.05], 'anchor': [0.0, 0.0, 1.0]}
 
     def __init__(self, point: ArrayLike, anchor: ArrayLike = (0.0, 0.0, 0.0)) -> None:

@@ -31,7 +31,9 @@ once, as compiled code (kernels/model.py), so that every integrator runs it comp
   linearly, and what sets it: the Simulator refuses a fixed step the integrator cannot
   follow (physics/stability.py), and under error control never takes fewer substeps;
 - ``example``: a dict of typical parameters (required): the tests run every effect, built
-  from it, under every integrator, so a new effect is covered without editing them.
+  from it, under every integrator, so a new effect is covered without editing them;
+- ``units``: parameter -> its unit and frame (``'N m, world frame'``), which ``rigid-body-sim
+  scenes --effects`` shows.
 
 The base class :class:`Effect` lets Python call the compiled code on a State:
 ``wrench(body, state, time) -> (force, torque)`` and ``flow(body, state, dt) -> State`` (what
@@ -43,13 +45,17 @@ Adding an effect: one module with a class decorated by :func:`register_effect`, 
 ``effects/__init__.py``; it runs compiled under every integrator without an edit anywhere
 else.  Its keyword arguments are its scene parameters (the scene loader reads names,
 defaults and required ones from the signature); it checks their values with the ``check_*``
-helpers here, which raise :class:`ParameterError` naming the parameter.
+helpers here, which raise :class:`ParameterError` naming the parameter.  The same module
+outside the package is a plugin (:mod:`.plugins`): :data:`EFFECTS` finds a name it does not
+hold among the installed plugins' entry points when it is first asked for it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from collections.abc import Iterator
 from collections.abc import Mapping
+from collections.abc import MutableMapping
 import inspect
 import math
 from typing import Any
@@ -64,6 +70,7 @@ from ..state import State
 __all__ = [
     'EFFECTS',
     'Effect',
+    'EffectRegistry',
     'ParameterError',
     'check_number',
     'check_vector',
@@ -71,9 +78,81 @@ __all__ = [
     'describe_value',
     'effect_parameters',
     'register_effect',
+    'unknown_effect',
 ]
 
-EFFECTS: dict[str, type[Effect]] = {}
+
+class EffectRegistry(MutableMapping[str, 'type[Effect]']):
+    """
+    Effect name -> effect class: the built-in effects and the plugins found so far.
+
+    A mapping like a dict, but a name it does not hold is first looked for by its
+    `discover` function (set by :mod:`.plugins`: the installed plugins' entry points), and
+    listing it (iterating, ``len``) discovers every plugin first.  So a lookup by name loads
+    only the plugin of that name, and importing the package loads none.
+    """
+
+    def __init__(self) -> None:
+        self._classes: dict[str, type[Effect]] = {}
+        self._discover: Callable[[str | None], None] | None = None
+        self._discovered_all = False
+        self._discovering = False
+        self.problems: dict[str, str] = {}
+        """Effect name -> the one line saying why the plugin that declares it did not load."""
+
+    def set_discover(self, discover: Callable[[str | None], None]) -> None:
+        """Set ``discover(name)``: load the plugins of effect `name` (None: every plugin)."""
+        self._discover = discover
+
+    def _find(self, name: str | None) -> None:
+        if self._discover is None or self._discovering or self._discovered_all:
+            return
+        self._discovering = True
+        try:
+            self._discover(name)
+            if name is None:
+                self._discovered_all = True
+        finally:
+            self._discovering = False
+
+    def __getitem__(self, name: str) -> type[Effect]:
+        """Return the class of effect `name`, discovering its plugin if needed."""
+        if name not in self._classes and isinstance(name, str):
+            self._find(name)
+        return self._classes[name]
+
+    def __setitem__(self, name: str, cls: type[Effect]) -> None:
+        """Register `cls` as effect `name` (register_effect checks for a name given twice)."""
+        self._classes[name] = cls
+
+    def __delitem__(self, name: str) -> None:
+        """Forget effect `name` (a test's effect, a plugin found broken)."""
+        del self._classes[name]
+
+    def __iter__(self) -> Iterator[str]:
+        """Iterate over the names, every plugin discovered first."""
+        self._find(None)
+        return iter(list(self._classes))
+
+    def __len__(self) -> int:
+        """Return how many effects there are, every plugin discovered first."""
+        self._find(None)
+        return len(self._classes)
+
+    def registered(self, name: str) -> bool:
+        """Return whether `name` is registered already (no discovery)."""
+        return name in self._classes
+
+    def registered_names(self) -> list[str]:
+        """Return the names registered so far (no discovery)."""
+        return list(self._classes)
+
+    def __repr__(self) -> str:
+        """Return the registered names (without discovering)."""
+        return f'EffectRegistry({sorted(self._classes)})'
+
+
+EFFECTS = EffectRegistry()
 """Effect name -> effect class (see the module docstring for what an effect provides)."""
 
 
@@ -93,7 +172,7 @@ _Effect = TypeVar('_Effect', bound='Effect')
 def register_effect(name: str) -> Callable[[type[_Effect]], type[_Effect]]:
     """Register the decorated effect class under `name`; it gains ``effect_name``."""
     def decorate(cls: type[_Effect]) -> type[_Effect]:
-        if name in EFFECTS:
+        if EFFECTS.registered(name):
             raise ValueError(f'effect {name!r} is registered twice')
         cls.effect_name = name
         EFFECTS[name] = cls
@@ -140,8 +219,16 @@ def _effect_class(name: str) -> type[Effect]:
     try:
         return EFFECTS[name]
     except (KeyError, TypeError):
-        valid = ', '.join(sorted(EFFECTS))
-        raise ValueError(f'unknown effect {name!r}; valid effects: {valid}') from None
+        raise ValueError(unknown_effect(name)) from None
+
+
+def unknown_effect(name: object) -> str:
+    """Return the message for an unknown effect: the valid names, or why its plugin failed."""
+    valid = ', '.join(sorted(EFFECTS))
+    problem = EFFECTS.problems.get(name) if isinstance(name, str) else None
+    if problem is not None:
+        return f'unknown effect {name!r}: {problem}'
+    return f'unknown effect {name!r}; valid effects: {valid}'
 
 
 class Effect:
@@ -162,6 +249,7 @@ class Effect:
     compiled_wrench: Callable[..., Any] | None = None
     compiled_flow: Callable[..., Any] | None = None
     example: dict[str, Any] | None = None
+    units: dict[str, str] = {}
     conserves: tuple[str, ...] = ()
     keeps_pivot_invariants = False
     # Optional members, absent unless an effect defines them (read with getattr): declared

@@ -51,6 +51,7 @@ class SinusoidalTorque(Effect):
     """
 
     compiled_wrench = staticmethod(oscillating_torque)
+    units = {'amplitude': 'N m, world frame', 'frequency': 'Hz', 'phase': 'rad'}
     example = {'amplitude': [0.1, -0.2, 0.3], 'frequency': 0.5, 'phase': 0.2}
 
     def __init__(self, amplitude: ArrayLike, frequency: float, phase: float = 0.0) -> None:

@@ -22,6 +22,15 @@ Inside, numba's own files, one folder per package folder (``integrators/``, ``ef
 inline its code, so a new or edited effect compiles its own small functions and no kernel
 again; an effect's code may inline the toolkit (in ``<sources>``) and its own file.
 
+An effect plugin's functions (a file outside the package: :func:`claim_file`) go to
+``plugins/<its sources>/``, where ``<its sources>`` is the SHA-256 of the plugin's own
+sources (:func:`plugin_source_key`: every ``*.py`` file of its top-level package, or the
+module file alone) and of the name its module was imported as (numba's cached code imports
+its module by name), so that a changed plugin, or a helper it inlines from its own package,
+is compiled again and two versions of one plugin never share a file.  They are not sealed:
+any process compiles a plugin when it first uses it, after the compile that sealed the
+folder (numba writes each file whole and checks the plugin's file by its content).
+
 The root is the first of: ``RIGID_BODY_SIM_CACHE_DIR``; ``NUMBA_CACHE_DIR``/rigid_body_sim
 (the user chose where numba caches); ``XDG_CACHE_HOME``/rigid_body_sim, else
 ``~/.cache/rigid_body_sim``.  If it cannot be written, the kernels compile in memory in
@@ -65,6 +74,7 @@ from numba.core import caching
 
 __all__ = ['KernelCacheLocator', 'PHYSICS_ROOT', 'SOURCES', 'CACHE_DIR_VARIABLE', 'PROBLEM',
            'cache_root', 'kernel_dir', 'install_locator', 'source_key', 'cpu_key',
+           'plugin_source_key', 'PLUGINS_FOLDER',
            'caching_enabled',
            'compile_lock', 'seal', 'verify', 'marker', 'is_marked', 'mark', 'unmark_all',
            'drop', 'drop_unsealed', 'prune', 'clear', 'claim_file', 'measured_seconds',
@@ -76,6 +86,9 @@ CACHE_DIR_VARIABLE = 'RIGID_BODY_SIM_CACHE_DIR'
 """Environment variable: the folder to cache the compiled kernels in (see the module)."""
 KEEP_DAYS = 30
 """A folder of other sources' kernels unused this long is removed (by the next compile)."""
+
+PLUGINS_FOLDER = 'plugins'
+"""The folder of a kernel folder that holds the effect plugins' compiled functions."""
 
 _MANIFEST = 'manifest.json'
 _LOCK = 'compile.lock'
@@ -163,7 +176,7 @@ def caching_enabled() -> bool:
     return PROBLEM is None
 
 
-_claimed: set[str] = set()
+_claimed: dict[str, tuple[str, Path] | None] = {}
 
 
 def claim_file(path: str) -> None:
@@ -172,8 +185,48 @@ def claim_file(path: str) -> None:
 
     For an effect written outside the package (its wrench may inline the toolkit, so its
     cache must follow the toolkit's sources): the effects' decorators claim their file.
+    Its folder is keyed by its own sources too (:func:`plugin_source_key`).
     """
-    _claimed.add(os.path.realpath(path))
+    _claimed.setdefault(os.path.realpath(path), None)
+
+
+def plugin_source_key(path: str | Path) -> tuple[str, Path]:
+    """
+    Return (SHA-256 hex of a plugin's sources, the folder of `path` relative to them).
+
+    The sources: the names and contents of every ``*.py`` file of the top-level package
+    `path` is in (its folder and the folders above it with an ``__init__.py``), or of the
+    file alone if its folder is no package (a module file beside a scene).
+    """
+    file = Path(path)
+    root = file.parent
+    if (root / '__init__.py').is_file():
+        while (root.parent / '__init__.py').is_file() and root.parent != root:
+            root = root.parent
+        files = sorted(root.rglob('*.py'))
+    else:
+        files = [file]
+    digest = hashlib.sha256()
+    for source in files:
+        digest.update(str(source.relative_to(root)).encode() + b'\0')
+        digest.update(source.read_bytes())
+    return digest.hexdigest(), file.parent.relative_to(root)
+
+
+def _plugin_folder(real: str, module: str | None) -> Path:
+    """
+    Return the folder (relative to the kernel folder) of the claimed file `real`.
+
+    Keyed by the plugin's sources and the name its module was imported as: numba's cached
+    code imports its module by that name when it loads, so a file imported under two names
+    (a scene's plugin file, then ``import`` of the same file) keeps two caches.
+    """
+    sources = _claimed.get(real)
+    if sources is None:
+        sources = _claimed[real] = plugin_source_key(real)
+    key, relative = sources
+    named = hashlib.sha256(f'{key}\0{module}'.encode()).hexdigest()
+    return Path(PLUGINS_FOLDER) / named[:20] / relative
 
 
 class KernelCacheLocator(caching.InTreeCacheLocator):
@@ -182,19 +235,19 @@ class KernelCacheLocator(caching.InTreeCacheLocator):
 
     A function in the physics core is cached under :func:`kernel_dir`, in the folder of its
     file relative to the core (one location whatever the package's path); a function of a
-    claimed file (:func:`claim_file`) under ``external/<hash of its folder>``.  The freshness
-    stamp is numba's own: the content of the function's file.  Any other function is left
-    to numba's other locators.
+    claimed file (:func:`claim_file`) under ``plugins/<its sources>/`` (see the module).  The
+    freshness stamp is numba's own: the content of the function's file.  Any other function
+    is left to numba's other locators.
     """
 
     def __init__(self, py_func: Callable[..., Any], py_file: str) -> None:
         super().__init__(py_func, py_file)
-        path = Path(os.path.realpath(py_file))
+        real = os.path.realpath(py_file)
+        path = Path(real)
         try:
             relative = path.parent.relative_to(PHYSICS_ROOT)
         except ValueError:
-            relative = Path('external') / hashlib.sha256(
-                str(path.parent).encode()).hexdigest()[:16]
+            relative = _plugin_folder(real, getattr(py_func, '__module__', None))
         self._kernel_folder = str(kernel_dir() / relative)
 
     def get_cache_path(self) -> str:
@@ -266,8 +319,10 @@ def compile_lock(folder: Path | None = None,
 
 
 def _cache_files(folder: Path) -> list[Path]:
+    """Return the kernels' cache files of the folder (the plugins' are not sealed)."""
     return sorted(path for path in folder.rglob('*')
-                  if path.suffix in _CACHE_SUFFIXES and path.is_file())
+                  if path.suffix in _CACHE_SUFFIXES and path.is_file()
+                  and path.relative_to(folder).parts[0] != PLUGINS_FOLDER)
 
 
 def _digest(path: Path) -> str:
