@@ -192,5 +192,6 @@ def test_a_scene_name_the_file_system_refuses_is_one_line_naming_it(name):
     with pytest.raises(ValueError) as caught:
         load_scene(name)
     message = str(caught.value)
-    assert message.startswith(("scene 'nnn", "unknown scene 'null\\x00", "scene 'null\\x00")), message
+    assert message.startswith(("scene 'nnn", "unknown scene 'null\\x00",
+                               "scene 'null\\x00")), message
     assert message.isprintable() and len(message) <= MESSAGE_LIMIT, message[:1000]
