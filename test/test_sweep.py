@@ -60,7 +60,7 @@ def _wait_for(condition, what, deadline=DEADLINE):
     end = time.monotonic() + deadline
     while not condition():
         assert time.monotonic() < end, f'waited {deadline} s for {what}'
-        time.sleep(0.05)
+        time.sleep(0.05)  # waits-for: poll interval of _wait_for(condition)
 
 
 # -- the spec
