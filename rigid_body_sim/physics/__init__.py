@@ -15,12 +15,14 @@ from .rotations import matrix_from_quaternion
 from .rotations import quaternion_from_matrix
 from .simulator import Simulator
 from .simulator import unresolved_rotation
+from .world import World
 from .state import State
 
 __all__ = [
     'RigidBody',
     'State',
     'Simulator',
+    'World',
     'unresolved_rotation',
     'INTEGRATORS',
     'get_integrator',

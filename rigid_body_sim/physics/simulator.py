@@ -564,6 +564,55 @@ class Simulator:
             progress(1.0)
         return self.state
 
+    # -- stepped from outside: a World advances many simulators' arrays in one kernel call
+
+    def kernel_arguments(self) -> tuple[npt.NDArray[np.float64], Any, npt.NDArray[np.float64]]:
+        """
+        Return (packed state, compiled model, control array): what its kernels advance.
+
+        The arrays themselves, not copies: a :class:`~.world.World` advances them in place
+        by this simulator's own run kernel or controller, then tells it with
+        :meth:`advanced_to`.  Packed state (13,): kernels/layout.py; the model holds the
+        body, the held wrench and the effects; the control array error_control's.
+        """
+        return self._values, self._model, self._control
+
+    def stepping_kernels(self) -> tuple[Any, Callable[..., int], Callable[..., int]]:
+        """
+        Return (controller, run kernel, controlled kernel) of its integrator, loaded once.
+
+        Compiled, or interpreted while :attr:`interpreted` (kernels/interpreted.py).
+        """
+        if self._run is None:
+            self._load_kernels()
+        return self._controller, self._run, self._controlled_kernel
+
+    def prepare_step(self, dt: float) -> None:
+        """
+        Check a step of dt s against the stiff effects, as :meth:`step` does first.
+
+        ValueError (the reason, what to change) for a fixed step that would diverge; under
+        error control the least substeps are raised to what keeps the steps stable.  Only
+        when the step, the substeps, the integrator or the tolerance changed.
+        """
+        if self._checked != (dt, self._substeps, self._integrator, self._tolerance):
+            self._check_stiffness(dt)
+
+    def advanced_to(self, time: float, compensation: float = 0.0) -> None:
+        """
+        Take the packed state as advanced outside, to simulated `time` (s).
+
+        `compensation`: the low bits of a Kahan-summed clock (see :meth:`_add_time`), so that
+        a clock kept outside goes on exactly as this one would.
+        """
+        self._integrated = self._state = None
+        self._time = time
+        self._time_compensation = compensation
+
+    def divergence(self, duration: float) -> str:
+        """Return the one-line message of a state that turned non-finite within `duration` s."""
+        return self._divergence(duration)
+
     def _plan(self) -> None:
         """Tell the error controller the configuration changed, and if it is torque-free."""
         held = self._held

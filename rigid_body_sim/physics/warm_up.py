@@ -7,7 +7,8 @@ of :func:`compile_job`, so that the ``compile`` command can take them in paralle
 - ``shared``: what every scene uses whatever the integrator: the Model, the effects' terms,
   flows and constraint, the IMU, the derived quantities the messages are made of;
 - ``controller``: the error controller (error_control.controlled) and the constructor of
-  the structure that hands it a run kernel, one for every method;
+  the structure that hands it a run kernel, one for every method; the tick of a World of
+  many bodies (world.step_bodies), which calls them;
 - ``run-<module>``: a method's run kernel (``run-buss`` serves buss and buss_plain,
   ``run-splitting`` splitting and splitting4).
 
@@ -27,6 +28,7 @@ import time
 import numpy as np
 
 from . import error_control
+from . import world
 from .body import RigidBody
 from .effects import create_effect
 from .effects import EFFECTS
@@ -114,7 +116,8 @@ def declared_seconds() -> dict[str, float]:
         return float(seconds)
 
     declared = {SHARED: SHARED_SECONDS, CONTROLLER: sum(
-        declared_by(kernel) for kernel in error_control.CONTROLLER_KERNELS)}
+        declared_by(kernel)
+        for kernel in error_control.CONTROLLER_KERNELS + world.WORLD_KERNELS)}
     for integrator in INTEGRATORS.values():
         declared[integrator.compile_job] = declared_by(integrator)
     return declared
@@ -182,7 +185,7 @@ def compile_job(job: str) -> float:
     if job == SHARED:
         _shared()
     elif job == CONTROLLER:
-        for kernel in error_control.CONTROLLER_KERNELS:
+        for kernel in error_control.CONTROLLER_KERNELS + world.WORLD_KERNELS:
             kernel.dispatcher
     else:
         kernels = {integrator.compile_job: integrator.run_kernel

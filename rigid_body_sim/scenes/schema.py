@@ -19,13 +19,17 @@ from collections.abc import Mapping
 import copy
 from dataclasses import dataclass
 from dataclasses import field
+from dataclasses import replace
 from pathlib import Path
+import re
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 from numpy.typing import NDArray
 
+from .limits import MAX_BODIES
+from .limits import MAX_BODY_NAME_LENGTH
 from .limits import MAX_DESCRIPTION_LENGTH
 from .limits import MAX_NAME_LENGTH
 from .limits import RATE_RANGE
@@ -35,6 +39,7 @@ from ..physics import INTEGRATORS
 from ..physics import RigidBody
 from ..physics import Simulator
 from ..physics import State
+from ..physics import World
 from ..physics.effects import create_effect
 from ..physics.effects import EFFECTS
 from ..physics.effects import ExternalWrench
@@ -66,7 +71,10 @@ SHAPES = ('box', 'cylinder', 'sphere', 'ellipsoid')
 
 # The keys each part of a scene may have; anything else is an error.
 _TOP_KEYS = ('name', 'description', 'plugins', 'body', 'initial', 'effects', 'integrator',
-             'rate', 'tolerance', 'imu', 'draw')
+             'rate', 'tolerance', 'imu', 'draw', 'bodies')
+# What each entry of `bodies:` may give; the same keys at the top are every body's default.
+_BODY_KEYS = ('name', 'body', 'initial', 'effects', 'imu', 'draw')
+_BODY_NAME = re.compile(r'[A-Za-z][A-Za-z0-9_]*')
 _IMU_KEYS = ('position', 'orientation') + ImuModel.NOISE_KEYS + ('seed',)
 _IMU_UNITS = {'gyro_noise_density': 'rad/s/sqrt(Hz)', 'gyro_random_walk': 'rad/s^2/sqrt(Hz)',
               'gyro_bias_sigma': 'rad/s', 'accel_noise_density': 'm/s^2/sqrt(Hz)',
@@ -152,6 +160,11 @@ class Scene:
         but its plugins' paths made absolute.
     plugins : tuple of str
         The absolute paths of the effect plugin files the scene loaded (``plugins:``).
+    bodies : tuple of Scene
+        A scene of several bodies (``bodies:``): each body as a one-body scene named after
+        it (its body, state, effects, IMU and drawing; the scene's integrator, rate and
+        tolerance); the attributes above that describe one body are then the first one's.
+        Empty for a one-body scene.  :attr:`members` gives the bodies of either kind.
 
     """
 
@@ -168,6 +181,28 @@ class Scene:
     source: str = '<scene>'
     data: dict = field(default_factory=dict, repr=False, compare=False)
     plugins: tuple[str, ...] = ()
+    bodies: tuple[Scene, ...] = ()
+
+    @property
+    def members(self) -> tuple[Scene, ...]:
+        """Return the bodies, each a one-body scene: the scene itself if it has one body."""
+        return self.bodies or (self,)
+
+    @property
+    def has_named_bodies(self) -> bool:
+        """Return True for a scene of ``bodies:`` (topics and frames under the bodies' names)."""
+        return bool(self.bodies)
+
+    def world(self, integrator: str | None = None, tolerance: float | None = None) -> World:
+        """
+        Return a World of the scene's bodies, each with its effects, at their initial states.
+
+        integrator, tolerance (rad/s; 0: off): replace the scene's, as in :meth:`simulator`.
+        """
+        tolerance = self.tolerance if tolerance is None else tolerance
+        return World(((member.name, member.simulator()) for member in self.members),
+                     integrator=self.integrator if integrator is None else integrator,
+                     tolerance=tolerance or None)
 
     @property
     def dt(self) -> float:
@@ -259,6 +294,12 @@ class Scene:
         - integrator (name), rate (Hz), tolerance (rad/s, 0: off).
 
         """
+        if self.bodies and any(value is not None for value in (
+                mass, inertia, orientation, angular_velocity_body, angular_velocity_world,
+                position, velocity, body)):
+            raise ValueError(f'{self.source}: the body and initial overrides are for a scene '
+                             f'of one body; this one has {len(self.bodies)} (bodies:): change '
+                             'them in its file')
         data = copy.deepcopy(self.data)
         if body is not None:
             replaced = _plain(dict(body)) if isinstance(body, dict) else body
@@ -332,6 +373,8 @@ class _SceneReader:
     def read(self, data: Any) -> Scene:
         mapping = self.mapping(data, '', _TOP_KEYS)
         self.reject_empty_sections(mapping)
+        if 'bodies' in mapping:
+            return self.read_bodies(mapping)
         for key in ('name', 'description', 'body'):
             if key not in mapping or mapping[key] is None:
                 raise self.error(key, 'missing; the scene requires it')
@@ -369,6 +412,58 @@ class _SceneReader:
                      drawing=drawing, source=self.source, data=data,
                      tolerance=tolerance or None, imu=imu, plugins=plugins)
 
+    def read_bodies(self, mapping: dict[str, Any]) -> Scene:
+        """
+        Return the Scene of a ``bodies:`` list, each body read as a one-body scene.
+
+        An entry's ``body``, ``initial``, ``effects``, ``imu`` and ``draw`` replace the
+        scene-wide ones given at the top (each section whole, not merged key by key).
+        """
+        for key in ('name', 'description'):
+            if key not in mapping or mapping[key] is None:
+                raise self.error(key, 'missing; the scene requires it')
+        name = self.text(mapping['name'], 'name', MAX_NAME_LENGTH)
+        description = self.text(mapping['description'], 'description', MAX_DESCRIPTION_LENGTH)
+        entries = mapping['bodies']
+        if not isinstance(entries, list) or not entries:
+            raise self.error('bodies', 'expected a list of bodies, each a mapping with a name, '
+                                       f'got {describe_value(entries)}')
+        if len(entries) > MAX_BODIES:
+            raise self.error('bodies', f'{len(entries)} bodies; a scene takes at most '
+                                       f'{MAX_BODIES}')
+        shared = {key: mapping[key] for key in _TOP_KEYS
+                  if key in mapping and key not in ('name', 'bodies')}
+        named: dict[str, int] = {}
+        members = []
+        for index, entry in enumerate(entries):
+            path = f'bodies[{index}]'
+            entry = self.mapping(entry, path, _BODY_KEYS, required=('name',))
+            body_name = self.body_name(entry['name'], f'{path}.name')
+            if body_name in named:
+                raise self.error(f'{path}.name', f'{body_name!r} is the name of '
+                                                 f'bodies[{named[body_name]}] too; each body '
+                                                 'needs a name of its own')
+            named[body_name] = index
+            single = dict(shared, **entry)
+            if single.get('body') is None:
+                raise self.error(f'{path}.body', 'missing; give the body here or a scene-wide '
+                                                 'body: for every body')
+            members.append(_SceneReader(f'{self.source}: {path}', self.folder).read(single))
+        first = members[0]
+        return replace(first, name=name, description=description, source=self.source,
+                       data=copy.deepcopy(mapping), bodies=tuple(members))
+
+    def body_name(self, value: Any, path: str) -> str:
+        """Return a body's name: a ROS name token (its topics' and frame's namespace)."""
+        if not isinstance(value, str) or not _BODY_NAME.fullmatch(value):
+            raise self.error(path, f'expected a name of letters, digits and _ starting with a '
+                                   f'letter (it names the body\'s topics and frame), got '
+                                   f'{describe_value(value)}')
+        if len(value) > MAX_BODY_NAME_LENGTH:
+            raise self.error(path, f'{len(value)} characters; give at most '
+                                   f'{MAX_BODY_NAME_LENGTH}')
+        return value
+
     def reject_empty_sections(self, mapping: dict[str, Any]) -> None:
         """
         Raise for a section key with nothing after it (``initial:`` alone).
@@ -377,7 +472,7 @@ class _SceneReader:
         lines below it were lost or mis-indented.  Leaving a section out is the documented
         way to get its defaults; ``effects: []`` says "no effects".
         """
-        for key in ('body', 'initial', 'imu', 'draw', 'plugins'):
+        for key in ('body', 'initial', 'imu', 'draw', 'plugins', 'bodies'):
             if key in mapping and mapping[key] is None:
                 remedy = ('the scene requires it' if key == 'body' else
                           'give its keys, or leave the line out for the defaults')
