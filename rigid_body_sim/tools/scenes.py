@@ -4,7 +4,9 @@ List the built-in scenes with a one-line description each, or check and describe
 A scene is a YAML file naming a body, its initial state, the effects on it (gravity, a
 pivot, drag, dissipation, external pushes), the default integrator and rate, and how to
 draw it.  Give a built-in name or a path to check a scene and print what it holds; an
-invalid file is reported with its key path and what is wrong (exit code 2).  --effects
+invalid file is reported with its key path and what is wrong (exit code 2).  A scene of
+several bodies (``bodies:``) is described one line a body (the first 20; --body NAME
+describes one in full).  --effects
 lists every effect a scene may name, with its parameters and their defaults: read from the
 effect registry, it is the complete list (the schema comment in config/scenes/default.yaml
 documents the first few and points here), the installed effect plugins' effects included; a
@@ -42,6 +44,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('scene', nargs='?',
                         help='a built-in scene name or a path to a .yaml file: check it and '
                              'print what it holds')
+    parser.add_argument('--body', metavar='NAME',
+                        help='in a scene of several bodies, describe the body NAME in full')
     parser.add_argument('--effects', action='store_true',
                         help='list the effects a scene may name, with their parameters')
 
@@ -51,7 +55,13 @@ def main(args: argparse.Namespace) -> int:
     if args.effects:
         _print_effects()
     elif args.scene is not None:
-        _print_scene(load_scene(args.scene))
+        scene = load_scene(args.scene)
+        if args.body is not None:
+            _print_scene(_member(scene, args.body))
+        elif scene.has_named_bodies:
+            _print_bodies(scene)
+        else:
+            _print_scene(scene)
     else:
         _print_scenes()
     return 0
@@ -63,9 +73,49 @@ def _print_scenes() -> None:
     print(f'built-in scenes ({scenes_dir()}):')
     for name in names:
         marker = '*' if name == DEFAULT_SCENE else ' '
-        print(f' {marker}{name:<{width}}  {load_scene(name).description}')
+        scene = load_scene(name)
+        count = f' ({len(scene.members)} bodies)' if scene.has_named_bodies else ''
+        print(f' {marker}{name:<{width}}  {scene.description}{count}')
     print("* the node's default.  Details: rigid-body-sim scenes NAME; run one: "
           'ros2 run rigid_body_sim rigid_body_node --ros-args -p scene:=NAME')
+
+
+_LISTED_BODIES = 20
+
+
+def _member(scene: Scene, name: str) -> Scene:
+    """Return the body `name` of a scene as a one-body scene (ValueError naming them)."""
+    for member in scene.members:
+        if member.name == name:
+            return member
+    names = [member.name for member in scene.members]
+    shown = ', '.join(names[:_LISTED_BODIES]) + (', ...' if len(names) > _LISTED_BODIES else '')
+    raise ValueError(f'{scene.source}: no body called {name!r}; its bodies: {shown}')
+
+
+def _print_bodies(scene: Scene) -> None:
+    """Print a scene of several bodies: what they share, then one line a body."""
+    members = scene.members
+    control = ('off' if scene.tolerance is None
+               else f'{scene.tolerance:g} rad/s, each body its own substeps')
+    print(f'{scene.name}: {scene.description}')
+    print(f'  source:      {scene.source}')
+    print(f'  integrator:  {scene.integrator} at {scene.rate:g} Hz (dt {scene.dt:g} s), '
+          f'tolerance {control}')
+    print(f'  bodies:      {len(members)}; topics <name>/pose, <name>/twist, ..., frames '
+          '<name> and <name>/imu')
+    width = max(len(member.name) for member in members[:_LISTED_BODIES])
+    for member in members[:_LISTED_BODIES]:
+        body, state = member.body, member.state
+        omega = np.linalg.norm(state.angular_velocity_body(body))
+        position = np.array2string(without_round_off(state.position), precision=4,
+                                   separator=', ')
+        effects = ', '.join(member.effect_names()) or 'torque-free'
+        print(f'    {member.name:<{width}}  {body.mass:g} kg {member.drawing.shape}, at '
+              f'{position} m, |omega| {omega:.3g} rad/s, {effects}')
+    if len(members) > _LISTED_BODIES:
+        print(f'    ... and {len(members) - _LISTED_BODIES} more')
+    print(f'  one body in full: rigid-body-sim scenes {scene.name} --body {members[0].name}')
 
 
 def _print_scene(scene: Scene) -> None:
