@@ -146,8 +146,9 @@ def test_a_nearly_unit_quaternion_is_accepted_and_normalised():
 
 
 @needs_simulation_interfaces
-def test_an_empty_frame_id_means_the_world_frame():
-    state = simulation.state_from_entity_state(_entity_state(frame_id=''), BODY, 'map')
+@pytest.mark.parametrize('frame_id', ['', 'map', '/map'])
+def test_the_world_frame_is_named_as_tf2_reads_it_or_left_empty(frame_id):
+    state = simulation.state_from_entity_state(_entity_state(frame_id=frame_id), BODY, 'map')
     assert np.array_equal(state.position, [1.0, 2.0, 3.0])
 
 
@@ -167,6 +168,7 @@ REFUSALS = {
                                       'body': RigidBody(1.0, [10.0, 20.0, 25.0])},
                                      'overflows'),
     'another frame': ({'frame_id': 'map'}, "header.frame_id is 'map'"),
+    'the world frame with two slashes': ({'frame_id': '//world'}, "header.frame_id is '//world'"),
     'a frame id of control characters, a megabyte long': (
         {'frame_id': '\x1b[2J' * 250_000}, 'header.frame_id'),
 }

@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .frames import as_tf2_reads
 from ..physics.body import RigidBody
 from ..physics.state import State
 from ..text import one_line
@@ -150,7 +151,8 @@ def state_from_entity_state(message: EntityState, body: RigidBody,
     Return the State of `body` that a simulation_interfaces/EntityState gives, or raise.
 
     The message's pose and twist are in its header's frame, which must be `world_frame`
-    (empty means the world frame, as the message defines): pose = COM position (m) and
+    as tf2 reads it (one leading ``/`` dropped; empty means the world frame, as the message
+    defines): pose = COM position (m) and
     orientation (body to world), twist = COM velocity (m/s) and angular velocity (rad/s),
     world frame.  The momenta are p = m v and L = I_w omega.  The stamp and the
     acceleration are not part of a state and are not read.  A body held by a pivot gets
@@ -167,7 +169,7 @@ def state_from_entity_state(message: EntityState, body: RigidBody,
     """
     _require()
     frame = message.header.frame_id
-    if frame not in ('', world_frame):
+    if frame != '' and as_tf2_reads(frame) != world_frame:
         raise ValueError(f"header.frame_id is '{shortened(frame, 80)}': states are set in the "
                          f"world frame '{world_frame}' (or an empty frame_id, which means it)")
     position = _values(message.pose.position)
@@ -184,7 +186,7 @@ def state_from_entity_state(message: EntityState, body: RigidBody,
     _check_finite(velocity, 'twist.linear', 'm/s')
     omega = _values(message.twist.angular)
     _check_finite(omega, 'twist.angular', 'rad/s')
-    # State normalises the quaternion (once).
+    # State normalises the quaternion; R of that one turns omega into L.
     oriented = State(quaternion, position)
     matrix = oriented.rotation
     with np.errstate(over='ignore', invalid='ignore'):
