@@ -9,16 +9,19 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 TEST_STAMP := $(VENV)/.installed-test
-# tf2_msgs (TF) built into the venv where cmake and a C/C++ compiler exist: interfaces/.
-# Its build tools (requirements-tf2.txt) go into a build venv of their own, not into .venv.
-TF2_STAMP := $(VENV)/.tf2_msgs
-TF2_BUILD_VENV := build/tf2_msgs-venv
+# The interface packages of interfaces/ (tf2_msgs for TF, simulation_interfaces for the
+# standard simulation services) built into the venv where cmake and a C/C++ compiler exist.
+# Their build tools (requirements-tf2.txt) go into a build venv of their own, not into .venv.
+INTERFACES_STAMP := $(VENV)/.interfaces
+INTERFACES_BUILD_VENV := build/interfaces-venv
+INTERFACE_FILES := $(wildcard interfaces/*/package.xml interfaces/*/CMakeLists.txt \
+	interfaces/*/msg/*.msg interfaces/*/srv/*.srv interfaces/*/action/*.action)
 PYTEST_ARGS ?=
 NODE_ARGS ?=
 
 .PHONY: venv run test clean
 
-venv: $(STAMP) $(TF2_STAMP)
+venv: $(STAMP) $(INTERFACES_STAMP)
 
 $(STAMP): requirements.txt setup.py setup.cfg package.xml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -27,17 +30,16 @@ $(STAMP): requirements.txt setup.py setup.cfg package.xml
 	$(BIN)/python -m pip install --no-deps -e .
 	touch $@
 
-$(TF2_STAMP): $(STAMP) requirements-tf2.txt interfaces/build_tf2_msgs.sh \
-		interfaces/tf2_msgs/package.xml interfaces/tf2_msgs/CMakeLists.txt \
-		interfaces/tf2_msgs/msg/TFMessage.msg
-	interfaces/build_tf2_msgs.sh $(VENV) $(TF2_BUILD_VENV)
+$(INTERFACES_STAMP): $(STAMP) requirements-tf2.txt interfaces/build_interfaces.sh \
+		$(INTERFACE_FILES)
+	interfaces/build_interfaces.sh $(VENV) $(INTERFACES_BUILD_VENV)
 	touch $@
 
 $(TEST_STAMP): $(STAMP) requirements-test.txt
 	$(BIN)/python -m pip install -r requirements-test.txt
 	touch $@
 
-run: $(STAMP) $(TF2_STAMP)
+run: $(STAMP) $(INTERFACES_STAMP)
 	@echo 'Starting rigid_body_node with the default scene: a T-handle spun near its unstable'
 	@echo 'middle axis. It first flips over after ~7.2 s, then every ~14.4 s.'
 	@echo 'Watch it live from another terminal in this directory (nothing else to install):'
@@ -57,7 +59,7 @@ run: $(STAMP) $(TF2_STAMP)
 	$(BIN)/rigid_body_node $(NODE_ARGS)
 
 test: export ROS_AUTOMATIC_DISCOVERY_RANGE = LOCALHOST
-test: $(STAMP) $(TF2_STAMP) $(TEST_STAMP)
+test: $(STAMP) $(INTERFACES_STAMP) $(TEST_STAMP)
 	@# Every numba kernel, compiled once per machine and per version of the sources (about a
 	@# minute on 2 cores; nothing when they are), so that no test waits for one.
 	$(BIN)/rigid-body-sim compile

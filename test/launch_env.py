@@ -11,7 +11,7 @@ into the run venv), and says how to run its ``ros2`` with the run venv's Python:
 - ros2/ros2cli: ros2cli (the ``ros2`` command), ros2pkg (ros2launch imports it);
 - ros2/rcl_interfaces: composition_interfaces, a message package that ``launch_ros.actions``
   imports at module level (for composable nodes); it is generated and compiled as
-  interfaces/build_tf2_msgs.sh builds tf2_msgs, with the rosidl wheels of
+  interfaces/build_interfaces.sh builds tf2_msgs, with the rosidl wheels of
   requirements-tf2.txt in a build venv of its own;
 - from PyPI: osrf-pycommon (launch's one dependency that is not a ROS package), pinned.
 

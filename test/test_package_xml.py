@@ -47,10 +47,11 @@ DISTRIBUTIONS = {
     'python3-dask-pip': 'dask', 'python3-distributed-pip': 'distributed',
     'python3-pyarrow-pip': 'pyarrow',
 }
-# Built into the venv from interfaces/tf2_msgs (no wheel): never pinned.  launch and
-# launch_ros, which the launch files import, have no wheel either: a ROS 2 installation has
-# them (test/launch_env.py builds them from their sources for the tests, outside the venv).
-BUILT = {'tf2_msgs', 'launch', 'launch_ros'}
+# Built into the venv from interfaces/tf2_msgs and interfaces/simulation_interfaces (no
+# wheel): never pinned.  launch and launch_ros, which the launch files import, have no wheel
+# either: a ROS 2 installation has them (test/launch_env.py builds them from their sources
+# for the tests, outside the venv).
+BUILT = {'tf2_msgs', 'simulation_interfaces', 'launch', 'launch_ros'}
 # Test_depends that the run-time set brings anyway (geometry_msgs needs std_msgs).
 PULLED_AT_RUN_TIME = {'std_msgs'}
 
@@ -141,10 +142,17 @@ def test_requirement_files_pin_the_exec_depends_to_run_and_the_test_depends_to_t
     assert set(run) & set(test) == set(), 'pinned in both requirements.txt and the test set'
 
 
-def test_the_tf2_build_venv_pins_what_it_shares_with_the_run_venv_alike():
-    """tf2_msgs is linked in the build venv and runs in .venv: the shared wheels must match."""
+# What the interface packages of interfaces/ link against: tf2_msgs geometry_msgs (and
+# below), simulation_interfaces also std_msgs and action_msgs (and its unique_identifier_msgs).
+LINKED = {'numpy', 'ros-rosidl-runtime-c', 'ros-fastcdr', 'ros-builtin-interfaces',
+          'ros-service-msgs', 'ros-geometry-msgs', 'ros-std-msgs', 'ros-action-msgs',
+          'ros-unique-identifier-msgs'}
+
+
+def test_the_interfaces_build_venv_pins_what_it_shares_with_the_run_venv_alike():
+    """Built in the build venv, run in .venv: the wheels they link against must match."""
     run, build = _pins('requirements.txt'), _pins('requirements-tf2.txt')
     shared = set(run) & set(build)
-    assert {'numpy', 'ros-geometry-msgs', 'ros-rosidl-runtime-c', 'ros-fastcdr'} <= shared
+    assert LINKED <= shared, f'pinned in one venv only: {sorted(LINKED - shared)}'
     differing = {name: (run[name], build[name]) for name in shared if run[name] != build[name]}
     assert differing == {}
