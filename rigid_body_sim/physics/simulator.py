@@ -571,11 +571,26 @@ class Simulator:
         Return (packed state, compiled model, control array): what its kernels advance.
 
         The arrays themselves, not copies: a :class:`~.world.World` advances them in place
-        by this simulator's own run kernel or controller, then tells it with
-        :meth:`advanced_to`.  Packed state (13,): kernels/layout.py; the model holds the
+        by this simulator's own run kernel or controller (:meth:`move_arrays`), then tells it
+        with :meth:`advanced_to`.  Packed state (13,): kernels/layout.py; the model holds the
         body, the held wrench and the effects; the control array error_control's.
         """
         return self._values, self._model, self._control
+
+    def move_arrays(self, values: npt.NDArray[np.float64],
+                    control: npt.NDArray[np.float64]) -> None:
+        """
+        Keep the packed state and the control array in `values` and `control` from now on.
+
+        Their contents are copied in first: nothing changes but where they live.  A World
+        gives each body a row of its own two arrays, so that its kernel takes every body's
+        state from one block of memory; shapes (13,) and error_control's CONTROL_SIZE,
+        float64, C-contiguous.
+        """
+        values[:] = self._values
+        control[:] = self._control
+        self._values = values
+        self._control = control
 
     def stepping_kernels(self) -> tuple[Any, Callable[..., int], Callable[..., int]]:
         """

@@ -11,12 +11,12 @@ takes every body in turn through the very compiled kernels its Simulator's own
 :meth:`~.simulator.Simulator.step` calls: the integrator's run kernel for fixed substeps,
 the error controller (error_control.controlled) under a tolerance, each reached as a
 first-class function held in a :class:`Stepper`.  So each body is advanced by the same
-machine code, from the same arrays (its Simulator's packed state, model and control
-array, taken by reference), as when it is simulated alone, and under error control each
-chooses its own substeps: a fast tumbler does not make the others substep.  What the
-loop adds per body is the call through a function pointer and a copy of its state kept to
-restore, should it turn non-finite (benchmarks/many_bodies.py measures it against the
-single body's kernel).  The bodies' Simulators are told their new time only when read
+machine code as when it is simulated alone, and under error control each chooses its own
+substeps: a fast tumbler does not make the others substep.  The bodies' states and control
+arrays are rows of two arrays the World owns (Simulator.move_arrays), read in order; what
+the loop adds per body is the call through a function pointer and a copy of its state kept
+to restore, should it turn non-finite (benchmarks/many_bodies.py measures the whole against
+the single body's kernel).  The bodies' Simulators are told their new time only when read
 (:meth:`World.simulator`, :meth:`World.state`): a tick touches no Python object per body.
 
 A body whose state turns non-finite is put back to its last finite state and stopped
@@ -42,6 +42,7 @@ from . import error_control
 from .integrators import get_integrator
 from .kernels import interpreting
 from .kernels import LazyKernel
+from .kernels.borrow import borrowed
 from .kernels.interpreted import stand_in
 from .kernels.layout import STATE_SIZE
 from .kernels.loop import METHOD_TYPE
@@ -90,20 +91,18 @@ stepper_of = LazyKernel(STEPPER_TYPE(error_control.CONTROLLER_TYPE, _CONTROLLED_
                         _stepper_of, compile_seconds=0.1)
 """The compiled constructor of a :class:`Stepper`."""
 
-_ARRAY = types.float64[::1]
-_ARRAYS = types.ListType(_ARRAY)
 _MODELS = types.ListType(MODEL_TYPE)
 
 
-def step_all(stepper: Stepper, states: Any, models: Any, controls: Any,
-             checkpoints: npt.NDArray[np.float64], method: tuple[float, ...], tick: float,
-             substeps: int, time: float, active: npt.NDArray[np.uint8],
-             taken: npt.NDArray[np.int64]) -> int:
+def step_all(stepper: Stepper, states: npt.NDArray[np.float64], models: Any,
+             controls: npt.NDArray[np.float64], checkpoints: npt.NDArray[np.float64],
+             method: tuple[float, ...], tick: float, substeps: int, time: float,
+             active: npt.NDArray[np.uint8], taken: npt.NDArray[np.int64]) -> int:
     """
     Advance every active body by one tick of `tick` s from `time` (s), in place.
 
-    states, models, controls: each body's packed state, model and control array (lists,
-    in the bodies' order); substeps: the fixed steps per tick, or 0 for error control;
+    states (N, 13), controls (N, CONTROL_SIZE): each body's packed state and control array,
+    a row each, in the bodies' order; models: their compiled models (a list); substeps: the fixed steps per tick, or 0 for error control;
     checkpoints (N, 13): scratch, each body's state before the tick; active (N,): 0 for a
     body left as it is; taken (N,): set to each body's integrator steps, 0 if not active,
     -1 if it turned non-finite (its state is then put back as it was).  Returns how many
@@ -114,18 +113,19 @@ def step_all(stepper: Stepper, states: Any, models: Any, controls: Any,
     run = controller.run
     controlled = stepper.controlled
     diverged = 0
-    for index in range(len(states)):
+    for index in range(states.shape[0]):
         if active[index] == 0:
             taken[index] = 0
             continue
-        state = states[index]
-        checkpoint = checkpoints[index]
+        state = borrowed(states[index])
+        checkpoint = borrowed(checkpoints[index])
         checkpoint[:] = state
+        model = models[index]
         if substeps == 0:
-            steps = controlled(controller, state, models[index], method, tick, 1, time,
-                               controls[index])
+            steps = controlled(controller, state, model, method, tick, 1, time,
+                               borrowed(controls[index]))
         else:
-            steps = run(state, models[index], method, tick / substeps, substeps, time)
+            steps = run(state, model, method, tick / substeps, substeps, time)
         if steps < 0:
             state[:] = checkpoint
             diverged += 1
@@ -133,8 +133,9 @@ def step_all(stepper: Stepper, states: Any, models: Any, controls: Any,
     return diverged
 
 
-STEP_BODIES_SIGNATURE = types.int64(STEPPER_TYPE, _ARRAYS, _MODELS, _ARRAYS,
-                                    types.float64[:, ::1], METHOD_TYPE, types.float64,
+STEP_BODIES_SIGNATURE = types.int64(STEPPER_TYPE, types.float64[:, ::1], _MODELS,
+                                    types.float64[:, ::1], types.float64[:, ::1],
+                                    METHOD_TYPE, types.float64,
                                     types.int64, types.float64, types.uint8[::1],
                                     types.int64[::1])
 step_bodies = LazyKernel(STEP_BODIES_SIGNATURE, step_all, compile_seconds=1.5)
@@ -247,6 +248,7 @@ class World:
     def remove(self, name: str) -> Simulator:
         """Remove the body called `name` and return its Simulator (KeyError if none)."""
         simulator = self.simulator(name)
+        simulator.move_arrays(np.zeros(STATE_SIZE), np.zeros(error_control.CONTROL_SIZE))
         del self._simulators[name]
         del self._told[name]
         self.diverged.pop(name, None)
@@ -402,20 +404,24 @@ class World:
         return self._taken
 
     def _rebuild(self) -> None:
-        """Make the per-body lists the kernel takes, in the bodies' order."""
-        states, models, controls = List.empty_list(_ARRAY), List.empty_list(MODEL_TYPE), \
-            List.empty_list(_ARRAY)
-        if self._interpreted:
-            states, models, controls = [], [], []
-        for simulator in self._simulators.values():
-            values, model, control = simulator.kernel_arguments()
-            states.append(values)
-            models.append(model)
-            controls.append(control)
+        """
+        Give every body a row of the arrays the kernel takes, in the bodies' order.
+
+        The states (N, 13) and the control arrays are one block each (Simulator.move_arrays):
+        a tick reads them in order, where a list of arrays scattered in memory cost a
+        lookup and a cache miss per body.
+        """
+        simulators = list(self._simulators.values())
+        count = len(simulators)
+        states = np.zeros((count, STATE_SIZE))
+        controls = np.zeros((count, error_control.CONTROL_SIZE))
+        models = [] if self._interpreted else List.empty_list(MODEL_TYPE)
+        for index, simulator in enumerate(simulators):
+            simulator.move_arrays(states[index], controls[index])
+            models.append(simulator.kernel_arguments()[1])
         self._states, self._models, self._controls = states, models, controls
         self._order = list(self._simulators)
         self._index = {name: index for index, name in enumerate(self._order)}
-        count = len(self._order)
         self._checkpoints = np.zeros((count, STATE_SIZE))
         active = np.ones(count, dtype=np.uint8)
         for name in self.diverged:
