@@ -445,7 +445,7 @@ def test_a_tick_at_the_substep_cap_is_reported_and_services_and_sigint_answer_wi
     in one line, and the node still answers reset within a second of what the same request
     takes to the node paused, asked in turns with it (medians; one timer callback works
     at most WORK_PER_CALLBACK s before the executor serves the rest) and stops in order on
-    SIGINT within a second of a default-scene node stopped beside it.
+    SIGINT within a second of a default-scene node stopped at the same moment.
     """
     scene = tmp_path / 'capped_tumble.yaml'
     scene.write_text(CAPPED_SCENE)
@@ -483,13 +483,19 @@ def test_a_tick_at_the_substep_cap_is_reported_and_services_and_sigint_answer_wi
             capped.append(reset_latency())
         assert np.median(capped) < np.median(idle) + 1.0, (capped, idle)
         wait_for_output(reference, STARTED)
+        # Both asked at once and timed side by side: what the machine's load adds to a stop
+        # at that moment is in both.
         stopped = {}
+        asked = time.monotonic()
         for process in (node, reference):
-            asked = time.monotonic()
             process.send_signal(signal.SIGINT)
-            code = process.wait(15.0)
-            stopped[process] = time.monotonic() - asked
-            assert code == 0, process.output()
+        while len(stopped) < 2 and time.monotonic() < asked + 15.0:
+            for process in (node, reference):
+                if process not in stopped and not process.alive():
+                    stopped[process] = time.monotonic() - asked
+            time.sleep(0.01)  # waits-for: poll interval of the loop waiting for both exits
+        for process in (node, reference):
+            assert process.wait(1.0) == 0, process.output()
     except AssertionError as error:
         raise AssertionError(f'{error}\nnode output:\n{node.output()}') from None
     finally:
