@@ -88,7 +88,7 @@ def constellation():
     rng = np.random.default_rng(SEED + 1)
     lines = [
         '# 1,000 identical 3U cubesats (4 kg, 0.1 x 0.1 x 0.34 m) on 10 rings of 100, each',
-        '# slowly tumbling from a random spin: the many-body benchmark\'s scene',
+        "# slowly tumbling from a random spin: the many-body benchmark's scene",
         '# (benchmarks/many_bodies.py).  Written by benchmarks/many_body_scenes.py from its seed',
         f'# ({SEED + 1}).  No gravity field (the rings are where the satellites are, not',
         '# orbits): each rotates torque-free at a fixed step.',

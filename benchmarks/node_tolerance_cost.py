@@ -147,7 +147,7 @@ def main(argv=None):
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     os.environ.setdefault('ROS_DOMAIN_ID', str(os.getpid() % 100))
     rows = []
-    for scene in args.scenes or scene_names():
+    for scene in args.scenes or scene_names(several_bodies=False):
         rate = float(load_scene(scene).rate) if args.rate == 'scene' else float(args.rate)
         load_before = ', '.join(f'{value:.2f}' for value in os.getloadavg())
         row = measure_scene(scene, rate, args.window, args.log_dir)

@@ -57,7 +57,7 @@ def offline(seconds, repeats, directory):
           f'median of {repeats}:')
     print(f'  {"scene":<14} {"integrator":<10} {"effects":<26} {"x real time":>11} '
           f'{"us/tick":>8} {"MB/s sim":>9}')
-    for name in scene_names():
+    for name in scene_names(several_bodies=False):
         scene = load_scene(name)
         simulate_to_bag(scene, directory / f'{name}_warm', 0.2, rate=RATE, clock=True)
         speeds = []

@@ -52,7 +52,7 @@ def main():
           f'{"with":>9} {"free":>8} {"ratio":>6}   {"tick with":>9} {"tick free":>9}')
     print(f'{"":<14} {"":<10} {"":>5} {"":<26} {"":<13}{"us/step (run)":>17} {"":>6}   '
           f'{"us/step (step)":>19}')
-    for name in scene_names():
+    for name in scene_names(several_bodies=False):
         scene = load_scene(name)
 
         def with_effects():

@@ -241,7 +241,7 @@ def test_unforced_com_moves_uniformly_on_the_compiled_path(name):
 
 
 def _torque_free_scenes():
-    return [name for name in scene_names()
+    return [name for name in scene_names(several_bodies=False)
             if all(effect.effect_name == 'external_wrench' for effect in load_scene(name).effects)]
 
 

@@ -52,8 +52,9 @@ DETERMINISTIC = settings(derandomize=True, database=None, deadline=None,
                          suppress_health_check=[HealthCheck.too_slow,
                                                 HealthCheck.function_scoped_fixture])
 
-SCENES = {name: yaml.safe_load(find_scene(name).read_text()) for name in scene_names()}
-TEXTS = {name: find_scene(name).read_text() for name in scene_names()}
+ONE_BODY_SCENES = scene_names(several_bodies=False)
+SCENES = {name: yaml.safe_load(find_scene(name).read_text()) for name in ONE_BODY_SCENES}
+TEXTS = {name: find_scene(name).read_text() for name in ONE_BODY_SCENES}
 
 # Any float a message or a YAML file can carry: NaN, +-inf, subnormals, +-1e308, -0.0.
 ANY_FLOAT = st.floats(allow_nan=True, allow_infinity=True, allow_subnormal=True)

@@ -90,8 +90,8 @@ def test_a_scene_file_larger_than_the_limit_is_refused_naming_it(tmp_path):
 
 
 @pytest.mark.parametrize('extra', [
-    # 20,000 values in one list
-    'draw: {size: [' + '0, ' * 20000 + '0]}\n',
+    # More values than the limit in one list
+    'draw: {size: [' + '0, ' * MAX_SCENE_VALUES + '0]}\n',
     # An alias bomb: ten aliases of ten aliases of ... ten values, echoed by the message
     # refusing the integrator (10 million values: a 30 MB message).
     'integrator: [&a0 [0, 0, 0, 0, 0, 0, 0, 0, 0, 0], ' + ', '.join(

@@ -50,7 +50,7 @@ def _replaced(data, path, value):
 
 
 def _documents():
-    for name in scene_names():
+    for name in scene_names(several_bodies=False):
         with open(find_scene(name)) as scene_file:
             yield name, yaml.safe_load(scene_file)
 

@@ -34,8 +34,10 @@ from rigid_body_sim.scenes import read_scene_yaml
 from rigid_body_sim.scenes import scene_names
 import yaml
 
-BUILTIN_SCENES = ('bike_wheel', 'default', 'driven', 'flat_spin', 'heavy_top', 'stable_spin',
-                  't_handle', 'tennis_racket', 'thrown_box', 'van_zon')
+BUILTIN_SCENES = ('bike_wheel', 'constellation', 'debris_field', 'default', 'driven',
+                  'flat_spin', 'heavy_top', 'juggling_clubs', 'stable_spin', 't_handle',
+                  'tennis_racket', 'thrown_box', 'van_zon')
+SEVERAL_BODIES = ('constellation', 'debris_field', 'juggling_clubs')
 SOURCE = 'scenes/heavy_top.yaml'
 
 
@@ -49,6 +51,9 @@ def _heavy_top_data():
 
 def test_every_builtin_scene_loads_under_its_file_name():
     assert set(scene_names()) == set(BUILTIN_SCENES)
+    assert scene_names(several_bodies=True) == list(SEVERAL_BODIES)
+    assert scene_names(several_bodies=False) == sorted(
+        set(BUILTIN_SCENES) - set(SEVERAL_BODIES))
     for name in BUILTIN_SCENES:
         scene = load_scene(name)
         assert scene.name == name
@@ -498,7 +503,7 @@ def test_overrides_are_validated_like_the_file():
 
 
 def test_no_override_gives_the_same_scene():
-    for name in BUILTIN_SCENES:
+    for name in scene_names(several_bodies=False):
         scene = load_scene(name)
         # Passing back the scene's own mass and inertia (as flat parameters) changes nothing.
         for same in (scene.with_overrides(),

@@ -15,8 +15,8 @@ from .rotations import matrix_from_quaternion
 from .rotations import quaternion_from_matrix
 from .simulator import Simulator
 from .simulator import unresolved_rotation
-from .world import World
 from .state import State
+from .world import World
 
 __all__ = [
     'RigidBody',

@@ -598,9 +598,10 @@ class Simulator:
 
         Compiled, or interpreted while :attr:`interpreted` (kernels/interpreted.py).
         """
-        if self._run is None:
-            self._load_kernels()
-        return self._controller, self._run, self._controlled_kernel
+        run = self._run
+        if run is None:
+            run = self._load_kernels()
+        return self._controller, run, self._controlled_kernel
 
     def prepare_step(self, dt: float) -> None:
         """

@@ -102,7 +102,8 @@ def step_all(stepper: Stepper, states: npt.NDArray[np.float64], models: Any,
     Advance every active body by one tick of `tick` s from `time` (s), in place.
 
     states (N, 13), controls (N, CONTROL_SIZE): each body's packed state and control array,
-    a row each, in the bodies' order; models: their compiled models (a list); substeps: the fixed steps per tick, or 0 for error control;
+    a row each, in the bodies' order; models: their compiled models (a list); substeps:
+    the fixed steps per tick, or 0 for error control;
     checkpoints (N, 13): scratch, each body's state before the tick; active (N,): 0 for a
     body left as it is; taken (N,): set to each body's integrator steps, 0 if not active,
     -1 if it turned non-finite (its state is then put back as it was).  Returns how many

@@ -12,6 +12,7 @@ from __future__ import annotations
 import errno
 import os
 from pathlib import Path
+import re
 import stat
 
 from .schema import parse_scene
@@ -29,9 +30,23 @@ DEFAULT_SCENE = 'default'
 """The node's default scene: the T-handle with external_wrench, so a newcomer can push it."""
 
 
-def scene_names() -> list[str]:
-    """Return the names of the built-in scenes (``config/scenes/*.yaml``), sorted."""
-    return sorted(path.stem for path in Path(scenes_dir()).glob('*.yaml'))
+# A built-in scene of several bodies: its `bodies:` key at the top level of the file.
+_BODIES_KEY = re.compile(r'^bodies\s*:', re.MULTILINE)
+
+
+def scene_names(several_bodies: bool | None = None) -> list[str]:
+    """
+    Return the names of the built-in scenes (``config/scenes/*.yaml``), sorted.
+
+    several_bodies: None for all of them; True for the scenes of a ``bodies:`` list only,
+    False for the one-body scenes only (what the work-precision benchmark and the
+    one-body tests take).
+    """
+    paths = sorted(Path(scenes_dir()).glob('*.yaml'))
+    if several_bodies is not None:
+        paths = [path for path in paths
+                 if bool(_BODIES_KEY.search(path.read_text())) == several_bodies]
+    return [path.stem for path in paths]
 
 
 @one_line_errors

@@ -245,6 +245,8 @@ class Scene:
         """
         Return a Simulator of this scene, with its effects.
 
+        A scene of several bodies has none (ValueError): see :meth:`world`.
+
         Parameters
         ----------
         body : RigidBody, optional
@@ -258,6 +260,10 @@ class Scene:
             Replaces the scene's tolerance (rad/s; 0: off).
 
         """
+        if self.bodies:
+            raise ValueError(f'{self.source}: a scene of {len(self.bodies)} bodies (bodies:); '
+                             'this takes a scene of one body: its bodies are simulated together '
+                             'by Scene.world()')
         return Simulator(self.body if body is None else body,
                          self.state if state is None else state,
                          integrator=self.integrator if integrator is None else integrator,
@@ -308,7 +314,7 @@ class Scene:
             data['body'] = replaced
         elif inertia is not None and _same_tensor(inertia, self.body.inertia):
             inertia = None
-        section = data['body']
+        section = data.get('body')
         if inertia is not None and isinstance(section, dict):
             section = data['body'] = {'mass': section.get('mass'), 'inertia': _plain(inertia)}
         if mass is not None and isinstance(section, dict):
@@ -457,7 +463,7 @@ class _SceneReader:
         """Return a body's name: a ROS name token (its topics' and frame's namespace)."""
         if not isinstance(value, str) or not _BODY_NAME.fullmatch(value):
             raise self.error(path, f'expected a name of letters, digits and _ starting with a '
-                                   f'letter (it names the body\'s topics and frame), got '
+                                   "letter (it names the body's topics and frame), got "
                                    f'{describe_value(value)}')
         if len(value) > MAX_BODY_NAME_LENGTH:
             raise self.error(path, f'{len(value)} characters; give at most '

@@ -175,12 +175,12 @@ def _tolerance_sweep_part(args: argparse.Namespace) -> _Part:
         names = args.scenes or ['van_zon', 'heavy_top']
         span, tolerances, substeps = 2.0, (1e-3, 1e-5, 1e-7), (1, 2, 4, 8)
     else:
-        names = args.scenes or scene_names()
+        names = args.scenes or scene_names(several_bodies=False)
         span, tolerances, substeps = SWEEP_SPAN, TOLERANCES, FIXED_SUBSTEPS
-    unknown = sorted(set(names) - set(scene_names()))
+    unknown = sorted(set(names) - set(scene_names(several_bodies=False)))
     if unknown:
-        raise ValueError(f'--scenes: no built-in scene {", ".join(unknown)}; '
-                         f'the scenes are {", ".join(scene_names())}')
+        raise ValueError(f'--scenes: no built-in scene of one body {", ".join(unknown)}; '
+                         f'the scenes are {", ".join(scene_names(several_bodies=False))}')
     repeats = args.repeats or 3
 
     def finish(result: dict[str, Any]) -> dict[str, Path]:

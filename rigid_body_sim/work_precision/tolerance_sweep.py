@@ -149,7 +149,7 @@ def scene_cases(names=None, span=None):
     between: a wrench that changes between ticks.
     """
     cases = []
-    for name in names or scene_names():
+    for name in names or scene_names(several_bodies=False):
         scene = load_scene(name)
         forcing = _driven_forcing if name == 'driven' else None
         cases.append(SweepCase(name, scene, span or NATURAL_SPANS.get(name, SWEEP_SPAN),
