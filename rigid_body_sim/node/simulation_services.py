@@ -375,11 +375,15 @@ class SimulationServices:
                                  f'{node.simulated_time:.9f} s')
 
     def _reset_all(self) -> None:
-        """Remove the spawned bodies, bring back the scene's, reset states and time."""
+        """Remove the spawned bodies, bring back the scene's in order, reset states, time."""
         node = self._node
         self._remove_spawned()
-        for member in node.scene.members:
-            if member.name not in node.world:
+        members = node.scene.members
+        if list(node.world.names) != [member.name for member in members]:
+            # A scene body was deleted: all of them again, in the scene's order, as at start.
+            for name in list(node.world.names):
+                node.delete_body(name)
+            for member in members:
                 node.spawn_body(member.name, member)
         node.reset_simulation()
 
