@@ -9,7 +9,8 @@ reset_simulation, playing, set_playing, step_while_paused, simulated_time), tick
 scene's rate while playing, its stamps the simulated time (as the node's with
 publish_clock).  It publishes nothing: the tests read it through the services only.
 
-Run as a script, spun as the node is (rclpy's EventsExecutor, :func:`~rigid_body_sim.node.process.spin`)::
+Run as a script, spun as the node is (rclpy's EventsExecutor,
+:func:`~rigid_body_sim.node.process.spin`)::
 
     python test/simulation_host.py --ros-args -r __ns:=/sim -p scene:=juggling_clubs
 """

@@ -188,7 +188,7 @@ def spawned_member(entry: Any, source: str, name: str, template: Scene,
 
     """
     if not isinstance(entry, dict):
-        raise _keyed(ValueError(f'{source}: expected a mapping (one entry of a scene\'s '
+        raise _keyed(ValueError(f"{source}: expected a mapping (one entry of a scene's "
                                 f'bodies: list: body, initial, effects, imu, draw), got '
                                 f'{type(entry).__name__}'), 'entry')
     entry = dict(entry, name=name)
@@ -326,7 +326,7 @@ class SimulationServices:
     def _get_simulator_features(self, request: Any, response: Any) -> None:
         response.features = features_message(
             FEATURES, [SPAWN_FORMAT],
-            'rigid_body_sim: entities are rigid bodies; spawn one entry of a scene\'s '
+            "rigid_body_sim: entities are rigid bodies; spawn one entry of a scene's "
             'bodies: list (YAML), see docs/node.md')
 
     def _current_state(self) -> int:
@@ -348,7 +348,7 @@ class SimulationServices:
         name = _STATE_NAMES.get(target)
         if name is None:
             raise _Refusal(Result.RESULT_OPERATION_FAILED,
-                           f'state {target} is none of SimulationState\'s STATE_* values')
+                           f"state {target} is none of SimulationState's STATE_* values")
         if target == current:
             raise _Refusal(SetSimulationState.Response.ALREADY_IN_TARGET_STATE,
                            f'the simulation is {name} already')
@@ -365,7 +365,7 @@ class SimulationServices:
             self._stopped = True
         elif target == SimulationState.STATE_QUITTING:
             raise _Refusal(Result.RESULT_FEATURE_UNSUPPORTED,
-                           'quitting is not served: stop the node\'s process (SIGINT)')
+                           "quitting is not served: stop the node's process (SIGINT)")
         else:
             raise _Refusal(SetSimulationState.Response.INCORRECT_TRANSITION,
                            f'{name} is not a state to set: the node has one world, its '
@@ -398,7 +398,7 @@ class SimulationServices:
         scope = request.scope
         if scope in (ResetSimulation.Request.SCOPE_DEFAULT, ResetSimulation.Request.SCOPE_ALL):
             self._reset_all()
-            done = 'spawned bodies removed, the scene\'s bodies back, each in its initial state'
+            done = "spawned bodies removed, the scene's bodies back, each in its initial state"
         else:
             partial = scope & _TIME_AND_STATE
             if partial not in (0, _TIME_AND_STATE) or scope & ~(
@@ -502,8 +502,8 @@ class SimulationServices:
         codes = SpawnEntity.Response
         if request.entity_namespace:
             raise _Refusal(Result.RESULT_FEATURE_UNSUPPORTED,
-                           'entity_namespace is not served: a body\'s topics and frames are '
-                           'under its name in the node\'s namespace; leave it empty')
+                           "entity_namespace is not served: a body's topics and frames are "
+                           "under its name in the node's namespace; leave it empty")
         if request.uri:
             source, text = self._read_uri(request.uri)
         elif request.resource_string:
@@ -525,7 +525,8 @@ class SimulationServices:
             key = getattr(error, 'key', 'entry')
             code = {'pose': codes.INVALID_POSE, 'name': codes.NAME_INVALID}.get(
                 key, codes.RESOURCE_PARSE_ERROR)
-            raise _Refusal(code, error) from None
+            raise _Refusal(code, f'initial_pose refused: {error}' if key == 'pose'
+                           else error) from None
         try:
             self._node.spawn_body(name, member)
         except ValueError as error:
@@ -543,7 +544,7 @@ class SimulationServices:
             raise _Refusal(codes.NAME_INVALID,
                            f'name {shortened(name, 80)!r} is not a body name: letters, digits '
                            f'and _, starting with a letter, at most {MAX_BODY_NAME_LENGTH} '
-                           'characters (it names the body\'s topics and frame)')
+                           "characters (it names the body's topics and frame)")
         if name and name not in world:
             return name
         if not allow_renaming:
@@ -631,4 +632,3 @@ class SimulationServices:
             self._spawned.remove(name)
         response.result = result(Result.RESULT_OK, f'deleted {name!r} at simulated time '
                                  f'{self._node.simulated_time:.9f} s')
-
