@@ -451,10 +451,13 @@ def test_a_twist_that_is_not_finite_is_refused(host, twist):
                    Result.RESULT_OPERATION_FAILED, 'twist')
 
 
-def test_an_unknown_entity_is_refused_by_every_service(host):
-    for kind, fields in ((GetEntityState, {}), (SetEntityState, {}), (DeleteEntity, {})):
-        assert_refused(host.call(kind, entity='nobody', **fields).result,
-                       Result.RESULT_NOT_FOUND, "'nobody'")
+@pytest.mark.parametrize('entity,quoted', [('nobody', "'nobody'"),
+                                           ('\x1b[31m' * 100_000, '\\x1b[31m')],
+                         ids=['name', 'megabyte_of_escapes'])
+def test_an_unknown_entity_is_refused_by_every_service(host, entity, quoted):
+    for kind in (GetEntityState, SetEntityState, DeleteEntity):
+        # assert_refused: one printable line of at most 500 characters, quoting the name.
+        assert_refused(host.call(kind, entity=entity).result, Result.RESULT_NOT_FOUND, quoted)
 
 
 @pytest.mark.parametrize('fields,code,words', [
