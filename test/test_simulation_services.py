@@ -16,6 +16,10 @@ import sys
 import threading
 import time
 
+from hypothesis import given
+from hypothesis import HealthCheck
+from hypothesis import settings
+from hypothesis import strategies as st
 from node_harness import DISCOVERY_TIMEOUT
 from node_harness import isolate_ros_environment
 from node_harness import NodeProcess
@@ -533,3 +537,66 @@ def test_the_client_side_imports_no_package_code():
     imported = [line for line in source.splitlines()
                 if line.startswith(('import ', 'from ')) and 'rigid_body_sim' in line]
     assert imported == []
+
+
+# A DDS string is UTF-8 without NUL (rmw passes C strings): any other character, lone
+# surrogates (which UTF-8 cannot encode, so no peer can send them) excepted.
+TEXT = st.text(st.characters(blacklist_characters='\x00', blacklist_categories=('Cs',)),
+               max_size=40)
+NAMES = st.one_of(TEXT, st.sampled_from(SCENE_BODIES + ['ball', 'ball_1', '']))
+NUMBERS = st.floats(allow_nan=True, allow_infinity=True)
+ENTRIES = st.one_of(TEXT, st.just(BALL), st.builds(
+    lambda mass, radius, x: f'body: {{mass: {mass!r}, shape: sphere, radius: {radius!r}}}\n'
+                            f'initial: {{position: [{x!r}, 0, 0]}}', NUMBERS, NUMBERS, NUMBERS))
+
+
+def _pose(values):
+    return {'position': dict(zip('xyz', values[:3])),
+            'orientation': dict(zip('xyzw', values[3:]))}
+
+
+def _spawn_request(name, renaming, entry, uri, namespace, pose):
+    return (SpawnEntity, {'name': name, 'allow_renaming': renaming, 'resource_string': entry,
+                          'uri': uri, 'entity_namespace': namespace,
+                          'initial_pose': {'pose': pose}})
+
+
+def _set_state_request(name, frame, pose, twist):
+    return (SetEntityState, {'entity': name, 'state': {
+        'header': {'frame_id': frame}, 'pose': pose,
+        'twist': {'linear': dict(zip('xyz', twist[:3])), 'angular': dict(zip('xyz', twist[3:]))}}})
+
+
+POSES = st.lists(NUMBERS, min_size=7, max_size=7).map(_pose)
+REQUESTS = st.one_of(
+    st.builds(_spawn_request, NAMES, st.booleans(), ENTRIES, st.one_of(st.just(''), TEXT),
+              st.one_of(st.just(''), TEXT), POSES),
+    st.builds(_set_state_request, NAMES,
+              st.one_of(st.sampled_from(['', 'world', '/world']), TEXT), POSES,
+              st.lists(NUMBERS, min_size=6, max_size=6)),
+    st.builds(lambda name: (GetEntityState, {'entity': name}), NAMES),
+    st.builds(lambda name: (DeleteEntity, {'entity': name}), NAMES),
+    st.builds(lambda pattern: (GetEntities, {'filters': {'filter': pattern}}), TEXT),
+    st.builds(lambda pattern: (GetEntitiesStates, {'filters': {'filter': pattern}}), TEXT),
+    st.builds(lambda steps: (StepSimulation, {'steps': steps}),
+              st.one_of(st.integers(0, 20), st.integers(10001, 2**64 - 1))),
+    st.builds(lambda state: (SetSimulationState, {'state': {'state': state}}),
+              st.integers(0, 255)),
+    st.builds(lambda scope: (ResetSimulation, {'scope': scope}), st.integers(0, 255)),
+)
+CODES = {Result.RESULT_OK, Result.RESULT_NOT_FOUND, Result.RESULT_OPERATION_FAILED,
+         Result.RESULT_FEATURE_UNSUPPORTED, *range(101, 110)}
+
+
+@settings(derandomize=True, database=None, deadline=None, max_examples=300,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(requests=st.lists(REQUESTS, min_size=1, max_size=3))
+def test_any_request_is_answered_with_a_code_and_a_reason_and_the_host_lives(host, requests):
+    for kind, fields in requests:
+        response = host.call(kind, **fields)
+        assert host.process.alive(), host.process.output()[-5000:]
+        assert response.result.result in CODES, response.result
+        if response.result.result != Result.RESULT_OK:
+            assert_refused(response.result, response.result.result)
+    # Every refusal was foreseen: none came from the services' safety net.
+    assert 'request not served' not in host.process.output()
