@@ -499,6 +499,8 @@ def test_a_spawn_is_refused_with_its_code_and_reason(host, fields, code, words):
 @pytest.mark.parametrize('filters,code,words', [
     ({'filter': '(unclosed'}, Result.RESULT_OPERATION_FAILED, 'regular expression'),
     ({'filter': 'a' * 300}, Result.RESULT_OPERATION_FAILED, '256'),
+    ({'filter': '^(a|aa)*c'}, Result.RESULT_OPERATION_FAILED, 'exponential'),
+    ({'filter': '(l)\\1'}, Result.RESULT_OPERATION_FAILED, 'back-references'),
     ({'categories': [{'category': 1}]}, Result.RESULT_FEATURE_UNSUPPORTED, 'categories'),
     ({'tags': {'tags': ['red']}}, Result.RESULT_FEATURE_UNSUPPORTED, 'tags'),
     ({'bounds': {'type': 3}}, Result.RESULT_FEATURE_UNSUPPORTED, 'bounds'),

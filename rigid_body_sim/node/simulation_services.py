@@ -313,6 +313,10 @@ class SimulationServices:
             raise _Refusal(Result.RESULT_OPERATION_FAILED,
                            f'filter of {len(pattern)} characters; give at most '
                            f'{MAX_FILTER_LENGTH}')
+        slow = _repetition_problem(pattern)
+        if slow is not None:
+            raise _Refusal(Result.RESULT_OPERATION_FAILED,
+                           f'filter {shortened(pattern, 80)!r}: {slow}')
         try:
             expression = re.compile(pattern)
         except (re.error, RecursionError, OverflowError) as error:
@@ -632,3 +636,61 @@ class SimulationServices:
             self._spawned.remove(name)
         response.result = result(Result.RESULT_OK, f'deleted {name!r} at simulated time '
                                  f'{self._node.simulated_time:.9f} s')
+
+
+def _repetition_problem(pattern: str) -> str | None:
+    """
+    Return why name filter `pattern` may take exponential time to match, or None.
+
+    Python's backtracking matcher has no time limit, and the node serves nothing else while
+    it matches: a repeated group that itself repeats or alternates (``(a+)+``, ``(a|aa)*``)
+    and a back-reference can take exponential time in the name's length.  An optional group
+    (``(left|right)?``) is no repetition.  POSIX extended
+    expressions have no back-references; the repetitions refused here are rare in name
+    filters (``(left|right)`` and ``club_.*`` pass).
+    """
+    # For each open group: does it hold a quantifier or an alternation?
+    groups: list[bool] = []
+    closed_risky = False  # the group just closed held one
+    index, length = 0, len(pattern)
+    while index < length:
+        character = pattern[index]
+        if character == '\\':
+            if index + 1 < length and pattern[index + 1].isdigit():
+                return 'back-references are not served (they can take exponential time)'
+            index += 2
+            closed_risky = False
+            continue
+        if character == '[':
+            # A character class: up to its closing ], a ] first in it included.
+            end = index + 1
+            if end < length and pattern[end] == '^':
+                end += 1
+            if end < length and pattern[end] == ']':
+                end += 1
+            while end < length and pattern[end] != ']':
+                end += 2 if pattern[end] == '\\' else 1
+            index = end + 1
+            closed_risky = False
+            continue
+        if character in '*+{' or (character == '?' and not closed_risky):
+            if closed_risky:
+                return ('a repeated group that itself repeats or alternates is not served '
+                        '(it can take exponential time): write it without the outer repeat')
+            if groups:
+                groups[-1] = True
+        elif character == '|' and groups:
+            groups[-1] = True
+        if character == '(':
+            groups.append(False)
+            closed_risky = False
+            if pattern.startswith('?', index + 1):
+                index += 1  # (?:, (?P<name>, ...: group syntax, no quantifier
+        elif character == ')' and groups:
+            closed_risky = groups.pop()
+            if closed_risky and groups:
+                groups[-1] = True
+        elif character not in '*+?{':
+            closed_risky = False
+        index += 1
+    return None
