@@ -411,15 +411,15 @@ class SimulationServices:
                                f'scope {scope} is not served: time and state are reset together '
                                f'(scope {_TIME_AND_STATE}), spawned bodies removed with scope '
                                f'{ResetSimulation.Request.SCOPE_SPAWNED}; 0 or 255 does all')
-            done = []
+            parts = []
             if scope & ResetSimulation.Request.SCOPE_SPAWNED:
                 count = len(self._spawned)
                 self._remove_spawned()
-                done.append(f'{count} spawned bodies removed')
+                parts.append(f'{count} spawned bodies removed')
             if partial:
                 self._node.reset_simulation()
-                done.append('every body in its initial state')
-            done = ', '.join(done)
+                parts.append('every body in its initial state')
+            done = ', '.join(parts)
         response.result = result(Result.RESULT_OK, f'{done}; simulated time '
                                  f'{self._node.simulated_time:.9f} s')
 
