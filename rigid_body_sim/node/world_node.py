@@ -254,7 +254,12 @@ class WorldNode(RigidBodyNode):
         self._publish_phase = 0
         self._publish_seconds = 0.0
         self._publishes = 0
-        self._last_publish_cost = 0.0  # s: a publishing tick's, the last report's mean
+        # CPU s of this thread (not wall: a busy machine's preemption is no cost of ours):
+        # publishing, a publishing tick's mean at the last report; the integration, summed
+        # over the report's window.
+        self._last_publish_cost = 0.0
+        self._step_cpu = 0.0
+        self._steps_counted = 0
         self._check_cursor = 0
         self._body_subscribers = {topic: {} for topic in (*BODY_TOPICS, 'imu')}
         self._markers_subscribed = False
@@ -476,7 +481,10 @@ class WorldNode(RigidBodyNode):
         self._restart_after_reset()
 
     def _advance(self):
+        started = time.thread_time()
         stopped = self._world.step(self._period)
+        self._step_cpu += time.thread_time() - started
+        self._steps_counted += 1
         for name, why in stopped.items():
             self.get_logger().error(f'body {name!r} stopped: {why}; its topics show its last '
                                     'finite state until it is set or the world reset')
@@ -501,7 +509,7 @@ class WorldNode(RigidBodyNode):
         if not every_tick and self._publish_phase < self._publish_every:
             return
         self._publish_phase = 0
-        started = time.perf_counter()
+        started = time.thread_time()
         subscribers = self._body_subscribers
         topics = [topic for topic in BODY_TOPICS if subscribers[topic]]
         if self._tf_subscribed:
@@ -522,7 +530,7 @@ class WorldNode(RigidBodyNode):
             if subscribers['imu']:
                 self._publish_imus(subscribers['imu'], stamp)
         self._last_stamp = stamp
-        self._publish_seconds += time.perf_counter() - started
+        self._publish_seconds += time.thread_time() - started
         self._publishes += 1
 
     def _publish_imus(self, subscribed, stamp):
@@ -580,11 +588,9 @@ class WorldNode(RigidBodyNode):
         self._inputs_changed = False
 
     def _restart_after_reset(self):
+        # Every body's held inputs are cleared: each is held anew (with none).
         self._last_held = {}
         super()._restart_after_reset()
-        for body in self._bodies.values():
-            if body.input_keys:
-                self._hold_sum(body.simulator, body.input_keys, None)
 
     def _set_drift_reference(self):
         # Energy and momentum are each body's: the status reports the world, not them.
@@ -642,7 +648,8 @@ class WorldNode(RigidBodyNode):
             ('tick duration p99 [ms]', _milliseconds(tick, 99)),
             ('integration per body-tick [us]',
              f'{1e6 * float(np.mean(step)) / count:.3f}' if step.size else 'n/a'),
-            ('publishing per publishing tick [ms]', f'{1e3 * self._last_publish_cost:.4f}'),
+            ('publishing CPU per publishing tick [ms]',
+             f'{1e3 * self._last_publish_cost:.4f}'),
             ('simulated time [s]', f'{self._world.time:.6f}'),
             ('clock [s]', f'{1e-9 * self._simulated_nanoseconds():.6f}' if self._publish_clock
              else 'not published'),
@@ -663,11 +670,12 @@ class WorldNode(RigidBodyNode):
         spent, self._publish_seconds = self._publish_seconds, 0.0
         if publishes:
             self._last_publish_cost = spent / publishes
-        ticks = figures.tick_durations.size
-        if ticks == 0 or publishes == 0:
+        steps, self._steps_counted = self._steps_counted, 0
+        step_cpu, self._step_cpu = self._step_cpu, 0.0
+        if steps == 0 or publishes == 0:
             return
-        step = float(np.mean(figures.step_durations))
-        other = max(0.0, (float(np.sum(figures.tick_durations)) - spent) / ticks - step)
+        step = step_cpu / steps
+        other = 0.0  # inputs and expiry: within the share of the period left to the rest
         most = max(1, int(self._rate / self._real_time_factor))
         wanted = publish_every(step, self._last_publish_cost, other, self._wall_period, most)
         if wanted < self._publish_every:
@@ -679,7 +687,7 @@ class WorldNode(RigidBodyNode):
             self.get_logger().info(
                 f'publishing the state topics, /tf and {MARKERS_TOPIC} every {wanted} '
                 f'tick(s) (a tick integrates in {1e3 * step:.3g} ms, publishes in '
-                f'{1e3 * self._last_publish_cost:.3g} ms, its period is '
+                f'{1e3 * self._last_publish_cost:.3g} ms of CPU, its period is '
                 f'{1e3 * self._wall_period:.3g} ms); the integration keeps every tick')
 
     def _amend_status(self, level, message):
