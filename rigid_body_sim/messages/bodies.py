@@ -250,10 +250,13 @@ class BodiesSerializer:
         rows = np.ascontiguousarray(rows, dtype=float)
         pose = rows[:, _POSE]
         derived = None
-        if any(topic in ('twist', 'odom', MARKERS_TOPIC) for topic in topics):
+        velocities = any(topic in ('twist', 'odom') for topic in topics)
+        if velocities or (MARKERS_TOPIC in topics and self._turned.any()):
+            # The markers alone need it only for bodies drawn turned in their frame.
             derived = np.empty((rows.shape[0], 16))
             for indices, inverse, mass, axes in self._groups:
-                derived[indices] = derived_quantities(rows[indices], inverse, mass, axes)
+                if velocities or self._turned[indices[0]]:
+                    derived[indices] = derived_quantities(rows[indices], inverse, mass, axes)
         for topic in topics:
             batch = self.batches.get(topic)
             if batch is None:
@@ -267,8 +270,10 @@ class BodiesSerializer:
             elif topic == 'odom':
                 values = np.concatenate((pose, derived[:, 6:12]), axis=1)
             elif topic == MARKERS_TOPIC:
-                values = pose.copy()
-                values[self._turned, 3:7] = derived[self._turned, 12:16]
+                values = pose
+                if derived is not None:
+                    values = pose.copy()
+                    values[self._turned, 3:7] = derived[self._turned, 12:16]
             else:
                 raise ValueError(f'no batch of {topic!r}: its values come from write_imu')
             batch.write(values, stamp_nanoseconds)
