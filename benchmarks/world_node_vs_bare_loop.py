@@ -73,7 +73,7 @@ def _names():
     return [member.name for member in load_scene(SCENE).members]
 
 
-def _messages(topics):
+def _messages(topics, scene=SCENE):
     """Return {topic: message} the bare loop publishes, the node's for debris_field."""
     from geometry_msgs.msg import PoseStamped
     from geometry_msgs.msg import TransformStamped
@@ -87,7 +87,7 @@ def _messages(topics):
     from rigid_body_sim.messages.marker import new_marker
     from rigid_body_sim.scenes import load_scene
 
-    members = load_scene(SCENE).members
+    members = load_scene(scene).members
     kinds = {'pose': PoseStamped, 'twist': Twist, 'angular_momentum': Vector3Stamped,
              'odom': Odometry}
     messages = {}
@@ -184,8 +184,8 @@ def bare_loop(topics, serialized=False):
         rclpy.try_shutdown(context=context)
 
 
-def subscriber(topics):
-    """Subscribe (raw) to the node's and the bare loop's topics; take every message."""
+def subscriber(topics, scene=SCENE, namespace=NAMESPACE, with_bare=True):
+    """Subscribe (raw) to the node's (and the bare loop's) topics; take every message."""
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
@@ -198,13 +198,13 @@ def subscriber(topics):
     context = rclpy.Context()
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node('world_subscriber', context=context)
-    bare = _messages(topics)
-    names = {topic: type(message) for topic, message in bare.items()}
-    for topic, kind in list(names.items()):
+    bare = _messages(topics, scene)
+    names = {topic: type(message) for topic, message in bare.items()} if with_bare else {}
+    for topic, message in bare.items():
         if topic == f'{BARE}/tf':
-            names['/tf'] = kind
+            names['/tf'] = type(message)
         else:
-            names[NAMESPACE + topic[len(BARE):]] = kind
+            names[namespace + topic[len(BARE):]] = type(message)
     for topic, kind in names.items():
         node.create_subscription(kind, topic, lambda data: None,
                                  TF_QOS if topic.endswith('/tf') else STATE_QOS, raw=True)
@@ -330,6 +330,60 @@ def memory(arguments, environment, logs):
             print('  constellation log:', line[:300])
 
 
+def constellation(arguments, environment, logs):
+    """Run the 1,000-body node with a subscriber to every pose, /tf and markers; its status."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    import rclpy
+    import rclpy.executors
+
+    from rigid_body_sim.messages.qos import DIAGNOSTICS_QOS
+
+    namespace = '/many_world'
+    script = str(Path(__file__).resolve())
+    processes = {
+        'node': _node('constellation', namespace, logs / 'many.log', environment),
+        'subscriber': subprocess.Popen(
+            [sys.executable, script, '--subscriber', '--scene', 'constellation',
+             '--namespace', namespace, '--no-bare', '--topics', *arguments.topics],
+            env=environment, stdout=open(logs / 'many_subscriber.log', 'w'),
+            stderr=subprocess.STDOUT),
+    }
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    listener = rclpy.create_node('many_listener', context=context)
+    reports = []
+    listener.create_subscription(
+        DiagnosticArray, '/diagnostics',
+        lambda message: reports.extend(
+            status for status in message.status
+            if status.hardware_id == f'{namespace}/rigid_body_sim'), DIAGNOSTICS_QOS)
+    try:
+        executor = rclpy.executors.SingleThreadedExecutor(context=context)
+        executor.add_node(listener)
+        end = time.monotonic() + arguments.settle
+        while time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.5)
+        keys = ('bodies', 'rate kept', 'state published every k-th tick', 'achieved rate [Hz]',
+                'missed ticks', 'step time p50 [ms]', 'tick duration p50 [ms]',
+                'tick duration p99 [ms]', 'integration per body-tick [us]',
+                'publishing CPU per publishing tick [ms]')
+        print(f'constellation (1,000 bodies) at 100 Hz, one subscriber to every body\'s '
+              f'{", ".join(arguments.topics)}, /tf and markers; its last 5 reports of '
+              f'{len(reports)}:')
+        for status in reports[-5:]:
+            values = {kv.key: kv.value for kv in status.values}
+            print(f'  [{status.level[0] if isinstance(status.level, bytes) else status.level}] '
+                  f'{status.message[:160]}')
+            print('    ' + '; '.join(f'{key}: {values.get(key)}' for key in keys))
+    finally:
+        listener.destroy_node()
+        rclpy.try_shutdown(context=context)
+        _stop(processes)
+    for line in (logs / 'many.log').read_text().splitlines():
+        if 'publishing the state topics' in line:
+            print('  log:', line[line.index('publishing'):][:200])
+
+
 def main(argv=None):
     """Run the CPU comparison, or the memory one."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
@@ -341,6 +395,12 @@ def main(argv=None):
     parser.add_argument('--memory', action='store_true',
                         help='instead: the VmRSS of a 1,000-body node and a one-body node')
     parser.add_argument('--settle', type=float, default=30.0)
+    parser.add_argument('--constellation', action='store_true',
+                        help='instead: the 1,000-body node with a subscriber to every body, '
+                             'its /diagnostics (rate kept, publishing every k-th tick)')
+    parser.add_argument('--scene', default=SCENE, help=argparse.SUPPRESS)
+    parser.add_argument('--namespace', default=NAMESPACE, help=argparse.SUPPRESS)
+    parser.add_argument('--no-bare', action='store_true', help=argparse.SUPPRESS)
     parser.add_argument('--bare-bytes', action='store_true',
                         help='the bare loop publishes its messages serialised once (the '
                              'same bytes each tick): the least a loop can cost')
@@ -350,7 +410,8 @@ def main(argv=None):
     if arguments.bare:
         return bare_loop(arguments.topics, arguments.bare_bytes)
     if arguments.subscriber:
-        return subscriber(arguments.topics)
+        return subscriber(arguments.topics, arguments.scene, arguments.namespace,
+                          not arguments.no_bare)
     environment = dict(os.environ, PYTHONPATH=str(ROOT))
     environment.setdefault('ROS_DOMAIN_ID', str(150 + os.getpid() % 80))
     environment['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
@@ -358,6 +419,8 @@ def main(argv=None):
     logs.mkdir(parents=True, exist_ok=True)
     if arguments.memory:
         return memory(arguments, environment, logs)
+    if arguments.constellation:
+        return constellation(arguments, environment, logs)
     return cpu(arguments, environment, logs)
 
 

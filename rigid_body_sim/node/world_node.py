@@ -95,6 +95,9 @@ the executor's, the services' and the reports'."""
 # Publishers whose subscribers are looked for at one check (every 0.1 s): a scene of
 # thousands of bodies spreads its look over several checks.
 _CHECKS_PER_CALL = 500
+# After ticks were missed, k is not lowered for this long (s); then one step every _STEP_DOWN s.
+_MISSED_MEMORY = 30.0
+_STEP_DOWN = 5.0
 
 
 def node_for_scene(context):
@@ -260,6 +263,8 @@ class WorldNode(RigidBodyNode):
         self._last_publish_cost = 0.0
         self._step_cpu = 0.0
         self._steps_counted = 0
+        self._missed_with = (0, -math.inf)  # (k, when on the steady clock) ticks were missed
+        self._k_changed = -math.inf
         self._check_cursor = 0
         self._body_subscribers = {topic: {} for topic in (*BODY_TOPICS, 'imu')}
         self._markers_subscribed = False
@@ -677,13 +682,27 @@ class WorldNode(RigidBodyNode):
         step = step_cpu / steps
         other = 0.0  # inputs and expiry: within the share of the period left to the rest
         most = max(1, int(self._rate / self._real_time_factor))
+        current = self._publish_every
         wanted = publish_every(step, self._last_publish_cost, other, self._wall_period, most)
-        if wanted < self._publish_every:
-            # Back to publishing more often only with a margin, so that k does not flap.
-            wanted = max(wanted, publish_every(step, 1.25 * self._last_publish_cost, other,
-                                               self._wall_period, most))
-        if wanted != self._publish_every:
+        now = time.monotonic()
+        if figures.missed > 0 or self._behind_schedule(0, 0.0):
+            # Ticks missed with k: the machine gives the node less than its CPU costs say
+            # (other processes' load): k doubles until the ticks keep their schedule, and
+            # stays above the k that missed for a while.
+            wanted = max(wanted, min(most, 2 * current))
+            self._missed_with = (current, now)
+        elif wanted < current:
+            # Back to publishing more often, with a margin, one step every _STEP_DOWN s and
+            # none for _MISSED_MEMORY s after ticks were missed: so that k does not flap.
+            _, missed_at = self._missed_with
+            if now - missed_at < _MISSED_MEMORY or now - self._k_changed < _STEP_DOWN:
+                wanted = current
+            else:
+                wanted = max(wanted, current - 1, publish_every(
+                    step, 1.25 * self._last_publish_cost, other, self._wall_period, most))
+        if wanted != current:
             self._publish_every = wanted
+            self._k_changed = now
             self.get_logger().info(
                 f'publishing the state topics, /tf and {MARKERS_TOPIC} every {wanted} '
                 f'tick(s) (a tick integrates in {1e3 * step:.3g} ms, publishes in '
