@@ -367,7 +367,7 @@ def constellation(arguments, environment, logs):
                 'missed ticks', 'step time p50 [ms]', 'tick duration p50 [ms]',
                 'tick duration p99 [ms]', 'integration per body-tick [us]',
                 'publishing CPU per publishing tick [ms]')
-        print(f'constellation (1,000 bodies) at 100 Hz, one subscriber to every body\'s '
+        print("constellation (1,000 bodies) at 100 Hz, one subscriber to every body's "
               f'{", ".join(arguments.topics)}, /tf and markers; its last 5 reports of '
               f'{len(reports)}:')
         for status in reports[-5:]:

@@ -118,7 +118,7 @@ def test_each_club_publishes_its_own_state_under_its_name_rising_then_falling(cl
 
 
 def test_one_tf_message_a_tick_holds_every_club_and_tf_static_every_imu(clubs):
-    """Each /tf message carries the three clubs' transforms from the world frame, stamped as one."""
+    """Each /tf message carries the three clubs' transforms from the world frame, one stamp."""
     node, client = clubs
     _wait(client, node, lambda: len(client.messages('/tf')) >= 10, '10 /tf messages')
     world = client.frame('world')
@@ -293,7 +293,7 @@ def test_the_interface_spawns_steps_sets_and_deletes_bodies(world_node, monkeypa
     (0.009, 0.010, 100),   # the integration alone takes more than the room: the most
 ])
 def test_the_node_publishes_less_often_as_the_tick_costs_more(step, publish, expected):
-    """k keeps the mean tick within its share of the period, as long as the step allows."""
+    """The k chosen keeps the mean tick within its share of the period, if the step allows."""
     k = publish_every(step, publish, 0.0, 0.01, 100)
     assert k == expected
     if k < 100:

@@ -181,7 +181,8 @@ class BodiesSerializer:
     bodies : sequence of BodyMessages
         The bodies, in the order of the rows given to :meth:`write`.
     transform_class : type or None
-        tf2_msgs/TFMessage (None: no /tf, :func:`~rigid_body_sim.messages.tf.transform_message_class`).
+        tf2_msgs/TFMessage (None: no /tf; see
+        :func:`~rigid_body_sim.messages.tf.transform_message_class`).
     imu_period : float
         The IMU's sample period in s (its covariances).
 

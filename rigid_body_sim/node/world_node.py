@@ -18,7 +18,8 @@ for a body whose effects include external_wrench (the one-body node's semantics,
 expiry).  For all bodies: one ``/tf`` message a tick holding every body's transform
 ``world_frame -> <name>``, ``/tf_static`` holding every ``<name> -> <name>/imu``, and one
 ``markers`` (visualization_msgs/MarkerArray) a tick, each body's marker with ``ns`` its
-name.  Frame ids get ``frame_prefix`` as the one-body node's do (:mod:`rigid_body_sim.messages.frames`).
+name.  Frame ids get ``frame_prefix`` as the one-body node's do
+(:mod:`rigid_body_sim.messages.frames`).
 Only what has subscribers is written and published (:mod:`rigid_body_sim.messages.bodies`).
 
 Rate.  When a tick costs more than its period allows, the node publishes less often rather
@@ -49,14 +50,14 @@ from visualization_msgs.msg import MarkerArray
 from .background_compile import kernels_compiled
 from .parameters import declare_parameters
 from .parameters import declare_scene_parameter
+from .parameters import given_overrides
 from .parameters import ONE_BODY_PARAMETERS
 from .parameters import scene_from_parameters
 from .parameters import WORLD_PARAMETERS
-from .parameters import given_overrides
 from .rigid_body_node import NODE_NAME
 from .rigid_body_node import RigidBodyNode
-from ..messages.bodies import BODY_TOPICS
 from ..messages.bodies import BodiesSerializer
+from ..messages.bodies import BODY_TOPICS
 from ..messages.bodies import BodyMessages
 from ..messages.bodies import deleted_markers
 from ..messages.bodies import MARKERS_TOPIC
@@ -727,4 +728,3 @@ def _milliseconds(durations, percentile):
     if durations.size == 0:
         return 'n/a'
     return f'{1e3 * float(np.percentile(durations, percentile)):.4f}'
-
