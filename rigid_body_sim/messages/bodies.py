@@ -80,6 +80,9 @@ class PatchedMessages:
     """
     Serialised messages in one buffer, their state fields and stamps patched in place.
 
+    :meth:`write` takes (groups, F) values and a stamp; :meth:`message` returns a message's
+    bytes.  Little-endian CDR only (what rclpy writes on every platform here).
+
     Parameters
     ----------
     messages : list of ROS messages
@@ -92,8 +95,6 @@ class PatchedMessages:
         For each message, the stamps it holds (a Time object shared by several headers
         counts once), in the order they are serialised.
 
-    :meth:`write` takes (groups, F) values and a stamp; :meth:`message` returns a message's
-    bytes.  Little-endian CDR only (what rclpy writes on every platform here).
     """
 
     def __init__(self, messages, fields, stamps):
@@ -173,6 +174,10 @@ class BodiesSerializer:
     """
     Every body's state topics, one /tf message and one MarkerArray, written at once.
 
+    After :meth:`write`, ``batches[topic].message(i)`` is body i's message on a topic of
+    :data:`BODY_TOPICS` or ``imu``, ``batches['/tf'].message(0)`` and
+    ``batches['markers'].message(0)`` the one of all bodies.
+
     Parameters
     ----------
     world_frame : str
@@ -186,9 +191,6 @@ class BodiesSerializer:
     imu_period : float
         The IMU's sample period in s (its covariances).
 
-    After :meth:`write`, ``batches[topic].message(i)`` is body i's message on a topic of
-    :data:`BODY_TOPICS` or ``imu``, ``batches['/tf'].message(0)`` and
-    ``batches['markers'].message(0)`` the one of all bodies.
     """
 
     def __init__(self, world_frame, bodies, transform_class=None, imu_period=0.01):
