@@ -314,3 +314,25 @@ def test_one_body_parameters_are_refused_for_a_scene_of_bodies():
         error.value.node.destroy_node()
     finally:
         rclpy.try_shutdown(context=context)
+
+
+def test_the_integrator_switches_at_run_time_for_every_body_and_the_status_says_so(
+        world_node, monkeypatch):
+    """integrator and tolerance set at run time act on every body; /diagnostics names them."""
+    node = world_node
+    results = node.set_parameters([Parameter('integrator', value='rk4'),
+                                   Parameter('tolerance', value=0.0)])
+    assert all(result.successful for result in results), results
+    assert node.world.integrator == 'rk4' and node.world.tolerance is None
+    for _ in range(3):
+        node._tick()
+    assert node.simulated_time == pytest.approx(3 / node.scene.rate, abs=1e-12)
+    reports = []
+    monkeypatch.setattr(node._diagnostics_publisher, 'publish', reports.append)
+    node._publish_diagnostics()
+    (status,) = reports[-1].status
+    values = {kv.key: kv.value for kv in status.values}
+    assert values['bodies'] == '3' and values['integrator'] == 'rk4'
+    assert values['tolerance [rad/s]'] == 'off'
+    assert values['rate kept'] in ('yes', 'no')
+    assert values['state published every k-th tick'] == '1'
