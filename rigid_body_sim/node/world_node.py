@@ -413,7 +413,7 @@ class WorldNode(RigidBodyNode):
         self._world.add(name, simulator)
         self._add_body(name, member, self._world.simulator(name), frames)
         self._rebuild_messages()
-        self._check_subscribers()
+        self._check_subscribers(every_body=True)
         self.get_logger().info(f'spawned body {name!r} ({len(self._bodies)} bodies)')
 
     def delete_body(self, name):
@@ -438,7 +438,7 @@ class WorldNode(RigidBodyNode):
             self._received.pop(key, None)
             self._last_held.pop(key, None)
         self._rebuild_messages()
-        self._check_subscribers()
+        self._check_subscribers(every_body=True)
         self._markers_publisher.publish(deleted_markers([(name, body.marker_id)]))
         self.get_logger().info(f'deleted body {name!r} ({len(self._bodies)} bodies)')
 
@@ -550,11 +550,14 @@ class WorldNode(RigidBodyNode):
         for index, publisher in subscribed.items():
             publisher.publish(batch.message(index))
 
-    def _check_subscribers(self):
-        # Every publisher of a few hundred bodies each check; the whole node in turn.
+    def _check_subscribers(self, every_body=False):
+        # Every publisher of a few hundred bodies each check; the whole node in turn (and
+        # at once after bodies came or went: the bodies' indices changed).
         bodies = self._body_list
         count = len(bodies)
         per_call = max(1, _CHECKS_PER_CALL // (len(BODY_TOPICS) + 1))
+        if every_body:
+            per_call = max(per_call, count)
         if count <= per_call:
             indices = range(count)
         else:
