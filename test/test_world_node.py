@@ -336,3 +336,26 @@ def test_the_integrator_switches_at_run_time_for_every_body_and_the_status_says_
     assert values['tolerance [rad/s]'] == 'off'
     assert values['rate kept'] in ('yes', 'no')
     assert values['state published every k-th tick'] == '1'
+
+
+def test_a_deleted_body_leaves_no_publisher_behind_in_a_world_checked_in_turns():
+    """
+    In a world whose subscribers are looked for a part at a time, a deletion re-indexes all.
+
+    debris_field's 100 bodies are more than one check looks at; after a body is deleted
+    no subscriber table names a body index past the end or the deleted body's publisher.
+    """
+    node = _start('debris_field')
+    try:
+        subscribers = node._body_subscribers['pose']
+        for index, body in enumerate(node._body_list):
+            subscribers[index] = body.publishers['pose']  # as if each had a subscriber
+        deleted = node._body_list[0].publishers['pose']
+        node.delete_body('debris_000')
+        assert all(index < 99 for index in subscribers)
+        assert deleted not in subscribers.values()
+        node._publish_state(0)
+    finally:
+        context = node.context
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
