@@ -318,7 +318,7 @@ def test_one_body_parameters_are_refused_for_a_scene_of_bodies():
 
 def test_the_integrator_switches_at_run_time_for_every_body_and_the_status_says_so(
         world_node, monkeypatch):
-    """integrator and tolerance set at run time act on every body; /diagnostics names them."""
+    """The integrator and tolerance set at run time act on every body, as the status says."""
     node = world_node
     results = node.set_parameters([Parameter('integrator', value='rk4'),
                                    Parameter('tolerance', value=0.0)])
