@@ -198,7 +198,7 @@ BAD_CONFIGURATIONS = {
     'real_time_factor': ({'real_time_factor': '0.0'},
                          "parameter 'real_time_factor' must be in [0.001, 1000.0]; got 0.0"),
     'unknown scene': ({'scene': 'no_such_scene'},
-                      "unknown scene 'no_such_scene'; built-in scenes: bike_wheel, default"),
+                      "unknown scene 'no_such_scene'; built-in scenes: bike_wheel, constellation"),
     'broken scene': ({'scene': '{tmp}/broken.yaml'},
                      '/broken.yaml: effects[0].pivot.point: expected 3 numbers, got 2'),
     'pivot position': ({'scene': 'heavy_top', 'initial.position': '[0.0, 0.0, 1.0]'},

@@ -23,6 +23,7 @@ __all__ = [
     'inertia_equivalent_box',
     'marker_geometry',
     'marker_geometry_from_drawing',
+    'new_marker',
     'visible_equivalent_box',
 ]
 
@@ -161,3 +162,22 @@ def marker_geometry_from_drawing(drawing):
     color = tuple(float(np.float32(c)) for c in drawing.color)
     return MarkerGeometry(_DRAWING_MARKER_TYPES[drawing.shape],
                           tuple(float(s) for s in drawing.size), axes, color)
+
+
+def new_marker(geometry, frame_id, namespace=MARKER_NAMESPACE, marker_id=0):
+    """
+    Return a Marker (action ADD) drawing `geometry` in frame `frame_id`, its pose to fill.
+
+    Its type, scale (m) and colour (:data:`MARKER_COLOR` if the geometry has none) set, its
+    ``ns`` and ``id`` as given.
+    """
+    marker = Marker()
+    marker.header.frame_id = frame_id
+    marker.ns = namespace
+    marker.id = marker_id
+    marker.type = geometry.marker_type
+    marker.action = Marker.ADD
+    marker.scale.x, marker.scale.y, marker.scale.z = (float(s) for s in geometry.scale)
+    marker.color.r, marker.color.g, marker.color.b, marker.color.a = (
+        MARKER_COLOR if geometry.color is None else geometry.color)
+    return marker

@@ -27,9 +27,8 @@ from .cdr import offset_of
 from .cdr import sentinels
 from .cdr import serialize_zeroed
 from .cdr import STAMP_SENTINEL
-from .marker import MARKER_COLOR
 from .marker import marker_geometry
-from .marker import MARKER_NAMESPACE
+from .marker import new_marker
 from ..physics.kernels.derived import derived_quantities
 
 __all__ = [
@@ -123,14 +122,7 @@ def _new_state_messages(world_frame, body_frame, geometry):
     angular_momentum = Vector3Stamped()
     odom = Odometry()
     odom.child_frame_id = body_frame
-    marker = Marker()
-    marker.ns = MARKER_NAMESPACE
-    marker.id = 0
-    marker.type = geometry.marker_type
-    marker.action = Marker.ADD
-    marker.scale.x, marker.scale.y, marker.scale.z = (float(s) for s in geometry.scale)
-    marker.color.r, marker.color.g, marker.color.b, marker.color.a = (
-        MARKER_COLOR if geometry.color is None else geometry.color)
+    marker = new_marker(geometry, world_frame)
     messages = _StateMessages(pose=pose, twist=Twist(), angular_momentum=angular_momentum,
                               odom=odom, marker=marker)
     # One Time object is shared by every header: stamping it once stamps all the messages.

@@ -2,6 +2,8 @@
 The ROS 2 node ``rigid_body_node``: the simulation run live, on a timer, over DDS.
 
 - :mod:`.rigid_body_node`: the node (its ticks, inputs, services and reports);
+- :mod:`.world_node`: the node of a scene of several bodies (one World, each body's topics
+  and frames under its name), which the executable starts for such a scene;
 - :mod:`.parameters` and :mod:`.parameter_services`: its parameters, their checks and
   the services that set them;
 - :mod:`.process`: its process (start-up, signals, spin), started by :mod:`.entry_point`

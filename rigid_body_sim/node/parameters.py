@@ -77,6 +77,8 @@ __all__ = [
     'imu_model_from_parameters',
     'check_integrator',
     'frame_ids_from_parameters',
+    'ONE_BODY_PARAMETERS',
+    'WORLD_PARAMETERS',
 ]
 
 
@@ -267,6 +269,17 @@ PARAMETERS = (
 )
 """Every parameter of the node, in declaration order."""
 
+ONE_BODY_PARAMETERS = tuple(
+    spec.name for spec in PARAMETERS
+    if spec.name in ('body_frame', 'imu_frame') or spec.name.split('.')[0] in (
+        'body', 'initial', 'imu'))
+"""The parameters of one body (its frames, body, initial state and IMU): a scene of
+``bodies:`` gives each body's in its file, and its node has none of them."""
+
+WORLD_PARAMETERS = tuple(spec.name for spec in PARAMETERS
+                         if spec.name not in ONE_BODY_PARAMETERS)
+"""The parameters of a node that simulates a scene of ``bodies:`` (every body alike)."""
+
 DEFAULTS = {spec.name: spec.default for spec in PARAMETERS
             if not isinstance(spec.default, _Placeholder)}
 """Parameter name -> default value, for the parameters whose default is a value."""
@@ -341,9 +354,9 @@ def declare_scene_parameter(node, overrides=None):
 
 
 @one_line_errors
-def declare_parameters(node, scene, overrides=None):
+def declare_parameters(node, scene, overrides=None, names=None):
     """
-    Declare every parameter of :data:`PARAMETERS` not yet declared on `node`.
+    Declare every parameter of :data:`PARAMETERS` (or of `names`) not yet declared on `node`.
 
     Overrides (``-p name:=value``, ``--params-file``) are applied by the declaration.
 
@@ -356,6 +369,8 @@ def declare_parameters(node, scene, overrides=None):
         of the parameters of the same names.
     overrides : dict, optional
         What :func:`given_overrides` returned: a refused override is quoted from it.
+    names : collection of str, optional
+        Only these parameters (:data:`WORLD_PARAMETERS` for a scene of bodies).
 
     Returns
     -------
@@ -378,6 +393,8 @@ def declare_parameters(node, scene, overrides=None):
                          for key in ImuModel.NOISE_KEYS})
     values = {}
     for spec in PARAMETERS:
+        if names is not None and spec.name not in names:
+            continue
         if not node.has_parameter(spec.name):
             default = spec.default
             if default is SCENE_VALUE:

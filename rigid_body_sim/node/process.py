@@ -197,7 +197,7 @@ def run_node(args=None):
     from rclpy.signals import SignalHandlerOptions
 
     from .rigid_body_node import ConfigurationError
-    from .rigid_body_node import RigidBodyNode
+    from .world_node import node_for_scene
 
     if signalled():
         return 0
@@ -216,7 +216,8 @@ def run_node(args=None):
     try:
         if not signalled():
             start_up_phase('node')
-            node = RigidBodyNode(context=context)
+            # The one-body node, or for a scene of bodies: the world's.
+            node = node_for_scene(context)
         if not signalled():
             start_up_phase('spin')
             spin(node)

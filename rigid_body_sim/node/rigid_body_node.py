@@ -248,22 +248,7 @@ class RigidBodyNode(Node):
         self._imu_noisy = self._imu.model.noisy
         self._diagnostics_publisher = self.create_publisher(
             DiagnosticArray, '/diagnostics', DIAGNOSTICS_QOS)
-        # Simulated time: _clock_ticks whole periods since start-up, counted on through
-        # resets and not while paused, so /clock never goes back.
-        self._publish_clock = values['publish_clock']
-        self._clock_ticks = 0
-        self._clock_subscribed = False
-        self._clock_publisher = None
-        if self._publish_clock:
-            self._clock_publisher = self.create_publisher(ClockMessage, _CLOCK_TOPIC,
-                                                          CLOCK_QOS)
-            # Clock is a lone Time: its CDR bytes are a 4-byte header, then sec and nanosec.
-            self._clock_message = bytearray(serialize_message(ClockMessage()))
-            self._clock_packer = struct.Struct(('<' if self._clock_message[1] == 1 else '>')
-                                               + 'iI')
-        self._system_time = False
-        self._last_stamp = 0  # ns: the stamp of the last state published
-        self._clock_guard = self._guard_ros_clock()
+        self._start_clock(values)
         tf_status = self._start_tf(imu_frame)
 
         self._inputs = dict.fromkeys(_INPUT_TOPICS)  # topic -> (WrenchInput, held from ns)
@@ -299,15 +284,38 @@ class RigidBodyNode(Node):
         self.add_on_set_parameters_callback(self._validate_parameters_callback)
         self.add_post_set_parameters_callback(self._parameters_set_callback)
 
+        self._set_drift_reference()
+        self._log_start(scene, values, parameter_sources, tf_status)
+        self._start_running(kernels_ready, scene.integrator)
+
+    def _start_clock(self, values):
+        """Set up simulated time, /clock (with publish_clock) and the ROS clock's guard."""
+        # Simulated time: _clock_ticks whole periods since start-up, counted on through
+        # resets and not while paused, so /clock never goes back.
+        self._publish_clock = values['publish_clock']
+        self._clock_ticks = 0
+        self._clock_subscribed = False
+        self._clock_publisher = None
+        if self._publish_clock:
+            self._clock_publisher = self.create_publisher(ClockMessage, _CLOCK_TOPIC,
+                                                          CLOCK_QOS)
+            # Clock is a lone Time: its CDR bytes are a 4-byte header, then sec and nanosec.
+            self._clock_message = bytearray(serialize_message(ClockMessage()))
+            self._clock_packer = struct.Struct(('<' if self._clock_message[1] == 1 else '>')
+                                               + 'iI')
+        self._system_time = False
+        self._last_stamp = 0  # ns: the stamp of the last state published
+        self._clock_guard = self._guard_ros_clock()
+
+    def _start_running(self, kernels_ready, integrator):
+        """Start the statistics, the timers and the ticks (once the kernels are compiled)."""
         self._missed_ticks = 0
         self._subscribed = {}
         self._tick_durations = np.zeros(_HISTORY)
         self._step_durations = np.zeros(_HISTORY)
         # Start, ticks, missed ticks and simulated time then.
         self._window = (time.monotonic(), 0, 0, 0.0)
-        self._set_drift_reference()
         self._falling_behind = False
-        self._log_start(scene, values, parameter_sources, tf_status)
         self._steady_clock = Clock(clock_type=ClockType.STEADY_TIME)
         self._check_subscribers()
         self.create_timer(_SUBSCRIBER_CHECK_PERIOD, self._check_subscribers,
@@ -316,7 +324,7 @@ class RigidBodyNode(Node):
                           clock=self._steady_clock)
         self._start_ticking(time.monotonic())
         if not kernels_ready:
-            self._compile_in_background(scene.integrator)
+            self._compile_in_background(integrator)
 
     def _start_tf(self, imu_frame):
         """Create the /tf publishers and publish /tf_static; return the log's TF words."""
@@ -435,26 +443,30 @@ class RigidBodyNode(Node):
             self._inputs_changed = True
         if self._inputs_changed:
             self._hold_inputs(steady)
-        simulator = self._simulator
         stepped = time.perf_counter()
         if self._diverged is not None:
             return  # stopped at the last finite state until a reset: nothing to publish
-        if not self._paused:
-            # substeps steps, or under error control as many as it chooses.
-            try:
-                simulator.step(self._period)
-            except DivergedError as error:
-                self._stop_diverged(error)
-                return
-            self._clock_ticks += 1
-            if self._imu_noisy:
-                self._imu.advance(self._period)
+        if not self._paused and not self._advance():
+            return
         step_duration = time.perf_counter() - stepped
         self._publish_state(now)
         index = self._ticks % _HISTORY
         self._step_durations[index] = step_duration
         self._tick_durations[index] = time.perf_counter() - started
         self._ticks += 1
+
+    def _advance(self):
+        """Advance the simulation by one tick; return False if it stopped (diverged)."""
+        # substeps steps, or under error control as many as it chooses.
+        try:
+            self._simulator.step(self._period)
+        except DivergedError as error:
+            self._stop_diverged(error)
+            return False
+        self._clock_ticks += 1
+        if self._imu_noisy:
+            self._imu.advance(self._period)
+        return True
 
     def _stop_diverged(self, error):
         # The state topics stop rather than carry NaN; the simulator holds the last finite
@@ -465,17 +477,20 @@ class RigidBodyNode(Node):
             'a reset (~/reset)')
         self._publish_diagnostics()
 
+    def _publish_clock_stamp(self, now):
+        """Publish /clock (with publish_clock); return the stamp of this tick's messages (ns)."""
+        if not self._publish_clock:
+            return now
+        # /clock first: a sim-time consumer's clock reaches a stamp before the message.
+        stamp = self._simulated_nanoseconds()
+        if self._clock_subscribed:
+            self._clock_packer.pack_into(self._clock_message, 4, *divmod(stamp, 1_000_000_000))
+            self._clock_publisher.publish(bytes(self._clock_message))
+        return stamp
+
     def _publish_state(self, now):
-        simulator = self._simulator
-        stamp = now
-        if self._publish_clock:
-            # /clock first: a sim-time consumer's clock reaches a stamp before the message.
-            stamp = self._simulated_nanoseconds()
-            if self._clock_subscribed:
-                self._clock_packer.pack_into(self._clock_message, 4,
-                                             *divmod(stamp, 1_000_000_000))
-                self._clock_publisher.publish(bytes(self._clock_message))
-        state = simulator.state
+        stamp = self._publish_clock_stamp(now)
+        state = self._simulator.state
         if self._subscribed:
             serialized = self._serializer.serialize(state, stamp, self._subscribed)
             for topic, publisher in self._subscribed.items():
@@ -514,6 +529,10 @@ class RigidBodyNode(Node):
         self._imu_subscribed = self._imu_publisher.get_subscription_count() > 0
         self._tf_subscribed = self._tf_publisher is not None and \
             self._tf_publisher.get_subscription_count() > 0
+        self._check_clock()
+
+    def _check_clock(self):
+        """Look whether /clock has subscribers and the node's clock is the system's."""
         self._clock_subscribed = self._publish_clock and \
             self._clock_publisher.get_subscription_count() > 0
         clock = self.get_clock()
@@ -561,21 +580,24 @@ class RigidBodyNode(Node):
         # Inputs from both topics add up; body-fixed parts are held as such so that they
         # turn with the body during the substeps.  An input holds from the tick that
         # applies it: input_timeout counts from there.
+        self._hold_sum(self._simulator, list(self._inputs), now)
+        self._set_drift_reference()
+        self._inputs_changed = False
+
+    def _hold_sum(self, simulator, keys, now=None):
+        """Hold on `simulator` the sum of the inputs of `keys` (topics), held from `now`."""
         parts = {'world': [np.zeros(3), np.zeros(3)], 'body': [np.zeros(3), np.zeros(3)]}
-        for topic, held in self._inputs.items():
+        for key in keys:
+            held = self._inputs[key]
             if held is not None:
                 wrench, held_from = held
                 if held_from is None:
-                    self._inputs[topic] = (wrench, now)
+                    self._inputs[key] = (wrench, now)
                 part = parts[wrench.frame]
                 part[0] = part[0] + wrench.force
                 part[1] = part[1] + wrench.torque
-        self._simulator.hold_wrench(force_world=parts['world'][0],
-                                    torque_world=parts['world'][1],
-                                    force_body=parts['body'][0],
-                                    torque_body=parts['body'][1])
-        self._set_drift_reference()
-        self._inputs_changed = False
+        simulator.hold_wrench(force_world=parts['world'][0], torque_world=parts['world'][1],
+                              force_body=parts['body'][0], torque_body=parts['body'][1])
 
     def _set_drift_reference(self):
         self._reference_energy = self._simulator.energy()
@@ -605,21 +627,30 @@ class RigidBodyNode(Node):
                 self._inputs[topic] = (wrench, None)  # held from the tick that applies it
                 self._inputs_changed = True
 
+    def _input_target(self, topic):
+        """
+        Return (body frame id, limit function or None, external_wrench) of an input topic.
+
+        What an input on `topic` acts on: the frame its body-fixed inputs name, and the
+        scene's limits (:mod:`rigid_body_sim.physics.effects.external_wrench`).
+        """
+        return self._body_frame, self._limit, self._scene.external_wrench
+
     def _accepted_input(self, topic, message):
         """Return the WrenchInput of a torque or wrench message, or None if rejected."""
+        body_frame, limit, limits = self._input_target(topic)
         try:
-            wrench = wrench_input_from_message(message, self._world_frame, self._body_frame,
+            wrench = wrench_input_from_message(message, self._world_frame, body_frame,
                                                self._max_wrench)
         except RejectedInput as error:
             self._rejected += 1
             self._warn_throttled((topic, error.kind),
                                  f'rejected a {topic} input, state unchanged: {error}')
             return None
-        if self._limit is not None:
-            force, torque = self._limit(wrench.force, wrench.torque)
+        if limit is not None:
+            force, torque = limit(wrench.force, wrench.torque)
             if np.any(force != wrench.force) or np.any(torque != wrench.torque):
                 self._limited += 1
-                limits = self._scene.external_wrench
                 self._warn_throttled((topic, 'limit'), (
                     f"scaled a {topic} input down to the scene's limits (max_force "
                     f'{limits.max_force} N, max_torque {limits.max_torque} N m)'))
@@ -637,20 +668,27 @@ class RigidBodyNode(Node):
         return f'every message stamped after {seconds}.{nanoseconds:09d} s shows it'
 
     def _reset_callback(self, request, response):
-        self._simulator.reset(self._initial_state, time=0.0)
-        self._diverged = None
-        if self._timer is not None:
-            # Simulated time 0 is now: ticks still due from before the reset (a late
-            # node's backlog) belonged to the run it ended, and are not run after it.
-            self._restart_schedule(time.monotonic())
-        self._inputs = dict.fromkeys(_INPUT_TOPICS)
-        self._received = {}
-        self._hold_inputs(None)
+        self._reset()
         response.success = True
         response.message = (
             f'reset to the initial state at simulated time 0 ({self._from_stamp()}'
             + ('; /clock counts on)' if self._publish_clock else ')'))
         return response
+
+    def _reset(self):
+        """Put the body back to its initial state at simulated time 0, its inputs cleared."""
+        self._simulator.reset(self._initial_state, time=0.0)
+        self._diverged = None
+        self._restart_after_reset()
+
+    def _restart_after_reset(self):
+        if self._timer is not None:
+            # Simulated time 0 is now: ticks still due from before the reset (a late
+            # node's backlog) belonged to the run it ended, and are not run after it.
+            self._restart_schedule(time.monotonic())
+        self._inputs = dict.fromkeys(self._inputs)
+        self._received = {}
+        self._hold_inputs(None)
 
     def _pause_callback(self, request, response):
         self._paused = bool(request.data)
@@ -895,15 +933,7 @@ class RigidBodyNode(Node):
                               self._recent(self._step_durations, ticks),
                               self._recent(self._tick_durations, ticks),
                               self._simulator.time - window_simulated)
-        values = status_values(
-            self._scene, self._simulator, self._rate, self._real_time_factor, figures,
-            clock_seconds=(1e-9 * self._simulated_nanoseconds() if self._publish_clock
-                           else None),
-            paused=self._paused,
-            wrench_active=any(held is not None for held in self._inputs.values()),
-            reference_energy=self._reference_energy,
-            reference_momentum=self._reference_momentum, rejected=self._rejected,
-            limited=self._limited)
+        values = self._status_values(figures)
         level, message = DiagnosticStatus.OK, 'running'
         compiling = self._compilation_status()
         if self._diverged is not None:
@@ -944,11 +974,28 @@ class RigidBodyNode(Node):
                     level = DiagnosticStatus.WARN
                 message += '; ROS clock (use_sim_time): ' + '; '.join(
                     text for text, _ in problems)
+        level, message = self._amend_status(level, message)
         stamp = self._simulated_nanoseconds() if self._publish_clock \
             else self.get_clock().now().nanoseconds
         self._diagnostics_publisher.publish(diagnostic_array(
             status_name(self.get_name()), self.get_fully_qualified_name(), level, message,
             values, stamp))
+
+    def _status_values(self, figures):
+        """Return the status's (key, value) pairs for a report's window (TickFigures)."""
+        return status_values(
+            self._scene, self._simulator, self._rate, self._real_time_factor, figures,
+            clock_seconds=(1e-9 * self._simulated_nanoseconds() if self._publish_clock
+                           else None),
+            paused=self._paused,
+            wrench_active=any(held is not None for held in self._inputs.values()),
+            reference_energy=self._reference_energy,
+            reference_momentum=self._reference_momentum, rejected=self._rejected,
+            limited=self._limited)
+
+    def _amend_status(self, level, message):
+        """Return the status's (level, message) as a report publishes them (here unchanged)."""
+        return level, message
 
     def _behind_schedule(self, missed, window):
         """
