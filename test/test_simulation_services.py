@@ -4,10 +4,9 @@ The standard simulation services over real DDS, called as any simulation_interfa
 The client here uses rclpy and the simulation_interfaces definitions only (no package code):
 what a peer that knows the standard, and nothing of this package, can do.  The host runs in a
 process of its own, in a namespace of its own, for the whole module: :data:`HOST_COMMAND`,
-the stand-in host of test/simulation_host.py until the node of many bodies serves these
-services (then its command, with publish_clock so that the stamps are the simulated time),
-with the built-in scene juggling_clubs (three clubs under gravity, 100 Hz).  Each test starts
-from a full reset in the state it needs.
+the package's node with the built-in scene juggling_clubs (three clubs under gravity,
+100 Hz), publish_clock on so that the stamps are the simulated time, and no frame prefix.
+Each test starts from a full reset in the state it needs.
 """
 
 import math
@@ -47,8 +46,8 @@ from simulation_interfaces.srv import StepSimulation
 
 pytestmark = pytest.mark.xdist_group('node')
 
-HOST_COMMAND = [sys.executable, str(Path(__file__).resolve().parent / 'simulation_host.py')]
-HOST_PARAMETERS = {'scene': 'juggling_clubs'}
+HOST_COMMAND = [sys.executable, '-m', 'rigid_body_sim.node.entry_point']
+HOST_PARAMETERS = {'scene': 'juggling_clubs', 'publish_clock': 'true', 'frame_prefix': "''"}
 SCENE_BODIES = ['club_left', 'club_middle', 'club_right']
 TICK_NANOSECONDS = 10_000_000  # the scene's 100 Hz
 SERVICES = {
@@ -372,11 +371,15 @@ def test_simulation_states_play_pause_and_stop(host):
                    SetSimulationState.Response.ALREADY_IN_TARGET_STATE, 'playing')
     assert host.set_simulation_state(SimulationState.STATE_PAUSED).result == Result.RESULT_OK
     assert host.simulation_state() == SimulationState.STATE_PAUSED
-    # Stopped: paused after a full reset, at time 0, with the scene's bodies only.
+    paused_at = stamp_nanoseconds(host.state('club_middle').header)
+    # Stopped: paused after a full reset, with the scene's bodies only, at their initial
+    # states; the stamps do not go back (the node's /clock counts on through a reset, as its
+    # ~/reset says: a sim-time consumer's clock never runs backwards).
     assert host.set_simulation_state(SimulationState.STATE_STOPPED).result == Result.RESULT_OK
     assert host.simulation_state() == SimulationState.STATE_STOPPED
     assert host.entities() == SCENE_BODIES
-    assert stamp_nanoseconds(host.state('club_middle').header) == 0
+    assert stamp_nanoseconds(host.state('club_middle').header) >= paused_at
+    assert pose_values(host.state('club_middle'))[0] == [0.0, 0.0, 1.0]
     assert_refused(host.set_simulation_state(SimulationState.STATE_STOPPED),
                    SetSimulationState.Response.ALREADY_IN_TARGET_STATE, 'stopped')
     # A step leaves stopped for paused.
@@ -388,15 +391,18 @@ def test_simulation_states_play_pause_and_stop(host):
 
 def test_reset_scopes_remove_spawned_bodies_and_reset_time(host):
     fresh(host, SimulationState.STATE_PAUSED)
+    started = stamp_nanoseconds(host.state('club_left').header)
     host.spawn(name='extra', resource_string=BALL)
     host.call(StepSimulation, steps=4)
     spawned = ResetSimulation.Request.SCOPE_SPAWNED
     assert host.call(ResetSimulation, scope=spawned).result.result == Result.RESULT_OK
     assert host.entities() == SCENE_BODIES
-    assert stamp_nanoseconds(host.state('club_left').header) == 4 * TICK_NANOSECONDS
+    stepped = stamp_nanoseconds(host.state('club_left').header)
+    assert stepped == started + 4 * TICK_NANOSECONDS
     both = ResetSimulation.Request.SCOPE_TIME | ResetSimulation.Request.SCOPE_STATE
     assert host.call(ResetSimulation, scope=both).result.result == Result.RESULT_OK
-    assert stamp_nanoseconds(host.state('club_left').header) == 0
+    # Simulated time 0 again for the bodies; the stamps count on (see the test above).
+    assert stamp_nanoseconds(host.state('club_left').header) >= stepped
     assert pose_values(host.state('club_left'))[0] == [-0.3, 0.0, 1.0]
     assert_refused(host.call(ResetSimulation, scope=ResetSimulation.Request.SCOPE_TIME).result,
                    Result.RESULT_FEATURE_UNSUPPORTED, 'together')

@@ -56,6 +56,7 @@ from .parameters import scene_from_parameters
 from .parameters import WORLD_PARAMETERS
 from .rigid_body_node import NODE_NAME
 from .rigid_body_node import RigidBodyNode
+from .simulation_services import SimulationServices
 from ..messages.bodies import BodiesSerializer
 from ..messages.bodies import BODY_TOPICS
 from ..messages.bodies import BodyMessages
@@ -69,6 +70,7 @@ from ..messages.qos import SERVICE_QOS
 from ..messages.qos import STATE_QOS
 from ..messages.qos import TF_QOS
 from ..messages.qos import TF_STATIC_QOS
+from ..messages.simulation import unavailable_reason
 from ..messages.state import STATE_TYPES
 from ..messages.tf import static_transforms
 from ..messages.tf import TF_STATIC_TOPIC
@@ -276,6 +278,14 @@ class WorldNode(RigidBodyNode):
         self.add_post_set_parameters_callback(self._parameters_set_callback)
         self._set_drift_reference()
         self._log_world_start(values)
+        # ROS 2's standard simulation services (simulation_interfaces), where it is built.
+        self._simulation_services = None
+        missing = unavailable_reason()
+        if missing is None:
+            self._simulation_services = SimulationServices(self)
+        else:
+            self.get_logger().warning(f'the standard simulation services are not served: '
+                                      f'{missing}')
         self._start_running(kernels_ready, scene.integrator)
 
     def _frames_of(self, name):
