@@ -179,8 +179,9 @@ def _tolerance_sweep_part(args: argparse.Namespace) -> _Part:
         span, tolerances, substeps = SWEEP_SPAN, TOLERANCES, FIXED_SUBSTEPS
     unknown = sorted(set(names) - set(scene_names(several_bodies=False)))
     if unknown:
-        raise ValueError(f'--scenes: no built-in scene of one body {", ".join(unknown)}; '
-                         f'the scenes are {", ".join(scene_names(several_bodies=False))}')
+        raise ValueError(f'--scenes: no built-in scene {", ".join(unknown)} of one body (the '
+                         'benchmark takes those); the scenes are '
+                         f'{", ".join(scene_names(several_bodies=False))}')
     repeats = args.repeats or 3
 
     def finish(result: dict[str, Any]) -> dict[str, Path]:
