@@ -190,9 +190,12 @@ def test_two_namespaced_nodes_publish_distinct_frames_and_neither_jumps(
             client.wait_for(lambda client=client: _transforms(
                 client, '/tf_static', client.frame('imu')), DISCOVERY_TIMEOUT,
                 'the static transform of the IMU')
-        # One client hears both nodes on the global topics.
+        # One client hears both nodes on the global topics (once it discovered the other
+        # node, which on a loaded machine may come after its own node's 200 transforms).
         listener = clients[0]
         for client, body in zip(clients, bodies):
+            listener.wait_for(lambda body=body: _transforms(listener, '/tf', body),
+                              DISCOVERY_TIMEOUT, f'a transform to {body} on the other client')
             transforms = _transforms(listener, '/tf', body)
             assert transforms, f'no transform to {body} heard by the other client'
             assert {t.header.frame_id for t in transforms} == {client.frame('world')}
