@@ -4,7 +4,7 @@ Recording and analysis: rosbag2 bags of the simulation, offline or live, and the
 - :mod:`.bag_writer`: rosbag2 bags (MCAP or sqlite3), written by the package's own code
   through public APIs only: MCAP records built with the ``mcap`` library's record classes
   (Message and MessageIndex packed from the MCAP specification), sqlite3 through Python's
-  :mod:`sqlite3`, ``metadata.yaml`` with ruamel.yaml; from ``rosbags`` only its typestore
+  :mod:`sqlite3`, ``metadata.yaml`` with PyYAML; from ``rosbags`` only its typestore
   (message definitions, type hashes) and QoS types.  The publishers' QoS profiles are
   stored as rosbag2 Jazzy records them, and the bag is readable at every flush (a recorder
   killed with SIGKILL leaves a readable bag).
