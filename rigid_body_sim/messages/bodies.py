@@ -40,7 +40,7 @@ from .state import STATE_FIELDS
 from ..physics.kernels.derived import derived_quantities
 
 __all__ = ['BODY_TOPICS', 'IMU_FIELDS', 'MARKERS_TOPIC', 'BodyMessages', 'BodiesSerializer',
-           'PatchedMessages', 'deleted_markers']
+           'BodyRows', 'PatchedMessages', 'deleted_markers']
 
 BODY_TOPICS = ('pose', 'twist', 'angular_momentum', 'odom')
 """The state topics each body has under its name (besides ``imu``), as the one-body node's."""
@@ -286,6 +286,41 @@ class BodiesSerializer:
         """Write (M, 10) IMU readings (orientation x, y, z, w, omega, acceleration; SI)."""
         self.batches['imu'].write(readings, stamp_nanoseconds)
         return self.batches['imu']
+
+
+class BodyRows:
+    """
+    The packed states (N, 13) of a World's bodies, read where the World keeps them.
+
+    Each row is q (x, y, z, w), x, p, L (world frame, SI) of the body's centre of mass, in
+    the order of `names`.  A free body's row is a view of its Simulator's packed state (no
+    copy per body per tick); a pivoted body integrates about its pivot, so its COM state is
+    asked of the World.
+
+    Parameters
+    ----------
+    world : rigid_body_sim.physics.World
+    names : sequence of str
+        The bodies, in the order of the rows.
+    pivoted : sequence of bool
+        For each, whether it hangs from a pivot (its scene's ``pivot`` effect).
+
+    """
+
+    def __init__(self, world, names, pivoted):
+        self._world = world
+        self._names = list(names)
+        self._packed = [world.simulator(name).kernel_arguments()[0] for name in self._names]
+        self._pivoted = [index for index, flag in enumerate(pivoted) if flag]
+
+    def rows(self):
+        """Return the bodies' packed states now, (N, 13), a new array."""
+        rows = np.array(self._packed) if self._packed else np.zeros((0, 13))
+        for index in self._pivoted:
+            state = self._world.state(self._names[index])
+            rows[index] = np.concatenate((state.quaternion, state.position,
+                                          state.linear_momentum, state.angular_momentum))
+        return rows
 
 
 def deleted_markers(markers):

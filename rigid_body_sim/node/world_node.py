@@ -60,6 +60,7 @@ from .simulation_services import SimulationServices
 from ..messages.bodies import BodiesSerializer
 from ..messages.bodies import BODY_TOPICS
 from ..messages.bodies import BodyMessages
+from ..messages.bodies import BodyRows
 from ..messages.bodies import deleted_markers
 from ..messages.bodies import MARKERS_TOPIC
 from ..messages.frames import frame_ids
@@ -323,8 +324,8 @@ class WorldNode(RigidBodyNode):
                           marker_geometry_from_drawing(body.member.drawing), body.imu,
                           body.marker_id) for body in bodies],
             self._transform_class, self._period)
-        self._packed = [body.simulator.kernel_arguments()[0] for body in bodies]
-        self._pivoted = [index for index, body in enumerate(bodies) if body.pivoted]
+        self._body_rows = BodyRows(self._world, [body.name for body in bodies],
+                                   [body.pivoted for body in bodies])
         self._noisy_imus = [body.imu for body in bodies if body.imu.model.noisy]
         self._body_list = bodies
         self._index = {body.name: index for index, body in enumerate(bodies)}
@@ -511,13 +512,7 @@ class WorldNode(RigidBodyNode):
 
     def _rows(self):
         """Return the bodies' packed states (N, 13): q, x, p, L (world frame, SI)."""
-        rows = np.array(self._packed) if self._packed else np.zeros((0, 13))
-        for index in self._pivoted:
-            # A pivoted body integrates about its pivot: its COM state is the Simulator's.
-            state = self._world.state(self._body_list[index].name)
-            rows[index] = np.concatenate((state.quaternion, state.position,
-                                          state.linear_momentum, state.angular_momentum))
-        return rows
+        return self._body_rows.rows()
 
     def _publish_state(self, now, every_tick=False):
         stamp = self._publish_clock_stamp(now)

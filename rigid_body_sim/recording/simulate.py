@@ -70,8 +70,11 @@ __all__ = [
     'DIAGNOSTICS_TOPIC',
     'SimulationSummary',
     'absolute_namespace',
+    'clock_rows',
     'effect_parameters_json',
     'message_type_name',
+    'progress_bar',
+    'run_plan',
     'simulate_to_bag',
     'stamp_nanoseconds',
     'topic_names',
@@ -171,6 +174,29 @@ def _tick_count(duration, rate):
     return ticks
 
 
+def run_plan(scene, duration, rate, substeps, start_time):
+    """
+    Return (rate Hz, ticks, substeps, start_time ns) of an offline run, checked.
+
+    rate None: the scene's.  Raises ValueError for a rate, duration, substeps or start
+    time the bag cannot hold (a header stamp's seconds are an int32).
+    """
+    rate = float(scene.rate if rate is None else rate)
+    if not math.isfinite(rate) or rate <= 0.0:
+        raise ValueError(f'rate must be > 0 Hz; got {rate:g}')
+    ticks = _tick_count(duration, rate)
+    if int(substeps) != substeps or substeps < 1:
+        raise ValueError(f'substeps must be a whole number >= 1; got {substeps!r}')
+    substeps = int(substeps)
+    start_time = int(start_time)
+    last_stamp = stamp_nanoseconds(start_time, ticks, rate)
+    if start_time < 0 or last_stamp >= _LAST_STAMP:
+        raise ValueError(f'stamps must lie between 0 and {_LAST_STAMP // 10**9} s since the '
+                         f'epoch; the start time {start_time * 1e-9:g} s and duration '
+                         f'{ticks / rate:g} s do not fit')
+    return rate, ticks, substeps, start_time
+
+
 def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1,
                     tolerance=None, storage='mcap', start_time=0, clock=False, namespace='',
                     world_frame='world', body_frame='body', progress=False, stop=None,
@@ -235,20 +261,7 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
         bag.
 
     """
-    rate = float(scene.rate if rate is None else rate)
-    if not math.isfinite(rate) or rate <= 0.0:
-        raise ValueError(f'rate must be > 0 Hz; got {rate:g}')
-    ticks = _tick_count(duration, rate)
-    if int(substeps) != substeps or substeps < 1:
-        raise ValueError(f'substeps must be a whole number >= 1; got {substeps!r}')
-    substeps = int(substeps)
-    start_time = int(start_time)
-    last_stamp = stamp_nanoseconds(start_time, ticks, rate)
-    # A header stamp's seconds are an int32 (builtin_interfaces/Time).
-    if start_time < 0 or last_stamp >= _LAST_STAMP:
-        raise ValueError(f'stamps must lie between 0 and {_LAST_STAMP // 10**9} s since the '
-                         f'epoch; the start time {start_time * 1e-9:g} s and duration '
-                         f'{ticks / rate:g} s do not fit')
+    rate, ticks, substeps, start_time = run_plan(scene, duration, rate, substeps, start_time)
     if frame_prefix is None:
         frame_prefix = default_frame_prefix(absolute_namespace(namespace))
     frames = frame_ids(frame_prefix, {'world_frame': world_frame, 'body_frame': body_frame,
@@ -300,7 +313,7 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
         if clock_connection is not None:
             connections.insert(0, (CLOCK_TOPIC, clock_connection))
         row_connections = [connection for _, connection in connections]
-        bar = _progress_bar(duration) if progress else None
+        bar = progress_bar(duration) if progress else None
         batch = StateBatch(_BATCH_TICKS)
         perf_counter = time.perf_counter
         last_flush = perf_counter()
@@ -334,7 +347,7 @@ def simulate_to_bag(scene, bag, duration, rate=None, integrator=None, substeps=1
                     serialized[TF_TOPIC] = tf_serializer.serialize_rows(
                         stamps, [rows[:, column] for column in (4, 5, 6, 0, 1, 2, 3)])
                 if clock_connection is not None:
-                    serialized[CLOCK_TOPIC] = _clock_rows(stamps)
+                    serialized[CLOCK_TOPIC] = clock_rows(stamps)
                 writer.write_rows(row_connections,
                                   [serialized[topic] for topic, _ in connections], stamps)
                 diagnostics.record(step_durations, perf_counter() - batch_started)
@@ -403,7 +416,7 @@ class _ImuRows:
         return data
 
 
-def _clock_rows(stamps):
+def clock_rows(stamps):
     """Return the serialised rosgraph_msgs/Clock of each stamp, (n, size) uint8."""
     rows = rows_of(serialize_zeroed(Clock()), len(stamps))
     # CDR: the 4-byte encapsulation header, then clock.sec (int32), clock.nanosec (uint32).
@@ -411,7 +424,8 @@ def _clock_rows(stamps):
     return rows
 
 
-def _progress_bar(duration):
+def progress_bar(duration):
+    """Return a tqdm bar (stderr) counting simulated s up to `duration`."""
     from tqdm import tqdm
     return tqdm(total=float(duration), unit='s', desc='simulated', leave=True,
                 bar_format='{desc}: {percentage:3.0f}%|{bar}| {n:.3g}/{total:.3g} s '

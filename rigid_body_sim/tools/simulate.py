@@ -9,8 +9,13 @@ stamps read as simulated time; 'now' for the wall clock at start).  The bag is M
 default (sqlite3 with --storage sqlite3) and plays with `ros2 bag play`, reads with rosbags
 or the mcap tools, and plots with `rigid-body-sim plot`.
 
+A scene of several bodies (bodies:, e.g. juggling_clubs) is written as the node of bodies
+publishes it: each body's topics under its name (club_left/pose ...), one /tf and one
+MarkerArray `markers` a tick for all of them.
+
 Typical use:
   rigid-body-sim simulate --scene tennis_racket --duration 30
+  rigid-body-sim simulate --scene juggling_clubs --duration 2 --bag clubs
   rigid-body-sim simulate --scene default --duration 60 --rate 1000 --bag t_handle_1khz
   rigid-body-sim simulate --scene default --duration 60 --bag t_handle_1khz --overwrite
   rigid-body-sim plot t_handle_1khz --out t_handle.png
@@ -78,7 +83,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="put before the frame names, as the node's frame_prefix (default: "
                              "the namespace's, 'sat1/' for /sat1, as the node's)")
     parser.add_argument('--world-frame', default='world', help='world frame id (default: world)')
-    parser.add_argument('--body-frame', default='body', help='body frame id (default: body)')
+    parser.add_argument('--body-frame', default=None,
+                        help='body frame id (default: body); a scene of bodies frames each '
+                             'body by its name')
     parser.add_argument('--quiet', action='store_true', help='no progress bar')
     parser.add_argument('--flush-period', type=float, default=1.0, metavar='S',
                         help='wall-clock s between flushes: killed at any moment (even kill '
@@ -175,6 +182,7 @@ def main(args: argparse.Namespace) -> int:
     """
     from ..recording.signals import StopOnSignals
     from ..recording.simulate import simulate_to_bag
+    from ..recording.simulate_bodies import simulate_bodies_to_bag
 
     scene = load_scene(args.scene)
     check_duration(args.duration)
@@ -198,20 +206,30 @@ def main(args: argparse.Namespace) -> int:
     start_time = start_time_nanoseconds(args.start_time)
     if not (math.isfinite(args.flush_period) and args.flush_period >= 0.0):
         raise ValueError(f'--flush-period must be a number of s >= 0; got {args.flush_period:g}')
+    if scene.has_named_bodies and args.body_frame is not None:
+        raise ValueError(f"--body-frame names the one body's frame; scene {scene.name!r} has "
+                         f'{len(scene.bodies)} bodies, each framed by its name (and '
+                         '<name>/imu): leave --body-frame out')
     tolerance = scene.tolerance if args.tolerance is None else (args.tolerance or None)
-    warning = unresolved_rotation(scene.body, scene.state, 1.0 / rate, args.substeps, tolerance)
-    if warning is not None:
-        print(f'rigid-body-sim simulate: warning: {warning}', file=sys.stderr)
+    for member in scene.members:
+        warning = unresolved_rotation(member.body, member.state, 1.0 / rate, args.substeps,
+                                      tolerance)
+        if warning is not None:
+            where = f'body {member.name!r}: ' if scene.has_named_bodies else ''
+            print(f'rigid-body-sim simulate: warning: {where}{warning}', file=sys.stderr)
     ensure_compiled('simulate', [args.integrator or scene.integrator], quiet=args.quiet)
+    options = {'rate': args.rate, 'integrator': args.integrator, 'substeps': args.substeps,
+               'tolerance': args.tolerance, 'storage': args.storage, 'start_time': start_time,
+               'clock': args.clock, 'namespace': args.namespace,
+               'world_frame': args.world_frame, 'frame_prefix': args.frame_prefix,
+               'progress': not args.quiet, 'flush_period': args.flush_period}
     with StopOnSignals() as signals:
-        summary = simulate_to_bag(
-            scene, bag, args.duration, rate=args.rate, integrator=args.integrator,
-            substeps=args.substeps, tolerance=args.tolerance, storage=args.storage,
-            start_time=start_time,
-            clock=args.clock, namespace=args.namespace, world_frame=args.world_frame,
-            body_frame=args.body_frame, frame_prefix=args.frame_prefix,
-            progress=not args.quiet, stop=signals.stop,
-            flush_period=args.flush_period)
+        if scene.has_named_bodies:
+            summary = simulate_bodies_to_bag(scene, bag, args.duration, stop=signals.stop,
+                                             **options)
+        else:
+            summary = simulate_to_bag(scene, bag, args.duration, stop=signals.stop,
+                                      body_frame=args.body_frame or 'body', **options)
     print(summary)
     for topic, count in summary.message_counts.items():
         print(f'  {topic}: {count}')
