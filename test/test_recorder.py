@@ -21,6 +21,8 @@ import time
 import types
 import warnings
 
+from geometry_msgs.msg import PoseStamped
+
 from mcap.data_stream import ReadDataStream
 from mcap.reader import make_reader
 from mcap.records import Chunk
@@ -617,3 +619,49 @@ def test_messages_after_a_refused_clock_keep_the_last_valid_time_not_the_first_c
     early = [line for line in said if 'before the first /clock' in line]
     assert early == [f'1 message(s) received before the first /clock are logged at its '
                      f'time, {ten} ns'], said
+
+
+def test_record_takes_every_body_topic_of_a_node_of_bodies_without_losing_any(
+        tmp_path, environment):
+    """
+    By default, record finds and records each body's topics of a node of bodies.
+
+    The juggler's clubs in a namespace: every club's pose, twist, angular_momentum, odom
+    and imu, the MarkerArray and /tf, found by discovery (no topic named on the command
+    line); with publish_clock each pose is stamped k / rate, so consecutive stamps one tick
+    apart on every club's pose prove none was lost between the first and last recorded.
+    """
+    namespace = environment
+    clubs = [member.name for member in load_scene('juggling_clubs').members]
+    node = NodeProcess(tmp_path / 'node.log', namespace=namespace,
+                       parameters={'scene': 'juggling_clubs', 'publish_clock': True})
+    bag = tmp_path / 'clubs'
+    try:
+        wait_until_ticking(node)
+        recorder = RecorderProcess(tmp_path / 'recorder.log', bag, '--namespace', namespace)
+        wanted = {f'{namespace}/{club}/{topic}': 100 for club in clubs
+                  for topic in ('pose', 'twist', 'angular_momentum', 'odom', 'imu')}
+        wanted[f'{namespace}/markers'] = 100
+        wanted['/tf'] = 100
+        recorder.wait_for_counts(bag, wanted)
+        recorder.process.send_signal(signal.SIGINT)
+        assert recorder.finish() == 0, recorder.output()
+    finally:
+        node.stop()
+    assert bag_is_complete(bag)
+    with Reader(bag) as reader:
+        topics = {c.topic: c.msgtype for c in reader.connections}
+        poses = {}
+        for connection, _, raw in reader.messages():
+            if connection.topic.endswith('/pose'):
+                message = deserialize_message(bytes(raw), PoseStamped)
+                stamp = message.header.stamp.sec * 10**9 + message.header.stamp.nanosec
+                poses.setdefault(connection.topic, []).append(stamp)
+    assert set(wanted) <= set(topics)
+    assert topics[f'{namespace}/markers'] == 'visualization_msgs/msg/MarkerArray'
+    assert topics[f'{namespace}/{clubs[0]}/imu'] == 'sensor_msgs/msg/Imu'
+    for club in clubs:
+        stamps = np.array(poses[f'{namespace}/{club}/pose'])
+        assert len(stamps) >= 100
+        assert np.all(np.diff(stamps) == 10_000_000), club  # 100 Hz, none lost
+    assert 'topics of a node of bodies' in recorder.output()

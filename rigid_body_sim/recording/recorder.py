@@ -55,6 +55,7 @@ from dataclasses import field
 import importlib
 import inspect
 import math
+import re
 import threading
 import time
 
@@ -82,6 +83,8 @@ from .simulate import DIAGNOSTICS_TOPIC
 from .simulate import message_type_name
 from .simulate import topic_names
 from ..messages import qos
+from ..messages.bodies import BODY_TOPICS
+from ..messages.bodies import MARKERS_TOPIC
 from ..messages.state import STATE_TYPES
 
 __all__ = ['NODE_NAME', 'RecordingSummary', 'default_topics', 'record']
@@ -95,6 +98,11 @@ topics and for a stop."""
 _ORDER_MARGIN = 20_000_000
 """How long (ns) after its DDS reception stamp a message's callback has surely run (the
 messages received before are written then, in time order)."""
+# What a node of bodies publishes under its namespace: each body's topics and the markers,
+# by type name (a topic of the right name and another type is not the node's).
+_BODY_TOPIC_TYPES = {**{topic: message_type_name(STATE_TYPES[topic]) for topic in BODY_TOPICS},
+                     'imu': 'sensor_msgs/msg/Imu'}
+_BODY_NAME = re.compile(r'[A-Za-z][A-Za-z0-9_]*')
 # How often topics of yet unknown type are looked up in the ROS graph.
 _DISCOVERY_PERIOD = 0.5  # s
 
@@ -216,8 +224,11 @@ class _Recorder:
     """The subscriptions and what they received, written in time order; see :func:`record`."""
 
     def __init__(self, node, writer, topics, namespace, depth, flush_period, sync,
-                 use_sim_time, log):
+                 use_sim_time, log, bodies=False):
         self.node = node
+        self.bodies = bodies
+        self.body_topics = set()  # the topics found as a node of bodies' (logged together)
+        self.namespace = absolute_namespace(namespace)
         self.writer = writer
         self.depth = depth
         self.flush_period = flush_period
@@ -257,9 +268,15 @@ class _Recorder:
 
     def discover(self):
         """Subscribe to the pending topics whose type and publishers the graph now shows."""
+        types = None
+        if self.bodies:
+            types = dict(self.node.get_topic_names_and_types())
+            self._find_bodies(types)
         if not self.pending:
             return
-        types = dict(self.node.get_topic_names_and_types())
+        if types is None:
+            types = dict(self.node.get_topic_names_and_types())
+        bodies_added = []
         for name in list(self.pending):
             if name not in types:
                 continue
@@ -285,7 +302,30 @@ class _Recorder:
                 continue
             self._add(name, type_name, message_class, publisher_qos)
             self.pending.remove(name)
-            self.log(f'recording {name} ({type_name})')
+            if name in self.body_topics:
+                bodies_added.append(name)
+            else:
+                self.log(f'recording {name} ({type_name})')
+        if bodies_added:
+            # A node of a thousand bodies: one line, not five thousand.
+            shown = ', '.join(bodies_added[:3]) + (', ...' if len(bodies_added) > 3 else '')
+            self.log(f'recording {len(bodies_added)} topics of a node of bodies ({shown})')
+
+    def _find_bodies(self, types):
+        """Add to the pending topics those of a node of bodies in the namespace, as they come."""
+        prefix = self.namespace + '/'
+        for name, type_names in types.items():
+            if name in self.topics or name in self.pending or not name.startswith(prefix):
+                continue
+            relative = name[len(prefix):]
+            if relative == MARKERS_TOPIC:
+                wanted = 'visualization_msgs/msg/MarkerArray'
+            else:
+                body, _, topic = relative.partition('/')
+                wanted = _BODY_TOPIC_TYPES.get(topic) if _BODY_NAME.fullmatch(body) else None
+            if wanted is not None and type_names == [wanted]:
+                self.pending.append(name)
+                self.body_topics.add(name)
 
     def write_received(self):
         """Write what was received, as far as no earlier message can still come."""
@@ -387,7 +427,8 @@ class _Recorder:
 
 
 def record(bag, topics=None, storage='mcap', namespace='', depth=30000, flush_period=0.25,
-           sync=True, use_sim_time=False, duration=None, stop=None, log=None, ros_args=None):
+           sync=True, use_sim_time=False, duration=None, stop=None, log=None, ros_args=None,
+           bodies=False):
     """
     Record topics into a new bag until stopped; return a :class:`RecordingSummary`.
 
@@ -418,6 +459,10 @@ def record(bag, topics=None, storage='mcap', namespace='', depth=30000, flush_pe
         Called with progress messages (default: print).
     ros_args : list of str, optional
         Arguments for rclpy.init (e.g. ['--ros-args', '-r', '__ns:=/rec']).
+    bodies : bool
+        Also record, as they appear (a body spawned later too), the topics of a node of
+        bodies in `namespace`: every ``<namespace>/<name>/pose``, ``twist``,
+        ``angular_momentum``, ``odom`` and ``imu`` of its type, and ``<namespace>/markers``.
 
     Raises
     ------
@@ -455,7 +500,7 @@ def record(bag, topics=None, storage='mcap', namespace='', depth=30000, flush_pe
         writer.create()
         writer.set_custom_data(CUSTOM_DATA_PREFIX + 'writer', 'rigid-body-sim record')
         recorder = _Recorder(node, writer, names, namespace, depth, flush_period, sync,
-                             use_sim_time, log)
+                             use_sim_time, log, bodies=bodies)
         executor.add_node(node)
         log(f'recording {", ".join(names)} into {writer.path} ({storage}); Ctrl-C to stop')
         next_flush = started + flush_period

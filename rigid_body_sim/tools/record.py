@@ -10,6 +10,9 @@ leaves a bag that rosbags and the mcap tools read up to the last flush; --recove
 rewrites such a bag into a complete one (index, summary, metadata.yaml), keeping the
 original as BAG.orig.
 
+A node of several bodies (a scene of bodies:) is recorded whole by default: each body's
+topics under its name, found as they appear (a body spawned while recording too).
+
 Typical use:
   rigid-body-sim record --bag run1                 the node's topics until Ctrl-C
   rigid-body-sim record --bag run2 pose twist --duration 60
@@ -45,7 +48,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('topics', nargs='*', metavar='TOPIC',
                         help='topics to record; relative names are under --namespace '
                              "(default: the node's pose, twist, angular_momentum, odom, "
-                             'marker, imu, /diagnostics, /clock)')
+                             'marker, imu, /diagnostics, /clock, /tf, /tf_static and, of a '
+                             "node of bodies, every body's <name>/pose ... <name>/imu and "
+                             'markers, a body spawned later too)')
     parser.add_argument('--bag', help='bag directory to create (default: '
                                       'rigid_body_sim_<date>_<time>)')
     parser.add_argument('--storage', choices=STORAGES, default='mcap',
@@ -88,6 +93,7 @@ def main(args: argparse.Namespace) -> int:
     summary = record(bag, topics=topics, storage=args.storage,
                      namespace=args.namespace, depth=args.depth,
                      flush_period=args.flush_period, sync=not args.no_fsync,
-                     use_sim_time=args.use_sim_time, duration=args.duration)
+                     use_sim_time=args.use_sim_time, duration=args.duration,
+                     bodies=not args.topics)
     print(summary)
     return 0
