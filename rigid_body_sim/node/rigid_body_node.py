@@ -762,7 +762,10 @@ class RigidBodyNode(Node):
 
     def _step_refusal(self, integrator, substeps, tolerance):
         """Return why the steps of this configuration cannot carry a stiff effect, or None."""
-        simulator = self._simulator
+        return self._body_step_problem(self._simulator, integrator, substeps, tolerance)
+
+    def _body_step_problem(self, simulator, integrator, substeps, tolerance):
+        """Return why `simulator`'s body and effects refuse these steps a tick, or None."""
         problem = step_problem(simulator.body, simulator.effects, integrator,
                                1 if tolerance > 0.0 else substeps, self._period)
         if problem is not None and (tolerance == 0.0 or math.isinf(problem[0])):

@@ -79,7 +79,6 @@ from ..messages.tf import TF_TOPIC
 from ..messages.tf import transform_message_class
 from ..physics import World
 from ..physics.kernels import set_interpreted
-from ..physics.stability import step_problem
 from ..physics.state import State
 from ..physics.warm_up import load_kernels
 from ..scenes import DEFAULT_SCENE
@@ -618,13 +617,6 @@ class WorldNode(RigidBodyNode):
                                               substeps, tolerance)
             if problem is not None:
                 return f'body {name!r}: {problem}'
-        return None
-
-    def _body_step_problem(self, simulator, integrator, substeps, tolerance):
-        problem = step_problem(simulator.body, simulator.effects, integrator,
-                               1 if tolerance > 0.0 else substeps, self._period)
-        if problem is not None and (tolerance == 0.0 or math.isinf(problem[0])):
-            return problem[1]
         return None
 
     # -- diagnostics
