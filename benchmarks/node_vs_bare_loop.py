@@ -57,6 +57,28 @@ def process_cpu_seconds(pid):
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
+def cpu_windows(processes, windows, seconds):
+    """
+    Print and return node CPU / bare loop CPU in each of `windows` windows of `seconds` s.
+
+    processes: {'node': Popen, 'bare': Popen}; both read in the same windows, side by side.
+    """
+    print('window  node CPU %  bare loop CPU %  ratio')
+    ratios = []
+    for window in range(windows):
+        before = {name: process_cpu_seconds(processes[name].pid) for name in ('node', 'bare')}
+        started = time.monotonic()
+        time.sleep(seconds)
+        elapsed = time.monotonic() - started
+        used = {name: process_cpu_seconds(processes[name].pid) - before[name]
+                for name in ('node', 'bare')}
+        ratio = used['node'] / used['bare']
+        ratios.append(ratio)
+        print(f'{window + 1:6d}  {100 * used["node"] / elapsed:10.1f}  '
+              f'{100 * used["bare"] / elapsed:15.1f}  {ratio:5.2f}', flush=True)
+    return ratios
+
+
 def bare_loop():
     """Publish the node's pose at 1 kHz and /diagnostics at 1 Hz, spun as the node spins."""
     from diagnostic_msgs.msg import DiagnosticArray
@@ -340,22 +362,9 @@ def main(argv=None):
             if process.poll() is not None:
                 raise SystemExit(f'{name} exited with {process.returncode}; see {logs}')
         measured_from = time.monotonic()
-        ratios = []
         print(f'node from {arguments.source.resolve()}; 1 kHz, one pose subscriber each'
               + ''.join(f'; {parameter}' for parameter in arguments.parameter))
-        print('window  node CPU %  bare loop CPU %  ratio')
-        for window in range(arguments.windows):
-            before = {name: process_cpu_seconds(processes[name].pid)
-                      for name in ('node', 'bare')}
-            started = time.monotonic()
-            time.sleep(arguments.seconds)
-            elapsed = time.monotonic() - started
-            used = {name: process_cpu_seconds(processes[name].pid) - before[name]
-                    for name in ('node', 'bare')}
-            ratio = used['node'] / used['bare']
-            ratios.append(ratio)
-            print(f'{window + 1:6d}  {100 * used["node"] / elapsed:10.1f}  '
-                  f'{100 * used["bare"] / elapsed:15.1f}  {ratio:5.2f}')
+        ratios = cpu_windows(processes, arguments.windows, arguments.seconds)
         for name, process in processes.items():
             if process.poll() is not None:
                 raise SystemExit(f'{name} exited with {process.returncode} during the windows; '

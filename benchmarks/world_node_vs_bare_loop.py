@@ -47,17 +47,15 @@ import time
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+
+# The CPU windows of the one-body comparison (this script's folder is on the path).
+from node_vs_bare_loop import cpu_windows  # noqa: E402
+
 NAMESPACE = '/vs_bare_world'
 BARE = '/bare_world'
 RATE = 100.0
 SCENE = 'debris_field'
 BODY_TOPICS = ('pose', 'twist', 'angular_momentum', 'odom')
-
-
-def process_cpu_seconds(pid):
-    """Return the user + system CPU time of a process (all threads) in s."""
-    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
 def resident_megabytes(pid):
@@ -258,21 +256,8 @@ def cpu(arguments, environment, logs):
               'one /tf and one MarkerArray, one subscriber each; the bare loop publishes '
               + ('the same bytes again each tick' if arguments.bare_bytes else
                  'rclpy messages, a field changed each tick'))
-        print('window  node CPU %  bare loop CPU %  ratio')
-        ratios = []
         measured_from = time.time()
-        for window in range(arguments.windows):
-            before = {name: process_cpu_seconds(processes[name].pid)
-                      for name in ('node', 'bare')}
-            started = time.monotonic()
-            time.sleep(arguments.seconds)
-            elapsed = time.monotonic() - started
-            used = {name: process_cpu_seconds(processes[name].pid) - before[name]
-                    for name in ('node', 'bare')}
-            ratio = used['node'] / used['bare']
-            ratios.append(ratio)
-            print(f'{window + 1:6d}  {100 * used["node"] / elapsed:10.1f}  '
-                  f'{100 * used["bare"] / elapsed:15.1f}  {ratio:5.2f}', flush=True)
+        ratios = cpu_windows(processes, arguments.windows, arguments.seconds)
         for name, process in processes.items():
             if process.poll() is not None:
                 raise SystemExit(f'{name} exited with {process.returncode}; see {logs}')

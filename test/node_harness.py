@@ -67,6 +67,22 @@ def unique_namespace():
     return f'/test_{os.getpid()}_{next(_namespaces)}'
 
 
+def start_node_in_process(node_class, scene):
+    """Return a node of `node_class` simulating `scene`, in a context of its own, not spun."""
+    isolate_ros_environment()
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    return node_class(context=context, start_parameter_services=False,
+                      parameter_overrides=[Parameter('scene', value=scene)])
+
+
+def stop_node_in_process(node):
+    """Destroy a node of :func:`start_node_in_process` and shut its context down."""
+    context = node.context
+    node.destroy_node()
+    rclpy.try_shutdown(context=context)
+
+
 class NodeProcess:
     """
     The node running as a subprocess, its output captured in a file.

@@ -10,6 +10,8 @@ import time
 
 from geometry_msgs.msg import Vector3Stamped
 from node_harness import isolate_ros_environment
+from node_harness import start_node_in_process
+from node_harness import stop_node_in_process
 import numpy as np
 import pytest
 from rcl_interfaces.srv import DescribeParameters
@@ -23,18 +25,10 @@ from std_srvs.srv import Trigger
 
 def start_node(scene='default'):
     """Return a node of `scene` in a context of its own, not spun."""
-    isolate_ros_environment()
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    return RigidBodyNode(context=context, start_parameter_services=False,
-                         parameter_overrides=[Parameter('scene', value=scene)])
+    return start_node_in_process(RigidBodyNode, scene)
 
 
-def stop_node(node):
-    """Destroy the node and shut its context down."""
-    context = node.context
-    node.destroy_node()
-    rclpy.try_shutdown(context=context)
+stop_node = stop_node_in_process
 
 
 @pytest.fixture

@@ -21,6 +21,8 @@ from node_harness import DISCOVERY_TIMEOUT
 from node_harness import isolate_ros_environment
 from node_harness import nanoseconds
 from node_harness import NodeProcess
+from node_harness import start_node_in_process
+from node_harness import stop_node_in_process
 from node_harness import unique_namespace
 import numpy as np
 import pytest
@@ -212,11 +214,7 @@ def test_only_a_body_with_external_wrench_takes_torque_and_it_turns_that_body(tm
 # -- in this process: the interface of the simulation services
 
 def _start(scene='juggling_clubs'):
-    isolate_ros_environment()
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    return WorldNode(context=context, start_parameter_services=False,
-                     parameter_overrides=[Parameter('scene', value=scene)])
+    return start_node_in_process(WorldNode, scene)
 
 
 @pytest.fixture
@@ -224,9 +222,7 @@ def world_node():
     """Give a WorldNode of juggling_clubs in this process, not spun."""
     node = _start()
     yield node
-    context = node.context
-    node.destroy_node()
-    rclpy.try_shutdown(context=context)
+    stop_node_in_process(node)
 
 
 def _topics(node):
