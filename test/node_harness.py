@@ -170,7 +170,45 @@ def applied_from(response):
     return int(match.group(1)) * 1_000_000_000 + int(match.group(2))
 
 
-class Client:
+class SpunNode:
+    """
+    An rclpy node of a test, in a context of its own, spun in a background thread.
+
+    A subclass makes its subscriptions and clients on :attr:`node`, then calls
+    :meth:`start_spinning`; :meth:`close` stops the thread and releases the context.
+    """
+
+    def __init__(self, node_name, namespace):
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node(node_name, namespace=namespace, context=self.context)
+        self._executor = None
+
+    def start_spinning(self):
+        """Spin the node in a background thread until :meth:`close`."""
+        self._executor = SingleThreadedExecutor(context=self.context)
+        self._executor.add_node(self.node)
+        self._stopping = threading.Event()
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self):
+        # spin_once in a loop, not spin(): close() stops the loop and joins this thread
+        # before anything is destroyed, so no wait set is ever built on a dead context.
+        while not self._stopping.is_set():
+            self._executor.spin_once(timeout_sec=0.05)
+
+    def close(self):
+        """Stop spinning and release the context."""
+        if self._executor is not None:
+            self._stopping.set()
+            self._thread.join(5.0)
+            self._executor.shutdown(timeout_sec=5.0)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+class Client(SpunNode):
     """
     An rclpy node in the test process that records the simulator node's topics.
 
@@ -182,10 +220,8 @@ class Client:
     """
 
     def __init__(self, namespace, extra_topics=None):
+        super().__init__('test_client', namespace)
         self.namespace = namespace
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context)
-        self.node = rclpy.create_node('test_client', namespace=namespace, context=self.context)
         self._lock = threading.Lock()
         extra_topics = dict(extra_topics or {})
         self._received = {topic: []
@@ -204,17 +240,7 @@ class Client:
         self.pause_client = self.node.create_client(SetBool, 'pause')
         self.parameters_client = self.node.create_client(
             SetParameters, f'{NODE_NAME}/set_parameters')
-        self._executor = SingleThreadedExecutor(context=self.context)
-        self._executor.add_node(self.node)
-        self._stopping = threading.Event()
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
-
-    def _spin(self):
-        # spin_once in a loop, not spin(): close() stops the loop and joins this thread
-        # before anything is destroyed, so no wait set is ever built on a dead context.
-        while not self._stopping.is_set():
-            self._executor.spin_once(timeout_sec=0.05)
+        self.start_spinning()
 
     def _record(self, topic, message):
         with self._lock:
@@ -234,14 +260,6 @@ class Client:
         is ``test_1_0/body``.
         """
         return as_tf2_reads(default_frame_prefix(self.namespace or '/') + name)
-
-    def close(self):
-        """Stop spinning and release the context."""
-        self._stopping.set()
-        self._thread.join(5.0)
-        self._executor.shutdown(timeout_sec=5.0)
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
 
     # -- received messages
 

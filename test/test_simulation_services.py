@@ -12,7 +12,6 @@ Each test starts from a full reset in the state it needs.
 import math
 from pathlib import Path
 import sys
-import threading
 import time
 
 from hypothesis import given
@@ -22,11 +21,10 @@ from hypothesis import strategies as st
 from node_harness import DISCOVERY_TIMEOUT
 from node_harness import isolate_ros_environment
 from node_harness import NodeProcess
+from node_harness import SpunNode
 from node_harness import unique_namespace
 import pytest
-import rclpy
 from rclpy.action import ActionClient
-from rclpy.executors import SingleThreadedExecutor
 
 try:  # built by interfaces/build_interfaces.sh in the set-up (make venv)
     from simulation_interfaces.action import SimulateSteps
@@ -88,7 +86,7 @@ def fill(message, fields):
     return message
 
 
-class StandardClient:
+class StandardClient(SpunNode):
     """
     An rclpy node that calls the host's services by their standard types and names.
 
@@ -99,30 +97,11 @@ class StandardClient:
     """
 
     def __init__(self, namespace):
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context)
-        self.node = rclpy.create_node('standard_client', namespace=namespace,
-                                      context=self.context)
+        super().__init__('standard_client', namespace)
         self.clients = {kind: self.node.create_client(kind, name)
                         for kind, name in SERVICES.items()}
         self.steps_action = ActionClient(self.node, SimulateSteps, 'simulate_steps')
-        self._executor = SingleThreadedExecutor(context=self.context)
-        self._executor.add_node(self.node)
-        self._stopping = threading.Event()
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
-
-    def _spin(self):
-        while not self._stopping.is_set():
-            self._executor.spin_once(timeout_sec=0.05)
-
-    def close(self):
-        """Stop spinning and release the context."""
-        self._stopping.set()
-        self._thread.join(5.0)
-        self._executor.shutdown(timeout_sec=5.0)
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
+        self.start_spinning()
 
     @staticmethod
     def wait_for(condition, timeout, what):
