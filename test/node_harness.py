@@ -33,6 +33,7 @@ from rigid_body_sim.messages.qos import STATE_QOS
 from std_srvs.srv import SetBool
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker
+import yaml
 
 PACKAGE_ROOT = Path(__file__).resolve().parent.parent
 NODE_NAME = 'rigid_body_sim'
@@ -413,3 +414,59 @@ class Client(SpunNode):
         request = SetParameters.Request(
             parameters=[Parameter(name, value=value).to_parameter_msg()])
         return self.call(self.parameters_client, request).results[0]
+
+
+class RecorderProcess:
+    """``rigid-body-sim record`` as a subprocess, its output in a file."""
+
+    def __init__(self, log_path, bag, *arguments):
+        self.log_path = Path(log_path)
+        self._log = open(self.log_path, 'w')
+        self.process = subprocess.Popen(
+            [sys.executable, '-m', 'rigid_body_sim.cli', 'record', '--bag', str(bag),
+             *arguments], stdout=self._log, stderr=subprocess.STDOUT, cwd=PACKAGE_ROOT)
+
+    def output(self):
+        """Return what it printed."""
+        return self.log_path.read_text()
+
+    def wait_until_recording(self, bag, timeout=30.0):
+        """Wait for the first flush (metadata.yaml) with the node's topics in it."""
+        deadline = time.monotonic() + timeout
+        metadata = Path(bag) / 'metadata.yaml'
+        while not (metadata.exists() and '/pose' in metadata.read_text()):
+            assert self.process.poll() is None, self.output()
+            assert time.monotonic() < deadline, 'the recorder recorded nothing:\n' + \
+                self.output()
+            time.sleep(0.05)  # waits-for: poll interval of the loop waiting for the first flush
+
+    def has_counts(self, bag, least):
+        """Return whether the flushed metadata.yaml counts least[topic] of each topic."""
+        metadata = Path(bag) / 'metadata.yaml'
+        if not metadata.exists():
+            return False
+        try:
+            info = yaml.safe_load(metadata.read_text())['rosbag2_bagfile_information']
+        except (yaml.YAMLError, KeyError, TypeError):
+            return False  # caught between the writer's truncate and write: look again
+        counts = {entry['topic_metadata']['name']: entry['message_count']
+                  for entry in info.get('topics_with_message_count') or []}
+        return all(counts.get(topic, 0) >= count for topic, count in least.items())
+
+    def wait_for_counts(self, bag, least, timeout=120.0):
+        """Wait until the flushed metadata.yaml counts at least least[topic] of each topic."""
+        deadline = time.monotonic() + timeout
+        while not self.has_counts(bag, least):
+            assert self.process.poll() is None, self.output()
+            assert time.monotonic() < deadline, f'not {least} recorded:\n{self.output()}'
+            time.sleep(0.05)  # waits-for: poll interval of the loop waiting for the counts
+
+    def finish(self, timeout=60.0):
+        """Wait for the exit; return the exit code."""
+        try:
+            return self.process.wait(timeout=timeout)
+        finally:
+            if self.process.poll() is None:
+                self.process.kill()
+                self.process.wait()
+            self._log.close()

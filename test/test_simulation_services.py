@@ -11,6 +11,7 @@ Each test starts from a full reset in the state it needs.
 
 import math
 from pathlib import Path
+import signal
 import sys
 import time
 
@@ -21,6 +22,7 @@ from hypothesis import strategies as st
 from node_harness import DISCOVERY_TIMEOUT
 from node_harness import isolate_ros_environment
 from node_harness import NodeProcess
+from node_harness import RecorderProcess
 from node_harness import SpunNode
 from node_harness import unique_namespace
 import pytest
@@ -297,6 +299,28 @@ def test_a_body_spawned_from_a_file_moves_with_the_simulation(host, tmp_path, as
     host.wait_for(lambda: stamp_nanoseconds(host.state('thrown').header) > start,
                   RESPONSE_TIMEOUT, 'the spawned body to move on')
     assert pose_values(host.state('thrown'))[0][0] > 0.0
+
+
+def test_record_takes_a_body_spawned_while_it_records(host, tmp_path):
+    """`record` (default topics) finds a spawned body's topics and records them."""
+    fresh(host, SimulationState.STATE_PLAYING)
+    namespace = host.node.get_namespace()
+    bag = tmp_path / 'spawned'
+    recorder = RecorderProcess(tmp_path / 'recorder.log', bag, '--namespace', namespace)
+    try:
+        recorder.wait_for_counts(bag, {f'{namespace}/club_left/pose': 10})
+        response = host.spawn(name='recorded_ball', resource_string=BALL)
+        assert response.result.result == Result.RESULT_OK, response.result.error_message
+        recorder.wait_for_counts(bag, {f'{namespace}/recorded_ball/{topic}': 10 for topic in (
+            'pose', 'twist', 'angular_momentum', 'odom', 'imu')})
+        recorder.process.send_signal(signal.SIGINT)
+        assert recorder.finish() == 0, recorder.output()
+    finally:
+        if recorder.process.poll() is None:
+            recorder.process.kill()
+            recorder.finish()
+        host.call(DeleteEntity, entity='recorded_ball')
+    assert 'topics of a node of bodies' in recorder.output()
 
 
 def test_an_initial_pose_replaces_the_entry_pose(host):
