@@ -75,6 +75,7 @@ __all__ = [
     'message_type_name',
     'progress_bar',
     'run_plan',
+    'set_custom_data',
     'simulate_to_bag',
     'stamp_nanoseconds',
     'topic_names',
@@ -451,32 +452,44 @@ def effect_parameters_json(scene):
     return json.dumps(effects)
 
 
-def _set_custom_data(writer, scene, simulator, rate, substeps, start_time):
-    # What the plot and a reader of the bag may want to know about the run; the node's
-    # messages carry none of it.
-    body = simulator.body
+def set_custom_data(writer, scene, stepper, rate, substeps, start_time, **more):
+    """
+    Write what a reader of the bag may want to know about the run into its custom data.
+
+    The scene, its source, the integrator and tolerance of `stepper` (a Simulator or a
+    World), rate, substeps and start time, then `more` (key: text), then the plugins'
+    paths (the plot finds what a plugin's effect conserves by loading it again) and the
+    writer.  The node's messages carry none of it.
+    """
+    tolerance = stepper.tolerance
     values = {
         'scene': scene.name,
         'scene_source': scene.source,
-        'integrator': simulator.integrator,
+        'integrator': stepper.integrator,
         'rate': f'{rate:.17g}',
         'substeps': str(substeps),
-        'tolerance': 'off' if simulator.tolerance is None else f'{simulator.tolerance:.17g}',
+        'tolerance': 'off' if tolerance is None else f'{tolerance:.17g}',
         'start_time': str(start_time),
-        'mass': f'{body.mass:.17g}',
-        'inertia': ' '.join(f'{value:.17g}' for value in body.inertia.ravel()),
-        # The scene's own shape of the body ('' for a body given by its inertia): a box
-        # marker of a box body is that box, not a stand-in with its moments.
-        'body_shape': scene.data.get('body', {}).get('shape', ''),
-        'effects': ', '.join(scene.effect_names()) or 'none',
-        'effect_parameters': effect_parameters_json(scene),
+        **more,
         'writer': 'rigid-body-sim simulate',
     }
     if scene.plugins:
-        # The plot finds what a plugin's effect conserves by loading it again.
         values['effect_plugins'] = json.dumps(list(scene.plugins))
     for key, value in values.items():
         writer.set_custom_data(CUSTOM_DATA_PREFIX + key, value)
+
+
+def _set_custom_data(writer, scene, simulator, rate, substeps, start_time):
+    body = simulator.body
+    set_custom_data(
+        writer, scene, simulator, rate, substeps, start_time,
+        mass=f'{body.mass:.17g}',
+        inertia=' '.join(f'{value:.17g}' for value in body.inertia.ravel()),
+        # The scene's own shape of the body ('' for a body given by its inertia): a box
+        # marker of a box body is that box, not a stand-in with its moments.
+        body_shape=scene.data.get('body', {}).get('shape', ''),
+        effects=', '.join(scene.effect_names()) or 'none',
+        effect_parameters=effect_parameters_json(scene))
 
 
 class _OfflineDiagnostics:

@@ -33,7 +33,6 @@ from sensor_msgs.msg import Imu
 from visualization_msgs.msg import MarkerArray
 
 from .bag_writer import BagWriter
-from .bag_writer import CUSTOM_DATA_PREFIX
 from .bag_writer import offered_qos
 from .simulate import absolute_namespace
 from .simulate import clock_rows
@@ -44,6 +43,7 @@ from .simulate import FLUSH_PERIOD
 from .simulate import message_type_name
 from .simulate import progress_bar
 from .simulate import run_plan
+from .simulate import set_custom_data
 from .simulate import SimulationSummary
 from .simulate import stamp_nanoseconds
 from ..messages import qos
@@ -148,7 +148,8 @@ def simulate_bodies_to_bag(scene, bag, duration, rate=None, integrator=None, sub
 
     started = time.perf_counter()
     with BagWriter(bag, storage) as writer:
-        _set_custom_data(writer, scene, world, rate, substeps, start_time)
+        set_custom_data(writer, scene, world, rate, substeps, start_time,
+                        **{BODIES_KEY: json.dumps(body_entries(scene))})
         state_offer = [offered_qos(qos.STATE_QOS)]
         clock_connection = None
         if clock:
@@ -227,24 +228,6 @@ def simulate_bodies_to_bag(scene, bag, duration, rate=None, integrator=None, sub
     written = tick - 1
     return SimulationSummary(writer.path, written, written * period, counts,
                              time.perf_counter() - started, stopped=written < ticks)
-
-
-def _set_custom_data(writer, scene, world, rate, substeps, start_time):
-    values = {
-        'scene': scene.name,
-        'scene_source': scene.source,
-        'integrator': world.integrator,
-        'rate': f'{rate:.17g}',
-        'substeps': str(substeps),
-        'tolerance': 'off' if world.tolerance is None else f'{world.tolerance:.17g}',
-        'start_time': str(start_time),
-        BODIES_KEY: json.dumps(body_entries(scene)),
-        'writer': 'rigid-body-sim simulate',
-    }
-    if scene.plugins:
-        values['effect_plugins'] = json.dumps(list(scene.plugins))
-    for key, value in values.items():
-        writer.set_custom_data(CUSTOM_DATA_PREFIX + key, value)
 
 
 class _OfflineDiagnostics:
