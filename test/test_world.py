@@ -192,3 +192,28 @@ def test_a_reset_puts_every_body_and_the_clock_back():
         np.testing.assert_array_equal(packed(world.simulator(name)), packed(simulator))
     with pytest.raises(ValueError, match='no state for top'):
         world.reset({name: state for name, state in initial.items() if name != 'top'})
+
+
+@pytest.mark.parametrize('dt, words', [(0.0, '> 0'), (-0.01, '> 0'), (math.inf, 'finite'),
+                                       (math.nan, 'finite'), ('fast', 'number of seconds'),
+                                       (None, 'number of seconds')])
+def test_a_tick_that_is_not_a_positive_number_of_seconds_is_refused_naming_dt(dt, words):
+    world, _ = world_and_alone()
+    before = {name: packed(world.simulator(name)) for name in world.names}
+    with pytest.raises(ValueError, match='dt must be') as refused:
+        world.step(dt)
+    assert words in str(refused.value)
+    for name in world.names:
+        np.testing.assert_array_equal(packed(world.simulator(name)), before[name])
+    assert world.time == 0.0
+
+
+def test_a_whole_number_of_seconds_steps_as_its_float_as_a_simulator_takes_it():
+    by_int, _ = world_and_alone()
+    by_float, _ = world_and_alone()
+    by_int.step(1)
+    by_float.step(1.0)
+    for name in by_int.names:
+        np.testing.assert_array_equal(packed(by_int.simulator(name)),
+                                      packed(by_float.simulator(name)))
+    assert by_int.time == 1.0

@@ -79,7 +79,8 @@ def _checked_vector(value: Any, name: str) -> npt.NDArray[np.float64]:
     return array
 
 
-def _checked_positive(value: Any, name: str) -> float:
+def checked_positive(value: Any, name: str) -> float:
+    """Return `value` as a float of seconds, finite and > 0, or raise ValueError naming it."""
     try:
         number = float(value)
     except (TypeError, ValueError):
@@ -501,7 +502,7 @@ class Simulator:
         """
         # A finite positive float needs no conversion (the node passes one every tick).
         if dt.__class__ is not float or not 0.0 < dt < math.inf:
-            dt = _checked_positive(dt, 'dt')
+            dt = checked_positive(dt, 'dt')
         if self._checked != (dt, self._substeps, self._integrator, self._tolerance):
             self._check_stiffness(dt)
         if self._tolerance is not None:
@@ -524,7 +525,7 @@ class Simulator:
         ValueError for a duration that is not finite and >= 0, and for more than
         :data:`MAX_STEPS_PER_RUN` outer steps.
         """
-        dt = _checked_positive(dt, 'dt')
+        dt = checked_positive(dt, 'dt')
         try:
             duration = float(duration)
         except (TypeError, ValueError):

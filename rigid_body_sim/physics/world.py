@@ -47,6 +47,7 @@ from .kernels.interpreted import stand_in
 from .kernels.layout import STATE_SIZE
 from .kernels.loop import METHOD_TYPE
 from .kernels.model import MODEL_TYPE
+from .simulator import checked_positive
 from .simulator import Simulator
 from .state import State
 
@@ -313,8 +314,7 @@ class World:
 
     @integrator.setter
     def integrator(self, name: str) -> None:
-        for simulator in self._simulators.values():
-            simulator.integrator = name
+        self._set_every_body('integrator', name)
         self._integrator = name
         self._stepper = None
         self._prepared = None
@@ -327,8 +327,7 @@ class World:
 
     @tolerance.setter
     def tolerance(self, tolerance: float | None) -> None:
-        for simulator in self._simulators.values():
-            simulator.tolerance = tolerance
+        self._set_every_body('tolerance', tolerance)
         self._tolerance = tolerance or None
         self._prepared = None
 
@@ -339,8 +338,7 @@ class World:
 
     @substeps.setter
     def substeps(self, substeps: int) -> None:
-        for simulator in self._simulators.values():
-            simulator.substeps = substeps
+        self._set_every_body('substeps', substeps)
         self._substeps = substeps
         self._prepared = None
 
@@ -351,11 +349,14 @@ class World:
 
     @interpreted.setter
     def interpreted(self, interpreted: bool) -> None:
-        for simulator in self._simulators.values():
-            simulator.interpreted = interpreted
+        self._set_every_body('interpreted', interpreted)
         self._interpreted = bool(interpreted)
         self._stepper = None
         self._rebuild()
+
+    def _set_every_body(self, attribute: str, value: Any) -> None:
+        for simulator in self._simulators.values():
+            setattr(simulator, attribute, value)
 
     # -- time stepping
 
@@ -367,8 +368,9 @@ class World:
         its last finite state and stopped: :attr:`diverged`).  ValueError naming the body
         for a step its stiff effects refuse (checked when dt or the settings change).
         """
+        # A finite positive float needs no conversion (the node passes one every tick).
         if dt.__class__ is not float or not 0.0 < dt < math.inf:
-            raise ValueError(f'dt must be a finite number of seconds > 0; got {dt!r}')
+            dt = checked_positive(dt, 'dt')
         if self._prepared != dt:
             for name, simulator in self._simulators.items():
                 try:
