@@ -42,12 +42,13 @@ import os
 import threading
 import time
 
+from .live import bodies_text
 from .live import BodyTable
 from .live import DIAGNOSTICS_KEYS
 from .live import LiveState
 from ..text import shortened
 
-__all__ = ['Listener', 'NodeCandidate', 'bodies_text', 'find_nodes']
+__all__ = ['Listener', 'NodeCandidate', 'find_nodes', 'node_candidate']
 
 _ODOMETRY = 'nav_msgs/msg/Odometry'
 _VECTOR3_STAMPED = 'geometry_msgs/msg/Vector3Stamped'
@@ -79,8 +80,6 @@ _RESCAN_EVERY = 4
 # A --body not among the node's bodies is unknown once the node's report counts as many
 # bodies as the graph shows, or once the bodies seen have not changed for this long (s).
 _SETTLE = 10.0
-# Names a one-line list of bodies shows before '... and N more'.
-_NAMES_SHOWN = 5
 
 
 @dataclass
@@ -177,15 +176,6 @@ def _body_name(parent, namespace):
     if parent.startswith(prefix):
         return parent[len(prefix):]
     return parent.rsplit('/', 1)[-1]
-
-
-def bodies_text(names):
-    """Return a list of body names as one line: the first few, and how many more."""
-    names = [shortened(name, 80) for name in names]
-    shown = ', '.join(names[:_NAMES_SHOWN])
-    if len(names) > _NAMES_SHOWN:
-        shown += f' ... and {len(names) - _NAMES_SHOWN} more'
-    return shown
 
 
 @dataclass
@@ -496,6 +486,8 @@ class Listener:
         self._add_topic(_Topic(watched.markers, MarkerArray, False, max(
             _REPORT_BYTES, _MARKER_BYTES_PER_BODY * len(watched.bodies)), 'markers'),
             self._markers_callback)
+        # Whose publishers the new subscriptions match, before their first message.
+        self._check_publishers()
 
     def _show_table(self):
         """Subscribe to the state of the bodies the table shows (its first rows), only."""
@@ -520,6 +512,7 @@ class Listener:
                             lambda message, name=name: self._table_momentum(name, message))
         self.table.keep_only(shown)
         self.table_bodies = shown
+        self._check_publishers()
 
     def _apply_requests(self):
         """Apply what a view asked for: another body, another number of table rows."""

@@ -42,8 +42,8 @@ from ..physics.effects import EFFECTS
 from ..scenes.limits import RATE_RANGE
 from ..text import shortened
 
-__all__ = ['ABSURD', 'BodyTable', 'LiveState', 'Tick', 'DIAGNOSTICS_KEYS', 'format_number',
-           'number_verdict']
+__all__ = ['ABSURD', 'bodies_text', 'BodyTable', 'LiveState', 'Tick', 'DIAGNOSTICS_KEYS',
+           'format_number', 'number_verdict']
 
 # The /diagnostics keys the view reads (the node's own names, docs/node.md).
 DIAGNOSTICS_KEYS = {
@@ -98,6 +98,8 @@ _TRAIL_POINTS = 600
 # The most (key, value) pairs of a report kept, and characters of a key.
 _MAX_REPORT_VALUES = 64
 _MAX_KEY = 80
+# Names a one-line list of bodies shows before '... and N more'.
+_NAMES_SHOWN = 5
 # A quaternion whose norm is this far from 1 is not a rotation.
 _QUATERNION_NORM_TOLERANCE = 1e-3
 
@@ -691,6 +693,15 @@ class Snapshot:
         energy = (self.rotational_energy[after] - energy0) / (abs(energy0) or 1.0)
         momentum = (self.momentum_magnitude[after] - momentum0) / (momentum0 or 1.0)
         return self.time[after], energy, momentum
+
+
+def bodies_text(names):
+    """Return a list of body names as one line: the first few, and how many more."""
+    names = [shortened(name, 80) for name in names]
+    shown = ', '.join(names[:_NAMES_SHOWN])
+    if len(names) > _NAMES_SHOWN:
+        shown += f' ... and {len(names) - _NAMES_SHOWN} more'
+    return shown
 
 
 class BodyTable:
