@@ -520,7 +520,8 @@ class WatchWindow:
             tolerance = snapshot.value('tolerance')
             control = 'fixed step' if tolerance == 'off' else \
                 f'tolerance {shown("tolerance")} rad/s'
-            lines.append(f'scene {shown("scene")} (effects: {shown("effects")})   integrator '
+            whose = 'effects' if snapshot.body is None else f'effects on {snapshot.body}'
+            lines.append(f'scene {shown("scene")} ({whose}: {shown("effects")})   integrator '
                          f'{shown("integrator")}   {control}   substeps {shown("substeps")} '
                          f'({shown("substeps_min")}-{shown("substeps_max")} over the last '
                          'report)')
