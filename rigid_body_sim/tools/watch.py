@@ -209,7 +209,7 @@ def _terminal(state: LiveState, listener: Listener, args: argparse.Namespace,
         elif snapshot.bodies and snapshot.body is None:
             # The table follows the terminal's height: the rows shown are those subscribed.
             listener.set_table_rows(shutil.get_terminal_size().lines - TABLE_MARGIN)
-            view.show(table_lines(snapshot, listener.table.rows(), listener.table_bodies))
+            view.show(table_lines(snapshot, listener.table_rows(), listener.table_bodies))
         else:
             view.show(render_lines(snapshot))
         stop.event.wait(args.interval)

@@ -191,6 +191,10 @@ class _Topic:
     own: int = 0  # the watched node's publishers on it, and the watch's own (graph)
     foreign: list = field(default_factory=list)  # the others, described (graph)
     last_sequence: int = None  # of the last message taken in the node's name
+    # A table row's topic: its newest message taken is kept as bytes, read at a refresh.
+    lazy: bool = False
+    latest: bytes = None
+    read: bytes = None
 
 
 class Listener:
@@ -494,8 +498,8 @@ class Listener:
         from geometry_msgs.msg import Vector3Stamped
         from nav_msgs.msg import Odometry
         watched = self.watched
-        if self.body is not None or self.state.node != watched.fully_qualified_name:
-            self.state.set_node(watched.fully_qualified_name, None, watched.body_names)
+        # (The same node and no body: the state goes on, with the bodies as they are now.)
+        self.state.set_node(watched.fully_qualified_name, None, watched.body_names)
         self.body = None
         shown = tuple(watched.body_names[:self._table_rows])
         if shown == self.table_bodies:
@@ -505,11 +509,10 @@ class Listener:
             self._drop(f'{name}/angular_momentum')
         for name in set(shown) - set(self.table_bodies):
             odom, momentum = watched.bodies[name]
-            self._add_topic(_Topic(odom, Odometry, False, _STATE_BYTES, f'{name}/odom'),
-                            lambda message, name=name: self._table_odometry(name, message))
+            self._add_topic(_Topic(odom, Odometry, False, _STATE_BYTES, f'{name}/odom',
+                                   lazy=True), None)
             self._add_topic(_Topic(momentum, Vector3Stamped, False, _STATE_BYTES,
-                                   f'{name}/angular_momentum'),
-                            lambda message, name=name: self._table_momentum(name, message))
+                                   f'{name}/angular_momentum', lazy=True), None)
         self.table.keep_only(shown)
         self.table_bodies = shown
         self._check_publishers()
@@ -606,6 +609,11 @@ class Listener:
         if not topic.shared and not clean:
             self.state.refuse(topic.label, 'sent while another publisher was matched')
             return
+        if topic.lazy:
+            # The table shows a state a refresh: the newest, deserialised then (a message
+            # costs the executor a fraction of what deserialising it would).
+            topic.latest = data
+            return
         try:
             message = deserialize_message(data, topic.message_type)
         except Exception:  # noqa: B902 (a peer's bytes that are no such message)
@@ -655,6 +663,29 @@ class Listener:
                 break
         if not self.state.wants_marker:
             self._drop('markers')  # (as the marker: one is all the drawing needs)
+
+    def table_rows(self):
+        """
+        Return the table's rows (:meth:`.live.BodyTable.rows`), from the newest messages.
+
+        Any thread: the messages taken since the last call are deserialised here.
+        """
+        from rclpy.serialization import deserialize_message
+        for name in self.table_bodies:
+            for kind, take in (('odom', self._table_odometry),
+                               ('angular_momentum', self._table_momentum)):
+                topic = self._topics.get(f'{name}/{kind}')
+                data = None if topic is None else topic.latest
+                if data is None or data is topic.read:
+                    continue
+                topic.read = data
+                try:
+                    message = deserialize_message(data, topic.message_type)
+                except Exception:  # noqa: B902 (a peer's bytes that are no such message)
+                    self.state.refuse(topic.label, 'not a message of its type')
+                    continue
+                take(name, message)
+        return self.table.rows()
 
     def _table_odometry(self, name, message):
         pose, twist = message.pose.pose, message.twist.twist
