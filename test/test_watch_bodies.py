@@ -31,8 +31,8 @@ from rigid_body_sim.watch.live import DIAGNOSTICS_KEYS
 from rigid_body_sim.watch.live import format_number
 from rigid_body_sim.watch.live import LiveState
 from rigid_body_sim.watch.terminal import render_lines
-from rigid_body_sim.watch.terminal import TABLE_MARGIN
 from rigid_body_sim.watch.terminal import table_lines
+from rigid_body_sim.watch.terminal import TABLE_MARGIN
 from test_watch import _fields
 from test_watch import _start_xvfb
 from test_watch import _window_only
@@ -222,7 +222,7 @@ def test_an_unknown_body_is_one_line_naming_the_bodies_and_exit_2(clubs):
     code, errors = watch.stop(signal_number=None, timeout=DISCOVERY_TIMEOUT)
     assert code == 2, errors
     assert errors.strip().splitlines() == [
-        f"rigid-body-sim watch: {clubs.namespace}/rigid_body_sim has no body named "
+        f'rigid-body-sim watch: {clubs.namespace}/rigid_body_sim has no body named '
         "'club_top'; its 3 bodies: club_left, club_middle, club_right"]
 
 

@@ -532,9 +532,9 @@ class WatchWindow:
                          f' s; missed ticks {shown("missed_ticks")}')
             if snapshot.body is not None and latest is not None:
                 energy = format_number(latest.rotational_energy, 6, signed=False)
-                lines.append(f'T_rot {energy} J (computed here: the node reports no body\'s '
-                             f'energy); rate kept {shown("rate_kept")}, state published '
-                             f'every {shown("publish_every")} tick(s); node report of t = '
+                lines.append(f'T_rot {energy} J (computed here: the node reports none per '
+                             f'body); rate kept {shown("rate_kept")}, state published every '
+                             f'{shown("publish_every")} tick(s); node report of t = '
                              f'{shown("simulated_time")} s')
             elif snapshot.body is None:
                 lines.append(f'energy {shown("energy")} J (drift since the last input '
