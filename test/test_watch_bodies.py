@@ -325,3 +325,22 @@ def test_the_window_shows_the_first_club_then_the_next_at_n(clubs, tmp_path):
     assert pale_red < 500, f'club_left still drawn: {pale_red} pale red pixels ({tmp_path})'
     if os.environ.get('WATCH_BODIES_SCREENSHOT'):
         screen.save(os.environ['WATCH_BODIES_SCREENSHOT'])
+
+
+def test_a_count_of_ticks_ahead_of_a_node_of_bodies_report_is_no_reset_time_going_back_is():
+    state = LiveState(history=100.0)
+    state.set_node('/rigid_body_sim', 'club_left', CLUBS)
+    _feed(state, range(0, 40, 4))
+    _report(state, 20, 0.2, extra={DIAGNOSTICS_KEYS['publish_every']: '4'})
+    # The node went to every 3rd tick after the report: counted as 4, the ticks run ahead.
+    _feed(state, range(40, 100, 3))
+    _report(state, 97, 0.97, extra={DIAGNOSTICS_KEYS['publish_every']: '3'})
+    _feed(state, range(100, 130, 3))
+    snapshot = state.snapshot()
+    assert snapshot.resets_seen == 0
+    assert snapshot.current_time == pytest.approx(1.27, abs=1e-9)
+    # A reset: the next report's time is behind the last report's.
+    _feed(state, range(130, 160, 3))
+    _report(state, 142, 0.12, extra={DIAGNOSTICS_KEYS['publish_every']: '3'})
+    _feed(state, range(160, 163, 3))
+    assert state.snapshot().resets_seen == 1

@@ -241,6 +241,7 @@ class LiveState:
         self.body = None
         self.bodies = ()
         self._publish_every = 1
+        self._previous_report = None
         self.diagnostics = {}
         self.events = deque(maxlen=50)
         self.ticks_received = 0
@@ -282,6 +283,7 @@ class LiveState:
                 self._marker = self.marker = self.middle_axis = None
                 self._rate = None
                 self._publish_every = 1
+                self._previous_report = None
                 self._announced.clear()
                 self.refused.clear()
                 self.warnings.clear()
@@ -456,6 +458,7 @@ class LiveState:
         if self._ticks[-1].stamp <= stamp:
             return  # the report's own tick, or a later one, may still come
         self._pending_report = None
+        previous, self._previous_report = self._previous_report, simulated
         ticks = self._ticks
         index = len(ticks) - 1
         while index > 0 and ticks[index].stamp > stamp:
@@ -467,6 +470,11 @@ class LiveState:
         if expected is not None and abs(expected - simulated) <= 0.5 * period:
             return
         reset = expected is not None and simulated < expected - 0.5 * period
+        if self.bodies:
+            # A node of bodies publishes every k-th tick, k chosen anew at each report: the
+            # ticks counted since the last report may be a few off, and are re-timed here.
+            # Time going back from the last report is a reset; a count that ran ahead is not.
+            reset = previous is not None and simulated < previous - 0.5 * period
         # Re-time from the report: backwards to the first tick, forwards to the last (the
         # states k ticks apart where the node publishes every k-th tick).
         spacing = self._publish_every * period

@@ -349,8 +349,8 @@ class WatchWindow:
             return False
         status = snapshot.shown('status') if snapshot.diagnostics else \
             'waiting for its first report'
-        keys = '   (n / p: next / previous body)' if len(snapshot.bodies) > 1 else ''
-        self.title.set_text(f'rigid-body-sim watch: {snapshot.watched} \u2014 {status}{keys}')
+        # (The keys n / p are said in the text: the node's status can fill the title.)
+        self.title.set_text(f'rigid-body-sim watch: {snapshot.watched} \u2014 {status}')
         if (snapshot.node, snapshot.body) != self.shown:
             if self.shown is not None:
                 self._forget_body()
