@@ -20,7 +20,8 @@ the title; the drift of what its effects conserve computed from its state).  Wit
 --body, the terminal view is a table of its bodies (|omega|, |L|, position, speed; as many
 as the terminal has lines for, sorted by name, subscribed to those only), and the window
 shows the first body: the keys n and p show the next and the previous.  A name the node
-has no body of is said in one line with the bodies it has (exit 2).
+has no body of is said in one line with the bodies it has (exit 2), as is --body on a
+one-body node.
 
 Typical use (the node in another terminal: make run):
   rigid-body-sim watch                        the window, or the terminal view without one
