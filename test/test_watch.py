@@ -483,3 +483,13 @@ def test_the_window_draws_peer_text_with_dollars_as_text(tmp_path):
         xvfb.wait(10.0)
     assert not any('could not be drawn' in line for line in watch.lines), watch.lines
     assert code == 128 + signal.SIGINT and 'Traceback' not in errors, errors
+
+
+@pytest.mark.xdist_group('node')
+def test_body_on_a_one_body_node_is_one_line_and_exit_2(node):
+    watch = WatchProcess(['--terminal', '--namespace', node.namespace, '--body', 'club_left'])
+    code, errors = watch.stop(signal_number=None, timeout=DISCOVERY_TIMEOUT)
+    assert code == 2, errors
+    assert errors.strip().splitlines() == [
+        f'rigid-body-sim watch: {node.namespace}/rigid_body_sim simulates one body (its topics '
+        'odom, angular_momentum, marker): watch it without --body']

@@ -14,11 +14,23 @@ the watched node's own publishers are believed (another node of the same name is
 a peer's numbers that are not finite or absurd are said to be so, its text is cut and
 escaped.  Ctrl-C (or closing the window) ends it.
 
+A node of several bodies (a scene with bodies:, e.g. rigid_body_node --ros-args -p
+scene:=juggling_clubs): --body NAME shows that body as the view of a one-body node (named in
+the title; the drift of what its effects conserve computed from its state).  Without
+--body, the terminal view is a table of its bodies (|omega|, |L|, position, speed; as many
+as the terminal has lines for, sorted by name, subscribed to those only), and the window
+shows the first body: the keys n and p show the next and the previous.  A name the node
+has no body of is said in one line with the bodies it has (exit 2), as is --body on a
+one-body node.
+
 Typical use (the node in another terminal: make run):
   rigid-body-sim watch                        the window, or the terminal view without one
   rigid-body-sim watch --terminal             the terminal view
   rigid-body-sim watch --namespace /robot1    the node in namespace /robot1
   rigid-body-sim watch --timeout 10           give up (exit 1) if no node shows in 10 s
+  rigid-body-sim watch --terminal --body club_left
+                                              one body of a node of bodies (juggling_clubs)
+  rigid-body-sim watch --terminal             of a node of bodies: the table of its bodies
 """
 
 from __future__ import annotations
@@ -26,6 +38,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import shutil
 import signal
 import sys
 import threading
@@ -46,6 +59,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--node', help='the node to watch: its name or /namespace/name '
                                        '(default: the first found)')
     parser.add_argument('--namespace', help='only nodes in this namespace (default: any)')
+    parser.add_argument('--body', metavar='NAME',
+                        help='of a node of several bodies, the body to watch (default: the '
+                             'table of them in the terminal view; in the window the first, '
+                             'n / p for the next / previous)')
     parser.add_argument('--terminal', action='store_true',
                         help='the terminal view even where a window could open')
     parser.add_argument('--history', type=float, default=20.0, metavar='S',
@@ -67,6 +84,7 @@ class _Stop:
     def __init__(self) -> None:
         self.signal: signal.Signals | None = None
         self.timed_out = False
+        self.problem_said = False
         # Set by the signal: the terminal view's wait between refreshes ends at once.
         self.event = threading.Event()
 
@@ -110,11 +128,16 @@ def main(args: argparse.Namespace) -> int:
     if problem is not None:
         print(f'rigid-body-sim watch: {problem}: the terminal view (--terminal says so '
               'without this note)', file=sys.stderr)
-    state, listener = new_state_and_listener(args.history, args.node, args.namespace)
+    from ..watch.terminal import TABLE_MARGIN
+    terminal = args.terminal or problem is not None
+    state, listener = new_state_and_listener(
+        args.history, args.node, args.namespace, body=args.body,
+        chooser='table' if terminal else 'switch',
+        table_rows=shutil.get_terminal_size().lines - TABLE_MARGIN)
     with _Stop() as stop:
         listener.start()
         try:
-            if args.terminal or problem is not None:
+            if terminal:
                 _terminal(state, listener, args, stop)
             else:
                 _window(state, listener, args, stop)
@@ -122,6 +145,8 @@ def main(args: argparse.Namespace) -> int:
             listener.close()
     if stop.timed_out:
         return 1
+    if listener.problem is not None:
+        return 2
     code = 0 if stop.signal in (None, signal.SIGTERM) else 128 + stop.signal
     if stop.signal is not None:
         _exit_now(f'rigid-body-sim watch: stopped ({stop.signal.name})', code)
@@ -143,6 +168,16 @@ def _exit_now(message: str, code: int) -> NoReturn:
     os._exit(code)
 
 
+def _cannot_go_on(listener: Listener, stop: _Stop) -> bool:
+    """Say the listener's problem (a --body the node has not) and return True, if it has one."""
+    if listener.problem is None:
+        return False
+    if not stop.problem_said:
+        stop.problem_said = True
+        print(f'rigid-body-sim watch: {listener.problem}', file=sys.stderr, flush=True)
+    return True
+
+
 def _no_node_for(listener: Listener, timeout: float, stop: _Stop) -> bool:
     """Note a timeout (and say so) if no node has shown for `timeout` s; return True then."""
     if listener.watched is not None or time.monotonic() - listener.searching_since < timeout:
@@ -158,18 +193,24 @@ def _no_node_for(listener: Listener, timeout: float, stop: _Stop) -> bool:
 def _terminal(state: LiveState, listener: Listener, args: argparse.Namespace,
               stop: _Stop) -> None:
     from ..watch.terminal import render_lines
+    from ..watch.terminal import TABLE_MARGIN
+    from ..watch.terminal import table_lines
     from ..watch.terminal import TerminalView
     from ..watch.terminal import waiting_lines
 
     view = TerminalView(sys.stdout, in_place=sys.stdout.isatty())
     while not stop():
-        if _no_node_for(listener, args.timeout, stop):
+        if _cannot_go_on(listener, stop) or _no_node_for(listener, args.timeout, stop):
             return
         snapshot = state.snapshot()
         if snapshot.node is None:
             waited = time.monotonic() - listener.searching_since
             # Whole seconds: the block is rewritten (or appended) once a second.
             view.show(waiting_lines(listener, math.floor(waited)))
+        elif snapshot.bodies and snapshot.body is None:
+            # The table follows the terminal's height: the rows shown are those subscribed.
+            listener.set_table_rows(shutil.get_terminal_size().lines - TABLE_MARGIN)
+            view.show(table_lines(snapshot, listener.table_rows(), listener.table_bodies))
         else:
             view.show(render_lines(snapshot))
         stop.event.wait(args.interval)
@@ -180,11 +221,12 @@ def _window(state: LiveState, listener: Listener, args: argparse.Namespace,
     from ..watch.window import WatchWindow
 
     def should_stop() -> bool:
-        return stop() or _no_node_for(listener, args.timeout, stop)
+        return stop() or _cannot_go_on(listener, stop) or _no_node_for(listener, args.timeout,
+                                                                       stop)
 
     def drawn(snapshot: Snapshot) -> None:
-        # One line when the body and both charts are on screen: scripts and the tests wait
-        # for it.
-        print(f'rigid-body-sim watch: window shows {snapshot.node}', flush=True)
+        # One line each time a body and both charts are on screen (again after n / p):
+        # scripts and the tests wait for it.
+        print(f'rigid-body-sim watch: window shows {snapshot.watched}', flush=True)
     WatchWindow(state, listener, args.history, should_stop, on_drawn=drawn,
                 refresh=args.refresh).run()

@@ -23,6 +23,17 @@ matched, a message that claims the node is taken only if it continues the node's
 name (another participant) is another publisher: the view says so.  Every subscription is
 raw: a message larger than its topic's bound is counted and dropped unread, so a peer's
 megabytes cost a copy, never a deserialisation or the memory to hold them.
+
+A node of bodies (node/world_node.py) is recognised by its ``markers`` MarkerArray and its
+bodies' ``<name>/odom`` and ``<name>/angular_momentum``; the bodies are the names under
+which both are published.  The listener watches one body (``--body``, or the one the
+window's keys choose): its two state topics, ``markers`` until the message that holds its
+marker (``ns`` its name), the node's reports; the effects that act on it come from the
+scene's body entry (the scene the node's report names, if it is a built-in one).  Or it
+keeps a table of the bodies shown (:class:`.live.BodyTable`): the state topics of those rows
+only, as the node publishes a body's topics only while they have subscribers.  The body
+topics are believed as the node's own topics are (only while every publisher matched is
+the node's).
 """
 
 from dataclasses import dataclass
@@ -31,15 +42,18 @@ import os
 import threading
 import time
 
+from .live import bodies_text
+from .live import BodyTable
 from .live import DIAGNOSTICS_KEYS
 from .live import LiveState
 from ..text import shortened
 
-__all__ = ['Listener', 'NodeCandidate', 'find_nodes']
+__all__ = ['Listener', 'NodeCandidate', 'find_nodes', 'node_candidate']
 
 _ODOMETRY = 'nav_msgs/msg/Odometry'
 _VECTOR3_STAMPED = 'geometry_msgs/msg/Vector3Stamped'
 _MARKER = 'visualization_msgs/msg/Marker'
+_MARKER_ARRAY = 'visualization_msgs/msg/MarkerArray'
 # How often the graph is searched while no node is watched, and checked while one is (s).
 _DISCOVERY_PERIOD = 0.5
 # A watched node absent from the graph this long is gone (the graph lags a little).
@@ -56,17 +70,40 @@ _SHARED_DEPTH = 4
 _SEQUENCE_SLACK = 8
 # The bytes of a GID that name its DDS participant (an RTPS GUID prefix).
 _PARTICIPANT_BYTES = 12
+# The bound of a MarkerArray per body it holds (the node's marker is a few hundred bytes).
+_MARKER_BYTES_PER_BODY = 1024
+# How often (s) the requests of the views (another body, more table rows) are applied.
+_REQUEST_PERIOD = 0.1
+# A node of bodies' topics are read again every this many searches (they change only when
+# a body is spawned or deleted; reading thousands of names costs).
+_RESCAN_EVERY = 4
+# A --body not among the node's bodies is unknown once the node's report counts as many
+# bodies as the graph shows, or once the bodies seen have not changed for this long (s).
+_SETTLE = 10.0
 
 
 @dataclass
 class NodeCandidate:
-    """A node that publishes the rigid_body_sim state topics: its name and topic names."""
+    """
+    A node that publishes the rigid_body_sim state topics: its name and topic names.
+
+    Of a node of bodies, `bodies` is {body name: (its odom topic, its angular_momentum
+    topic)} and `markers` its MarkerArray topic (odom, angular_momentum: the first body's);
+    of a one-body node, `bodies` is empty.
+    """
 
     name: str
     namespace: str
     odom: str
     angular_momentum: str
     marker: str
+    bodies: dict = field(default_factory=dict)
+    markers: str = None
+
+    @property
+    def body_names(self):
+        """Return the names of the bodies, sorted (empty for a one-body node)."""
+        return sorted(self.bodies)
 
     @property
     def fully_qualified_name(self):
@@ -91,22 +128,54 @@ def find_nodes(ros_node, exclude=()):
         if (name, namespace) in exclude or (name, namespace) in seen:
             continue  # (two nodes of one name are listed twice; the listener tells them)
         seen.add((name, namespace))
-        try:
-            topics = ros_node.get_publisher_names_and_types_by_node(name, namespace)
-        except Exception:  # noqa: B902 (the node left the graph between the two calls)
-            continue
-        odom = momentum = marker = None
-        for topic, types in topics:
-            last = topic.rsplit('/', 1)[-1]
-            if _ODOMETRY in types and (odom is None or last == 'odom'):
-                odom = topic
-            elif _VECTOR3_STAMPED in types and last == 'angular_momentum':
-                momentum = topic
-            elif _MARKER in types and (marker is None or last == 'marker'):
-                marker = topic
-        if odom is not None and momentum is not None:
-            found.append(NodeCandidate(name, namespace, odom, momentum, marker))
+        candidate = node_candidate(ros_node, name, namespace)
+        if candidate is not None:
+            found.append(candidate)
     return sorted(found, key=lambda candidate: candidate.fully_qualified_name)
+
+
+def node_candidate(ros_node, name, namespace):
+    """Return the :class:`NodeCandidate` of node `name` in `namespace` from its topics, or None."""
+    try:
+        topics = ros_node.get_publisher_names_and_types_by_node(name, namespace)
+    except Exception:  # noqa: B902 (the node left the graph)
+        return None
+    odom = momentum = marker = markers = None
+    odoms, momenta = {}, {}
+    for topic, types in topics:
+        parent, _, last = topic.rpartition('/')
+        if _ODOMETRY in types and (odom is None or last == 'odom'):
+            odom = topic
+        elif _VECTOR3_STAMPED in types and last == 'angular_momentum':
+            momentum = topic
+        elif _MARKER in types and (marker is None or last == 'marker'):
+            marker = topic
+        if _ODOMETRY in types and last == 'odom':
+            odoms[parent] = topic
+        elif _VECTOR3_STAMPED in types and last == 'angular_momentum':
+            momenta[parent] = topic
+        elif _MARKER_ARRAY in types and last == 'markers':
+            markers = topic
+    bodies = {}
+    if markers is not None:
+        for parent in odoms.keys() & momenta.keys():
+            body = _body_name(parent, namespace)
+            if body:
+                bodies[body] = (odoms[parent], momenta[parent])
+    if bodies:
+        first = bodies[min(bodies)]
+        return NodeCandidate(name, namespace, first[0], first[1], None, bodies, markers)
+    if odom is not None and momentum is not None:
+        return NodeCandidate(name, namespace, odom, momentum, marker)
+    return None
+
+
+def _body_name(parent, namespace):
+    """Return the body a topic under `parent` belongs to (relative to the node's namespace)."""
+    prefix = namespace.rstrip('/') + '/'
+    if parent.startswith(prefix):
+        return parent[len(prefix):]
+    return parent.rsplit('/', 1)[-1]
 
 
 @dataclass
@@ -122,6 +191,10 @@ class _Topic:
     own: int = 0  # the watched node's publishers on it, and the watch's own (graph)
     foreign: list = field(default_factory=list)  # the others, described (graph)
     last_sequence: int = None  # of the last message taken in the node's name
+    # A table row's topic: its newest message taken is kept as bytes, read at a refresh.
+    lazy: bool = False
+    latest: bytes = None
+    read: bytes = None
 
 
 class Listener:
@@ -136,6 +209,14 @@ class Listener:
         The node to watch: its name or fully qualified name (default: the first found).
     namespace : str, optional
         Only nodes in this namespace.
+    body : str, optional
+        Of a node of bodies, the body to watch (``--body``).  Without it: the first body,
+        another at :meth:`select_body` (chooser 'switch'), or the table of the bodies
+        (chooser 'table', :attr:`table`).
+    chooser : {'switch', 'table'}
+        What a node of bodies shows without `body`.
+    table_rows : int
+        The rows of the table (the bodies subscribed to), until :meth:`set_table_rows`.
 
     Attributes
     ----------
@@ -147,16 +228,38 @@ class Listener:
         The DDS participant of the watched node's publishers (a GID's first 12 bytes).
     searching_since : float
         time.monotonic() when the search for a node began (the last one gone).
+    body : str or None
+        The body watched now (of a node of bodies).
+    table : BodyTable
+        The rows of the table of a node's bodies (chooser 'table').
+    table_bodies : tuple of str
+        The bodies whose rows the table shows now (their topics subscribed to).
+    problem : str or None
+        A sentence saying why the watch cannot go on as asked (a --body the node does not
+        have; --body on a one-body node): the command says it and exits.
 
     """
 
-    def __init__(self, state, node=None, namespace=None):
+    def __init__(self, state, node=None, namespace=None, body=None, chooser='switch',
+                 table_rows=20):
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
 
         self.state = state
         self.wanted_node = node
         self.wanted_namespace = namespace
+        self.wanted_body = body
+        self.chooser = chooser
+        self.body = None
+        self.table = BodyTable()
+        self.table_bodies = ()
+        self.problem = None
+        self._table_rows = max(1, int(table_rows))
+        self._requested = None
+        self._bodies_seen = (frozenset(), time.monotonic())
+        self._searches = 0
+        self._effects = {}
+        self._built_in = None
         self.candidates = []
         self.watched = None
         self.participant = None
@@ -172,6 +275,7 @@ class Listener:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.node.create_timer(_DISCOVERY_PERIOD, self._discover)
+        self.node.create_timer(_REQUEST_PERIOD, self._apply_requests)
         self._stopping = threading.Event()
         self._thread = threading.Thread(target=self._spin, name='watch-ros', daemon=True)
 
@@ -183,6 +287,20 @@ class Listener:
     def start(self):
         """Start spinning (discovery, then the messages) in the background."""
         self._thread.start()
+
+    def select_body(self, step):
+        """Watch the body `step` places on in the sorted names (-1: the one before); any thread."""
+        watched = self.watched
+        if watched is None or not watched.bodies:
+            return
+        names = watched.body_names
+        current = self._requested or self.body
+        index = names.index(current) if current in names else 0
+        self._requested = names[(index + step) % len(names)]
+
+    def set_table_rows(self, rows):
+        """Show (subscribe to) this many bodies in the table from now on; any thread."""
+        self._table_rows = max(1, int(rows))
 
     def _spin(self):
         # spin_once in a loop, not spin(): close() stops the loop and joins this thread
@@ -210,12 +328,17 @@ class Listener:
             # searched again once it is gone.
             if self._check_publishers():
                 self._last_seen = time.monotonic()
+                if self.watched.bodies:
+                    self._follow_bodies()
                 return
             if time.monotonic() - self._last_seen < _GONE_AFTER:
                 return
             self._unsubscribe()
             self.watched = None
             self.participant = None
+            self.body = None
+            self.table_bodies = ()
+            self.table.clear()
             self.searching_since = time.monotonic()
             self.state.set_node(None)
         self.candidates = find_nodes(self.node, exclude=(self._own,))
@@ -240,8 +363,9 @@ class Listener:
         Returns True while the watched node's own odom publisher is in the graph.
         """
         name = self.watched.fully_qualified_name
-        odom = [(gid, node) for gid, node in self._publishers(self.watched.odom)
-                if node == name]
+        # The node's presence: its markers of all bodies, or its one body's odom.
+        odom = [(gid, node) for gid, node in self._publishers(
+            self.watched.markers or self.watched.odom) if node == name]
         participants = {gid[:_PARTICIPANT_BYTES] for gid, _ in odom}
         if self.participant is None and len(participants) == 1:
             self.participant = participants.pop()
@@ -290,42 +414,178 @@ class Listener:
 
     def _subscribe(self, candidate):
         from diagnostic_msgs.msg import DiagnosticArray
-        from geometry_msgs.msg import Vector3Stamped
-        from nav_msgs.msg import Odometry
         from rcl_interfaces.msg import ParameterEvent
         from rclpy.qos import HistoryPolicy
         from rclpy.qos import QoSProfile
 
         from ..messages.qos import DIAGNOSTICS_QOS
-        from ..messages.qos import STATE_QOS
 
         self.watched = candidate
         self._last_seen = time.monotonic()
-        self.state.set_node(candidate.fully_qualified_name)
+        self._bodies_seen = (frozenset(candidate.bodies), time.monotonic())
         shared_qos = QoSProfile(reliability=DIAGNOSTICS_QOS.reliability,
                                 durability=DIAGNOSTICS_QOS.durability,
                                 history=HistoryPolicy.KEEP_LAST, depth=_SHARED_DEPTH)
-        topics = [
-            (_Topic(candidate.odom, Odometry, False, _STATE_BYTES, 'odom'),
-             self._odometry_callback, STATE_QOS),
-            (_Topic(candidate.angular_momentum, Vector3Stamped, False, _STATE_BYTES,
-                    'angular_momentum'), self._angular_momentum_callback, STATE_QOS),
-            (_Topic('/diagnostics', DiagnosticArray, True, _REPORT_BYTES, 'diagnostics'),
-             self._diagnostics_callback, shared_qos),
-            (_Topic('/parameter_events', ParameterEvent, True, _REPORT_BYTES,
-                    'parameter_events'), self._parameter_event_callback, shared_qos),
-        ]
-        if candidate.marker is not None:
-            from visualization_msgs.msg import Marker
-            topics.append((_Topic(candidate.marker, Marker, False, _REPORT_BYTES, 'marker'),
-                           self._marker_callback, STATE_QOS))
-        for topic, callback, qos in topics:
-            topic.subscription = self.node.create_subscription(
-                topic.message_type, topic.name,
-                lambda data, info, topic=topic, callback=callback: self._take(
-                    topic, data, info, callback), qos, raw=True)
-            self._topics[topic.label] = topic
+        name = candidate.fully_qualified_name
+        if not candidate.bodies:
+            if self.wanted_body is not None:
+                self.problem = (f'{shortened(name)} simulates one body (its topics odom, '
+                                'angular_momentum, marker): watch it without --body')
+            self.state.set_node(name)
+            self._subscribe_state(candidate.odom, candidate.angular_momentum)
+            if candidate.marker is not None:
+                from visualization_msgs.msg import Marker
+                self._add_topic(_Topic(candidate.marker, Marker, False, _REPORT_BYTES,
+                                       'marker'), self._marker_callback)
+        else:
+            self._choose_body()
+        self._add_topic(_Topic('/diagnostics', DiagnosticArray, True, _REPORT_BYTES,
+                               'diagnostics'), self._diagnostics_callback, shared_qos)
+        self._add_topic(_Topic('/parameter_events', ParameterEvent, True, _REPORT_BYTES,
+                               'parameter_events'), self._parameter_event_callback, shared_qos)
         self._check_publishers()
+
+    def _add_topic(self, topic, callback, qos=None):
+        from ..messages.qos import STATE_QOS
+        topic.subscription = self.node.create_subscription(
+            topic.message_type, topic.name,
+            lambda data, info, topic=topic, callback=callback: self._take(
+                topic, data, info, callback), qos or STATE_QOS, raw=True)
+        self._topics[topic.label] = topic
+
+    def _subscribe_state(self, odom, angular_momentum):
+        """Subscribe the LiveState to one body's odom and angular_momentum."""
+        from geometry_msgs.msg import Vector3Stamped
+        from nav_msgs.msg import Odometry
+        self._add_topic(_Topic(odom, Odometry, False, _STATE_BYTES, 'odom'),
+                        self._odometry_callback)
+        self._add_topic(_Topic(angular_momentum, Vector3Stamped, False, _STATE_BYTES,
+                               'angular_momentum'), self._angular_momentum_callback)
+
+    # -- a node of bodies (the executor's thread)
+
+    def _choose_body(self):
+        """Watch the body asked for, the table, or the first body, as the options say."""
+        names = self.watched.body_names
+        if self.wanted_body is not None:
+            # Not (yet) in the graph: the node's report and the graph settle it
+            # (_follow_bodies); meanwhile the view says which body it waits for.
+            self._watch_body(self.wanted_body)
+        elif self.chooser == 'table' and len(names) > 1:
+            self._show_table()
+        else:
+            self._watch_body(self.body if self.body in names else names[0])
+
+    def _watch_body(self, name):
+        """Subscribe to body `name`'s state, and to markers until its marker came."""
+        from visualization_msgs.msg import MarkerArray
+        for label in ('odom', 'angular_momentum', 'markers'):
+            self._drop(label)
+        watched = self.watched
+        self.body = name
+        self.state.set_node(watched.fully_qualified_name, name, watched.body_names)
+        if name not in watched.bodies:
+            return
+        self._subscribe_state(*watched.bodies[name])
+        self._add_topic(_Topic(watched.markers, MarkerArray, False, max(
+            _REPORT_BYTES, _MARKER_BYTES_PER_BODY * len(watched.bodies)), 'markers'),
+            self._markers_callback)
+        # Whose publishers the new subscriptions match, before their first message.
+        self._check_publishers()
+
+    def _show_table(self):
+        """Subscribe to the state of the bodies the table shows (its first rows), only."""
+        from geometry_msgs.msg import Vector3Stamped
+        from nav_msgs.msg import Odometry
+        watched = self.watched
+        # (The same node and no body: the state goes on, with the bodies as they are now.)
+        self.state.set_node(watched.fully_qualified_name, None, watched.body_names)
+        self.body = None
+        shown = tuple(watched.body_names[:self._table_rows])
+        if shown == self.table_bodies:
+            return
+        for name in set(self.table_bodies) - set(shown):
+            self._drop(f'{name}/odom')
+            self._drop(f'{name}/angular_momentum')
+        for name in set(shown) - set(self.table_bodies):
+            odom, momentum = watched.bodies[name]
+            self._add_topic(_Topic(odom, Odometry, False, _STATE_BYTES, f'{name}/odom',
+                                   lazy=True), None)
+            self._add_topic(_Topic(momentum, Vector3Stamped, False, _STATE_BYTES,
+                                   f'{name}/angular_momentum', lazy=True), None)
+        self.table.keep_only(shown)
+        self.table_bodies = shown
+        self._check_publishers()
+
+    def _apply_requests(self):
+        """Apply what a view asked for: another body, another number of table rows."""
+        watched = self.watched
+        if watched is None or not watched.bodies or self.problem is not None:
+            return
+        requested, self._requested = self._requested, None
+        if requested is not None and requested != self.body and requested in watched.bodies:
+            self._watch_body(requested)
+        if self.table_bodies or (self.body is None and self.chooser == 'table'):
+            self._show_table()
+
+    def _follow_bodies(self):
+        """Read a node of bodies' topics again now and then; settle an absent --body."""
+        self._searches += 1
+        absent = self.wanted_body is not None and self.wanted_body not in self.watched.bodies
+        if not absent and self._searches % _RESCAN_EVERY:
+            return
+        watched = self.watched
+        fresh = node_candidate(self.node, watched.name, watched.namespace)
+        if fresh is None or not fresh.bodies:
+            return
+        now = time.monotonic()
+        if set(fresh.bodies) != self._bodies_seen[0]:
+            self._bodies_seen = (frozenset(fresh.bodies), now)
+            watched.bodies, watched.markers = fresh.bodies, fresh.markers
+            watched.odom, watched.angular_momentum = fresh.odom, fresh.angular_momentum
+            if self.body is not None and self.wanted_body is None and \
+                    self.body not in watched.bodies:
+                self._watch_body(watched.body_names[0])  # (the body watched was deleted)
+            elif self.body in watched.bodies and 'odom' not in self._topics:
+                self._watch_body(self.body)  # (the body asked for came)
+            elif self.body is None:
+                self._show_table()
+            else:
+                self.state.set_node(watched.fully_qualified_name, self.body,
+                                    watched.body_names)
+        if self.wanted_body is None or self.wanted_body in watched.bodies:
+            self.state.set_warning('body', None)
+            return
+        reported = self.state.snapshot().number('bodies')
+        if reported == len(watched.bodies) or now - self._bodies_seen[1] >= _SETTLE:
+            self.problem = (f'{shortened(watched.fully_qualified_name)} has no body named '
+                            f'{shortened(repr(self.wanted_body), 80)}; its '
+                            f'{len(watched.bodies)} bodies: {bodies_text(watched.body_names)}')
+        else:
+            self.state.set_warning('body', f'no body {self.wanted_body} among the '
+                                   f'{len(watched.bodies)} found so far; still looking')
+
+    def _effects_of(self, scene_name, body):
+        """Return the effects on `body` (their names, ', '-joined) from the built-in scene."""
+        from ..scenes import load_scene
+        from ..scenes import scene_names
+        if self._built_in is None:
+            self._built_in = set(scene_names(several_bodies=True))
+        # Only a built-in scene, by name: a peer's text never names a file to read.
+        if scene_name not in self._built_in:
+            return 'not known here (the scene is not a built-in one)'
+        if scene_name not in self._effects:
+            try:
+                scene = load_scene(scene_name)
+            except (OSError, ValueError):
+                scene = None
+            self._effects[scene_name] = None if scene is None else {
+                member.name: ', '.join(member.effect_names()) or 'none'
+                for member in scene.members}
+        effects = self._effects[scene_name]
+        if effects is None:
+            return 'not known here (the scene is not a built-in one)'
+        return effects.get(body, 'not known here (a body spawned into the scene)')
 
     def _unsubscribe(self):
         for label in list(self._topics):
@@ -348,6 +608,11 @@ class Listener:
         clean = topic.subscription.get_publisher_count() <= topic.own
         if not topic.shared and not clean:
             self.state.refuse(topic.label, 'sent while another publisher was matched')
+            return
+        if topic.lazy:
+            # The table shows a state a refresh: the newest, deserialised then (a message
+            # costs the executor a fraction of what deserialising it would).
+            topic.latest = data
             return
         try:
             message = deserialize_message(data, topic.message_type)
@@ -390,6 +655,51 @@ class Listener:
             # rate) once nobody subscribes.
             self._drop('marker')
 
+    def _markers_callback(self, message):
+        body = self.body
+        for marker in message.markers:
+            if marker.ns == body:
+                self.state.add_marker(_nanoseconds(marker.header.stamp), marker)
+                break
+        if not self.state.wants_marker:
+            self._drop('markers')  # (as the marker: one is all the drawing needs)
+
+    def table_rows(self):
+        """
+        Return the table's rows (:meth:`.live.BodyTable.rows`), from the newest messages.
+
+        Any thread: the messages taken since the last call are deserialised here.
+        """
+        from rclpy.serialization import deserialize_message
+        for name in self.table_bodies:
+            for kind, take in (('odom', self._table_odometry),
+                               ('angular_momentum', self._table_momentum)):
+                topic = self._topics.get(f'{name}/{kind}')
+                data = None if topic is None else topic.latest
+                if data is None or data is topic.read:
+                    continue
+                topic.read = data
+                try:
+                    message = deserialize_message(data, topic.message_type)
+                except Exception:  # noqa: B902 (a peer's bytes that are no such message)
+                    self.state.refuse(topic.label, 'not a message of its type')
+                    continue
+                take(name, message)
+        return self.table.rows()
+
+    def _table_odometry(self, name, message):
+        pose, twist = message.pose.pose, message.twist.twist
+        orientation, position = pose.orientation, pose.position
+        angular, linear = twist.angular, twist.linear
+        self.table.add_odometry(
+            name, (orientation.x, orientation.y, orientation.z, orientation.w),
+            (position.x, position.y, position.z), (angular.x, angular.y, angular.z),
+            (linear.x, linear.y, linear.z))
+
+    def _table_momentum(self, name, message):
+        vector = message.vector
+        self.table.add_angular_momentum(name, (vector.x, vector.y, vector.z))
+
     def _diagnostics_callback(self, message, from_the_node):
         watched = self.watched
         if watched is None:
@@ -400,6 +710,10 @@ class Listener:
                     return
                 values = {pair.key: pair.value for pair in status.values}
                 values[DIAGNOSTICS_KEYS['status']] = status.message
+                if self.body is not None and DIAGNOSTICS_KEYS['effects'] not in values:
+                    # A node of bodies reports none: the body's own, from its scene.
+                    values[DIAGNOSTICS_KEYS['effects']] = self._effects_of(
+                        values.get(DIAGNOSTICS_KEYS['scene']), self.body)
                 self.state.add_diagnostics(_nanoseconds(message.header.stamp), values)
                 return
 
@@ -429,7 +743,9 @@ def _no_signal_handlers():
     return SignalHandlerOptions.NO
 
 
-def new_state_and_listener(history, node=None, namespace=None):
+def new_state_and_listener(history, node=None, namespace=None, body=None, chooser='switch',
+                           table_rows=20):
     """Return a (LiveState, Listener) pair, the listener not yet started."""
     state = LiveState(history)
-    return state, Listener(state, node=node, namespace=namespace)
+    return state, Listener(state, node=node, namespace=namespace, body=body, chooser=chooser,
+                           table_rows=table_rows)

@@ -42,8 +42,8 @@ from ..physics.effects import EFFECTS
 from ..scenes.limits import RATE_RANGE
 from ..text import shortened
 
-__all__ = ['ABSURD', 'LiveState', 'Tick', 'DIAGNOSTICS_KEYS', 'format_number',
-           'number_verdict']
+__all__ = ['ABSURD', 'bodies_text', 'BodyTable', 'LiveState', 'Tick', 'DIAGNOSTICS_KEYS',
+           'format_number', 'number_verdict']
 
 # The /diagnostics keys the view reads (the node's own names, docs/node.md).
 DIAGNOSTICS_KEYS = {
@@ -70,6 +70,10 @@ DIAGNOSTICS_KEYS = {
     'energy_drift': 'energy drift since last input',
     'momentum': '|L| [kg m^2/s]',
     'momentum_drift': '|L| drift since last input',
+    # A node of bodies (node/world_node.py) reports these instead of a body's energy.
+    'bodies': 'bodies',
+    'rate_kept': 'rate kept',
+    'publish_every': 'state published every k-th tick',
     # Not a key of the node's: the status's message ('running', 'paused', 'falling behind').
     'status': '(status message)',
 }
@@ -94,6 +98,8 @@ _TRAIL_POINTS = 600
 # The most (key, value) pairs of a report kept, and characters of a key.
 _MAX_REPORT_VALUES = 64
 _MAX_KEY = 80
+# Names a one-line list of bodies shows before '... and N more'.
+_NAMES_SHOWN = 5
 # A quaternion whose norm is this far from 1 is not a rotation.
 _QUATERNION_NORM_TOLERANCE = 1e-3
 
@@ -232,6 +238,10 @@ class LiveState:
         self._trail = deque(maxlen=_TRAIL_POINTS)
         self._pending_report = None
         self.node = None
+        self.body = None
+        self.bodies = ()
+        self._publish_every = 1
+        self._previous_report = None
         self.diagnostics = {}
         self.events = deque(maxlen=50)
         self.ticks_received = 0
@@ -256,21 +266,30 @@ class LiveState:
 
     # -- input (the listener's thread)
 
-    def set_node(self, name):
-        """Say which node is watched (its fully qualified name), or None while none is."""
+    def set_node(self, name, body=None, bodies=()):
+        """
+        Say which node is watched (its fully qualified name), or None while none is.
+
+        Of a node of bodies, `body` is the body watched (None: the table of them, or not
+        chosen yet) and `bodies` the names of all, sorted.
+        """
         with self._lock:
-            if name != self.node:
+            self.bodies = tuple(bodies)
+            if name != self.node or body != self.body:
                 self._odometry.clear()
                 self._momentum.clear()
                 self._pending_report = None
                 self.diagnostics = {}
                 self._marker = self.marker = self.middle_axis = None
                 self._rate = None
+                self._publish_every = 1
+                self._previous_report = None
                 self._announced.clear()
                 self.refused.clear()
                 self.warnings.clear()
                 self._reset_motion()
             self.node = name
+            self.body = body
 
     def set_warning(self, topic, text):
         """Say (or with None stop saying) why a topic's messages are not taken now."""
@@ -361,6 +380,9 @@ class LiveState:
             rate = self._float('rate', RATE_RANGE)
             if rate is not None:
                 self._rate = rate
+            every = self._float('publish_every', (1.0, RATE_RANGE[1]))
+            # A node of bodies that publishes every k-th tick: each state k ticks apart.
+            self._publish_every = 1 if every is None else int(every)
             self._pending_report = (int(stamp), self._float('simulated_time', (0.0, ABSURD)),
                                     rate)
             self._resolve_report()
@@ -408,7 +430,8 @@ class LiveState:
                                                  last.angular_velocity_body)
                               and np.array_equal(tick.position, last.position))
             if last.time is not None and self._rate is not None:
-                tick.time = last.time + (1.0 / self._rate if tick.moved else 0.0)
+                tick.time = last.time + (
+                    self._publish_every / self._rate if tick.moved else 0.0)
         self._ticks.append(tick)
         self._extend_trail(tick)
         self._count_flip(tick)
@@ -435,6 +458,7 @@ class LiveState:
         if self._ticks[-1].stamp <= stamp:
             return  # the report's own tick, or a later one, may still come
         self._pending_report = None
+        previous, self._previous_report = self._previous_report, simulated
         ticks = self._ticks
         index = len(ticks) - 1
         while index > 0 and ticks[index].stamp > stamp:
@@ -446,12 +470,19 @@ class LiveState:
         if expected is not None and abs(expected - simulated) <= 0.5 * period:
             return
         reset = expected is not None and simulated < expected - 0.5 * period
-        # Re-time from the report: backwards to the first tick, forwards to the last.
+        if self.bodies:
+            # A node of bodies publishes every k-th tick, k chosen anew at each report: the
+            # ticks counted since the last report may be a few off, and are re-timed here.
+            # Time going back from the last report is a reset; a count that ran ahead is not.
+            reset = previous is not None and simulated < previous - 0.5 * period
+        # Re-time from the report: backwards to the first tick, forwards to the last (the
+        # states k ticks apart where the node publishes every k-th tick).
+        spacing = self._publish_every * period
         ticks[index].time = simulated
         for k in range(index - 1, -1, -1):
-            ticks[k].time = ticks[k + 1].time - (period if ticks[k + 1].moved else 0.0)
+            ticks[k].time = ticks[k + 1].time - (spacing if ticks[k + 1].moved else 0.0)
         for k in range(index + 1, len(ticks)):
-            ticks[k].time = ticks[k - 1].time + (period if ticks[k].moved else 0.0)
+            ticks[k].time = ticks[k - 1].time + (spacing if ticks[k].moved else 0.0)
         if reset:
             self.resets_seen += 1
             # The ticks before the reset come out at or before time 0: forget them and all
@@ -514,7 +545,8 @@ class LiveState:
                     self._reference = (first.rotational_energy, first.momentum_magnitude,
                                        first.time)
             return Snapshot(
-                node=self.node, latest=latest, timed=timed, diagnostics=dict(self.diagnostics),
+                node=self.node, body=self.body, bodies=self.bodies, latest=latest,
+                timed=timed, diagnostics=dict(self.diagnostics),
                 flips=self.flips, middle_axis=self.middle_axis, events=list(self.events),
                 reference=self._reference, ticks_received=self.ticks_received,
                 marker=self.marker, resets_seen=self.resets_seen,
@@ -530,6 +562,10 @@ class Snapshot:
     ----------
     node : str or None
         The watched node's fully qualified name.
+    body : str or None
+        Of a node of bodies, the body watched (None: a one-body node, or the table).
+    bodies : tuple of str
+        Of a node of bodies, the names of its bodies, sorted (empty for a one-body node).
     latest : Tick or None
         The newest tick.
     time, angular_velocity_body, momentum_magnitude : arrays (n,), (n, 3), (n,)
@@ -566,8 +602,10 @@ class Snapshot:
 
     def __init__(self, node, latest, timed, diagnostics, flips, middle_axis, events,
                  reference, ticks_received, marker=None, resets_seen=0, trail=None,
-                 refused=None, warnings=None):
+                 refused=None, warnings=None, body=None, bodies=()):
         self.node = node
+        self.body = body
+        self.bodies = tuple(bodies)
         self.marker = marker
         self.resets_seen = resets_seen
         self.latest = latest
@@ -615,6 +653,16 @@ class Snapshot:
         return value if number_verdict(value) is None else None
 
     @property
+    def watched(self):
+        """Return what is watched as the views name it: the node, and its body if one."""
+        if self.body is None:
+            return self.node
+        if self.body not in self.bodies:
+            return f'{self.node} body {self.body}'
+        return (f'{self.node} body {self.body} ({self.bodies.index(self.body) + 1} of '
+                f'{len(self.bodies)})')
+
+    @property
     def current_time(self):
         """Return the simulated time of the newest tick (s), or None before a report."""
         return None if self.latest is None else self.latest.time
@@ -653,3 +701,66 @@ class Snapshot:
         energy = (self.rotational_energy[after] - energy0) / (abs(energy0) or 1.0)
         momentum = (self.momentum_magnitude[after] - momentum0) / (momentum0 or 1.0)
         return self.time[after], energy, momentum
+
+
+def bodies_text(names):
+    """Return a list of body names as one line: the first few, and how many more."""
+    names = [shortened(name, 80) for name in names]
+    shown = ', '.join(names[:_NAMES_SHOWN])
+    if len(names) > _NAMES_SHOWN:
+        shown += f' ... and {len(names) - _NAMES_SHOWN} more'
+    return shown
+
+
+class BodyTable:
+    """
+    The latest state of each body a table of a node's bodies shows, fed by the listener.
+
+    Only the numbers a row prints are kept, each body's from its own topics (odom: the
+    position in m, world frame, |Omega| in rad/s and the COM speed in m/s; angular_momentum:
+    |L| in kg m^2/s); a state whose numbers are not finite or absurd is refused as
+    :class:`LiveState` refuses it, and the row says so.
+    """
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._rows = {}
+
+    def clear(self):
+        """Forget every row (another node, or other bodies shown)."""
+        with self._lock:
+            self._rows.clear()
+
+    def keep_only(self, names):
+        """Forget the rows of the bodies not in `names` (no longer shown)."""
+        with self._lock:
+            for name in set(self._rows) - set(names):
+                del self._rows[name]
+
+    def add_odometry(self, name, quaternion, position, angular_velocity_body, velocity):
+        """Take body `name`'s odom: pose in the world, Omega and the COM velocity (any frame)."""
+        verdict = _state_verdict(quaternion, position, angular_velocity_body, velocity)
+        with self._lock:
+            row = self._rows.setdefault(name, {})
+            if verdict is not None:
+                row['refused'] = verdict
+                return
+            row.pop('refused', None)
+            row['position'] = tuple(float(value) for value in position)
+            row['omega'] = float(np.linalg.norm(angular_velocity_body))
+            row['speed'] = float(np.linalg.norm(velocity))
+
+    def add_angular_momentum(self, name, angular_momentum):
+        """Take body `name`'s L (kg m^2/s, world frame)."""
+        verdict = _state_verdict((0.0, 0.0, 0.0, 1.0), angular_momentum)
+        with self._lock:
+            row = self._rows.setdefault(name, {})
+            if verdict is not None:
+                row['refused'] = verdict
+                return
+            row['momentum'] = float(np.linalg.norm(angular_momentum))
+
+    def rows(self):
+        """Return {name: {'position', 'omega', 'speed', 'momentum', 'refused'}} (copies)."""
+        with self._lock:
+            return {name: dict(row) for name, row in self._rows.items()}

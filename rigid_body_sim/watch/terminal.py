@@ -6,13 +6,23 @@ file or another program, each changed block is printed after the last, so a log 
 top to bottom.  Every number of the node is printed as its message has it: the state's
 with :func:`.live.format_number`, the report's strings as they came (cut and escaped by
 :class:`.live.LiveState`); a number that is not finite or absurd is said to be so.
+
+Of a node of bodies, the view of one body (``--body``) has the lines of a one-body node's,
+the drift of what the body's effects conserve computed here from its state (the node
+reports no body's energy); without ``--body``, :func:`table_lines` is a table of the bodies,
+one line each.
 """
 
 import shutil
 
 from .live import format_number
 
-__all__ = ['flips_text', 'refused_lines', 'render_lines', 'TerminalView', 'waiting_lines']
+__all__ = ['flips_text', 'refused_lines', 'render_lines', 'table_lines', 'TABLE_MARGIN',
+           'TerminalView', 'waiting_lines']
+
+TABLE_MARGIN = 5
+"""The lines of the table's view besides its rows: its header, the column names, the time
+and cost line, the line of more bodies, and the prompt's."""
 
 
 def waiting_lines(listener, waited):
@@ -43,11 +53,14 @@ def render_lines(snapshot):
     shown = snapshot.shown
     status = shown('status') if snapshot.diagnostics else \
         'waiting for its first report (/diagnostics, once a second)'
-    lines = [f'rigid-body-sim watch: {snapshot.node}: {status}']
+    lines = [f'rigid-body-sim watch: {snapshot.watched}: {status}']
     lines.extend(f'  warning       {text}' for text in snapshot.warnings.values())
     if snapshot.diagnostics:
-        lines.append(f'  scene         {shown("scene")} (effects: {shown("effects")}), '
-                     f'integrator {shown("integrator")} at {shown("rate")} Hz')
+        whose = '' if snapshot.body is None else \
+            f'{shown("bodies")} bodies; effects on {snapshot.body}'
+        lines.append(f'  scene         {shown("scene")} ({whose or "effects"}: '
+                     f'{shown("effects")}), integrator {shown("integrator")} at '
+                     f'{shown("rate")} Hz')
     latest = snapshot.latest
     if latest is None:
         lines.append('  waiting for its state (odom, angular_momentum)')
@@ -60,7 +73,9 @@ def render_lines(snapshot):
         format_number(component) for component in latest.angular_velocity_body) + ' rad/s')
     magnitude = format_number(latest.momentum_magnitude, signed=False)
     lines.append(f'  |L|           {magnitude} kg m^2/s')
-    if snapshot.diagnostics:
+    if snapshot.body is not None:
+        lines.extend(_body_drift_lines(snapshot))
+    elif snapshot.diagnostics:
         lines.append(f'  energy drift  {shown("energy_drift")} (total energy, since the last '
                      "input; the node's report)")
     lines.append(f'  flips         {flips_text(snapshot)}')
@@ -70,11 +85,85 @@ def render_lines(snapshot):
         lines.append(f'  substeps      {shown("substeps")} per tick ({control})')
         lines.append(f'  ticks/s       {shown("achieved_rate")} (requested {shown("rate")} x '
                      f'real-time factor {shown("real_time_factor")}); tick p50 '
-                     f'{shown("tick_p50")} ms, p99 {shown("tick_p99")} ms')
+                     f'{shown("tick_p50")} ms, p99 {shown("tick_p99")} ms'
+                     + _publishing_text(snapshot))
     changes = [_event_text(event) for event in snapshot.events[-3:]]
     if changes:
         lines.append('  changes       ' + '; '.join(changes))
     lines.extend(refused_lines(snapshot))
+    return lines
+
+
+def _body_drift_lines(snapshot):
+    """Return the lines of a body's energy and drifts, computed from its state here."""
+    latest = snapshot.latest
+    energy = format_number(latest.rotational_energy, signed=False)
+    lines = [f'  energy        T_rot {energy} J (rotational, 1/2 Omega . R^T L)']
+    if not snapshot.torque_free:
+        effects = snapshot.shown('effects')
+        lines.append(f'  drift         not charted: T_rot and |L| are not conserved under its '
+                     f'effects ({effects})')
+        return lines
+    _, energy_drift, momentum_drift = snapshot.drifts()
+    if not len(energy_drift):
+        lines.append('  drift         (from the first tick timed by a report)')
+        return lines
+    since = 'since the reset' if snapshot.resets_seen else 'since watch started'
+    lines.append(f'  drift         T_rot {format_number(energy_drift[-1], 3)}, |L| '
+                 f'{format_number(momentum_drift[-1], 3)} (relative, {since}; its effects '
+                 'conserve both)')
+    return lines
+
+
+def _publishing_text(snapshot):
+    """Return what a node of bodies says of its rate: kept, published every k ticks."""
+    every = snapshot.value('publish_every')
+    if every is None:
+        return ''
+    return (f'; rate kept {snapshot.shown("rate_kept")}, state published every '
+            f'{snapshot.shown("publish_every")} tick(s)')
+
+
+def table_lines(snapshot, rows, table_bodies):
+    """
+    Return the view of a node's bodies: one line each of those shown, sorted by name.
+
+    `rows` is :meth:`.live.BodyTable.rows`, `table_bodies` the bodies shown (the first
+    ones of ``snapshot.bodies``, as many as the terminal has lines for).
+    """
+    shown = snapshot.shown
+    status = shown('status') if snapshot.diagnostics else \
+        'waiting for its first report (/diagnostics, once a second)'
+    count = len(snapshot.bodies)
+    lines = [f'rigid-body-sim watch: {snapshot.node}: {status}; {count} bodies'
+             + (f' (scene {shown("scene")})' if snapshot.diagnostics else '')
+             + ': --body NAME watches one']
+    lines.extend(f'  warning       {text}' for text in snapshot.warnings.values())
+    lines.append(f'  {"body":<20} {"|omega| rad/s":>14} {"|L| kg m^2/s":>14} '
+                 f'{"x m":>11} {"y m":>11} {"z m":>11} {"speed m/s":>11}')
+    for name in table_bodies:
+        row = rows.get(name, {})
+        label = name if len(name) <= 20 else name[:17] + '...'
+        if 'refused' in row:
+            lines.append(f'  {label:<20} refused: {row["refused"]} (not shown)')
+            continue
+        if 'omega' not in row:
+            lines.append(f'  {label:<20} {"waiting for its state":>14}')
+            continue
+        momentum = row.get('momentum')
+        position = row['position']
+        lines.append(
+            f'  {label:<20} {format_number(row["omega"], 6, signed=False):>14} '
+            + (f'{format_number(momentum, 6, signed=False):>14} ' if momentum is not None
+               else f'{"waiting":>14} ')
+            + ' '.join(f'{format_number(value, 6):>11}' for value in position)
+            + f' {format_number(row["speed"], 5, signed=False):>11}')
+    if count > len(table_bodies):
+        lines.append(f'  ... and {count - len(table_bodies)} more (--body NAME to watch one)')
+    if snapshot.diagnostics:
+        lines.append(f'  time {shown("simulated_time")} s simulated; integrator '
+                     f'{shown("integrator")} at {shown("rate")} Hz; {shown("achieved_rate")} '
+                     'ticks/s' + _publishing_text(snapshot))
     return lines
 
 

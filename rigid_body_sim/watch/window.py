@@ -13,6 +13,10 @@ What a peer sends (a scene name, a status, a parameter value) is drawn as plain 
 drawn at once and timed: the window says it shows the node only after a draw that
 succeeded, and the refresh slows down so that redrawing takes at most
 :data:`CPU_SHARE` of a core, and more when the machine is busy (load above its cores).
+
+Of a node of bodies, the window shows one body (``--body``, else the first by name); the
+keys n and p show the next and the previous (the listener subscribes to that body's topics
+instead), and the title says "body NAME (i of N)".
 """
 
 import math
@@ -22,6 +26,7 @@ import time
 
 import numpy as np
 
+from .live import bodies_text
 from .live import format_number
 from .terminal import flips_text
 from .terminal import refused_lines
@@ -48,6 +53,8 @@ _CHART_POINTS = 800
 _SCROLL_KEEP = 0.5
 # Event labels closer than this fraction of the chart's span are stacked.
 _LABEL_SPAN = 0.15
+# The keys that show the next and the previous body of a node of bodies.
+_BODY_KEYS = {'n': 1, 'p': -1}
 
 
 def display_problem():
@@ -68,13 +75,21 @@ def display_problem():
     return None
 
 
-def _drawing_is_equivalent_box(scene_name):
-    """Return True if the scene draws a body given by its inertia as its equivalent box."""
+def _drawing_is_equivalent_box(scene_name, body=None):
+    """
+    Return True if the scene draws a body given by its inertia as its equivalent box.
+
+    `body`: the body's name in a scene of bodies (its entry's drawing).
+    """
     from ..scenes import load_scene
     try:
         scene = load_scene(scene_name)
     except (ValueError, OSError):
         return False
+    if body is not None:
+        scene = next((member for member in scene.members if member.name == body), None)
+        if scene is None:
+            return False
     return 'shape' not in scene.data.get('body', {}) and scene.drawing.derived
 
 
@@ -107,6 +122,10 @@ class WatchWindow:
         import matplotlib
         matplotlib.use('TkAgg')
         import matplotlib.pyplot as plt
+
+        # n and p choose the body of a node of bodies: p is not matplotlib's pan here.
+        matplotlib.rcParams['keymap.pan'] = [key for key in matplotlib.rcParams['keymap.pan']
+                                             if key not in _BODY_KEYS]
 
         # Before Tk has sized the window, its first draw is too small to lay out.
         warnings.filterwarnings('ignore', message='constrained_layout not applied')
@@ -169,6 +188,8 @@ class WatchWindow:
         # Apart from the redraws, which may come seconds apart: Ctrl-C is answered at once.
         self.stop_timer = self.figure.canvas.new_timer(interval=_STOP_CHECK_MS)
         self.stop_timer.add_callback(self._check_stop)
+        self.figure.canvas.mpl_connect('key_press_event', self._on_key)
+        self.shown = None  # (node, body) drawn now
 
     def run(self):
         """Show the window until it is closed or the watch must stop."""
@@ -192,6 +213,27 @@ class WatchWindow:
         self.timer.stop()
         self.stop_timer.stop()
         self.plt.close(self.figure)
+
+    def _on_key(self, event):
+        step = _BODY_KEYS.get(event.key)
+        if step is not None:
+            self.listener.select_body(step)
+
+    def _forget_body(self):
+        """Start the drawing and the charts afresh: another body (or node) is shown."""
+        self.body_axes.cla()
+        self.body_view = None
+        self.reports = []
+        self.chart_span = None
+        self.events_key = None
+        self.background_key = None
+        self.drawn_once = False
+        for artist in self.event_artists:
+            artist.remove()
+        self.event_artists = []
+        for line in (*self.omega_lines, self.energy_line, self.momentum_line,
+                     self.report_line):
+            line.set_data([], [])
 
     def _check_stop(self):
         if self.should_stop():
@@ -307,7 +349,12 @@ class WatchWindow:
             return False
         status = snapshot.shown('status') if snapshot.diagnostics else \
             'waiting for its first report'
-        self.title.set_text(f'rigid-body-sim watch: {snapshot.node} \u2014 {status}')
+        # (The keys n / p are said in the text: the node's status can fill the title.)
+        self.title.set_text(f'rigid-body-sim watch: {snapshot.watched} \u2014 {status}')
+        if (snapshot.node, snapshot.body) != self.shown:
+            if self.shown is not None:
+                self._forget_body()
+            self.shown = (snapshot.node, snapshot.body)
         if self.body_view is None:
             self._make_body_view(snapshot)
         if snapshot.resets_seen != self.resets_seen:
@@ -330,8 +377,8 @@ class WatchWindow:
         marker, quaternion = snapshot.marker
         scene = snapshot.value('scene')
         try:
-            shape = shape_from_marker(marker, quaternion,
-                                      scene is not None and _drawing_is_equivalent_box(scene))
+            shape = shape_from_marker(marker, quaternion, scene is not None
+                                      and _drawing_is_equivalent_box(scene, snapshot.body))
         except ValueError as error:
             self.body_axes.set_title(f'the body: {error}', fontsize=9, parse_math=False)
             return
@@ -340,7 +387,9 @@ class WatchWindow:
         middle = snapshot.middle_axis
         self.body_view = BodyView(self.body_axes, shape,
                                   2 if middle is None else int(np.argmax(np.abs(middle))))
-        self.body_axes.set_title('The body, viewed from its COM', fontsize=10)
+        self.body_axes.set_title(
+            'The body, viewed from its COM' if snapshot.body is None else
+            f'{snapshot.body}, viewed from its COM', fontsize=10, parse_math=False)
         self.body_axes.legend(loc='upper left', fontsize=7, frameon=False)
         for artist in self._animated():
             artist.set_animated(True)
@@ -369,7 +418,15 @@ class WatchWindow:
             every = max(1, len(drift_time) // _CHART_POINTS)
             self.energy_line.set_data(drift_time[::every], energy[::every])
             self.momentum_line.set_data(drift_time[::every], momentum[::every])
-            title = 'Drift of what the scene conserves (torque-free about the COM)'
+            title = ('Drift of what the scene conserves (torque-free about the COM)'
+                     if snapshot.body is None else f'Drift of what the effects on '
+                     f'{snapshot.body} conserve (torque-free about the COM)')
+        elif snapshot.body is not None:
+            # A node of bodies reports no body's energy: nothing conserved to chart.
+            self.energy_line.set_data([], [])
+            self.momentum_line.set_data([], [])
+            title = (f'No drift charted: the effects on {snapshot.body}\n'
+                     f'({snapshot.shown("effects")}) do not conserve T_rot, |L|')
         else:
             self.energy_line.set_data([], [])
             self.momentum_line.set_data([], [])
@@ -399,7 +456,7 @@ class WatchWindow:
         self._draw_events(snapshot, start)
         # "Shown" once the charts hold a stretch worth looking at, not their first points.
         return end - times[0] >= _SHOWN_SPAN and bool(
-            len(drift_time) if torque_free else self.reports)
+            len(drift_time) if torque_free else self.reports or snapshot.body is not None)
 
     def _scroll(self, first, end):
         """
@@ -456,11 +513,15 @@ class WatchWindow:
             magnitude = format_number(latest.momentum_magnitude, signed=False)
             lines.append(f'simulated time {now}   omega body [{omega}] rad/s   '
                          f'|L| {magnitude} kg m^2/s   flips {flips_text(snapshot, brief=True)}')
+        if snapshot.bodies:
+            lines.append(f'{len(snapshot.bodies)} bodies: {bodies_text(snapshot.bodies)}  '
+                         '(n / p: next / previous; --body NAME)')
         if snapshot.diagnostics:
             tolerance = snapshot.value('tolerance')
             control = 'fixed step' if tolerance == 'off' else \
                 f'tolerance {shown("tolerance")} rad/s'
-            lines.append(f'scene {shown("scene")} (effects: {shown("effects")})   integrator '
+            whose = 'effects' if snapshot.body is None else f'effects on {snapshot.body}'
+            lines.append(f'scene {shown("scene")} ({whose}: {shown("effects")})   integrator '
                          f'{shown("integrator")}   {control}   substeps {shown("substeps")} '
                          f'({shown("substeps_min")}-{shown("substeps_max")} over the last '
                          'report)')
@@ -469,10 +530,17 @@ class WatchWindow:
                          f'{shown("tick_p99")} ms; step p50 {shown("step_p50")} ms; '
                          f'integration CPU per simulated s {shown("cpu_per_simulated_second")}'
                          f' s; missed ticks {shown("missed_ticks")}')
-            lines.append(f'energy {shown("energy")} J (drift since the last input '
-                         f'{shown("energy_drift")}); |L| {shown("momentum")} (drift '
-                         f'{shown("momentum_drift")}); node report of t = '
-                         f'{shown("simulated_time")} s')
+            if snapshot.body is not None and latest is not None:
+                energy = format_number(latest.rotational_energy, 6, signed=False)
+                lines.append(f'T_rot {energy} J (computed here: the node reports none per '
+                             f'body); rate kept {shown("rate_kept")}, state published every '
+                             f'{shown("publish_every")} tick(s); node report of t = '
+                             f'{shown("simulated_time")} s')
+            elif snapshot.body is None:
+                lines.append(f'energy {shown("energy")} J (drift since the last input '
+                             f'{shown("energy_drift")}); |L| {shown("momentum")} (drift '
+                             f'{shown("momentum_drift")}); node report of t = '
+                             f'{shown("simulated_time")} s')
         else:
             lines.append("waiting for the node's first /diagnostics report (once a second)")
         lines.extend(line.strip() for line in refused_lines(snapshot))
