@@ -30,8 +30,10 @@ KEYS = {
     'pyarrow': 'python3-pyarrow-pip',
 }
 # Run by the tests as programs, not imported: colcon (test_colcon_build.py), mypy
-# (test_types.py) and pytest-xdist (make test's `pytest -n 2`).
-TEST_TOOLS = {'python3-colcon-common-extensions', 'python3-mypy', 'python3-pytest-xdist'}
+# (test_types.py), ament_flake8 (test_flake8.py, a process of its own) and pytest-xdist
+# (make test's `pytest -n 2`).
+TEST_TOOLS = {'python3-colcon-common-extensions', 'python3-mypy', 'python3-pytest-xdist',
+              'ament_flake8'}
 # package.xml key -> the distribution pinned in the requirements files (a ROS package
 # <name> comes as the wheel ros-<name>).
 DISTRIBUTIONS = {
