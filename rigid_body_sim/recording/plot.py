@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .motion import bag_bodies
 from .motion import conserved_quantities
 from .motion import read_motion
 from ..drawing import AXIS_COLOURS
@@ -25,10 +26,14 @@ from ..drawing import middle_axis
 __all__ = [
     'apex_index',
     'com_moves',
+    'equal_3d',
     'oscillations',
     'plane_of_motion',
     'plot_bag',
     'plot_motion',
+    'tidy_3d',
+    'time_axis_label',
+    'wrapped_title',
 ]
 
 # The COM "moves" when its path spans more than this (m): below, it is at rest up to
@@ -218,7 +223,7 @@ def plot_motion(motion, out):
 
     figure = pyplot.figure(figsize=(14.0, 11.0), layout='constrained')
     grid = figure.add_gridspec(2, 2)
-    time_label = _time_label(motion)
+    time_label = time_axis_label(motion)
     _angular_velocity_panel(figure, grid[0, 0], motion, time_label)
     _conserved_panel(figure.add_subplot(grid[0, 1]), motion, time_label)
     _orientation_panel(figure.add_subplot(grid[1, 0], projection='3d'), motion)
@@ -233,7 +238,7 @@ def plot_motion(motion, out):
     return out
 
 
-def _time_label(motion):
+def time_axis_label(motion):
     """Return the time axis's label: simulated time, and how it was told, or wall time."""
     if motion.timed_by_reports:
         return "simulated time [s] (live bag: timed by the node's /diagnostics reports)"
@@ -348,14 +353,14 @@ def _conserved_panel(axes, motion, time_label):
             label += ' (not conserved)'
         _draw_series(axes, motion.time, drift / 10.0**k, color, label, linestyle=style)
     scale = f' [$\\times 10^{{{k}}}$]' if k else ''
-    axes.set(title=_wrapped(title), xlabel=time_label,
+    axes.set(title=wrapped_title(title), xlabel=time_label,
              ylabel=f'(X(t) $-$ X(first)) / scale{scale}')
     axes.ticklabel_format(axis='y', style='plain', useOffset=False)
     _legend_above_data(axes)
     axes.grid(True, alpha=0.3)
 
 
-def _wrapped(title, width=70):
+def wrapped_title(title, width=70):
     """Break a title over two lines at a space near `width` characters (mathtext kept)."""
     if len(title) <= width:
         return title
@@ -365,7 +370,7 @@ def _wrapped(title, width=70):
     return title if cut <= 0 else title[:cut] + '\n' + title[cut + 1:]
 
 
-def _tidy_3d(axes, ticks=4):
+def tidy_3d(axes, ticks=4):
     """Few ticks, small labels, no offset text: 3D tick labels otherwise collide."""
     ticker = _ticker()
     for axis in (axes.xaxis, axes.yaxis, axes.zaxis):
@@ -419,7 +424,7 @@ def _orientation_panel(axes, motion):
         f'o start, \u25a1 at {time[end - 1]:.3g} s: the first {_DRAWN_TURNS} turns'
     axes.set(title=f'Orientation: body axes on the unit sphere\n({shown})',
              xlabel='world x', ylabel='world y', zlabel='world z')
-    _equal_3d(axes, np.array([[-1.0, -1.0, -1.0], [1.0, 1.0, 1.0]]))
+    equal_3d(axes, np.array([[-1.0, -1.0, -1.0], [1.0, 1.0, 1.0]]))
     for set_ticks in (axes.set_xticks, axes.set_yticks, axes.set_zticks):
         set_ticks([-1.0, 0.0, 1.0])
     axes.tick_params(labelsize='small', pad=0)
@@ -437,8 +442,8 @@ def _polhode_panel(axes, motion):
     axes.set(title=f'Polhode: $\\Omega$ in the body frame\n(COM at rest at ({at}) m)',
              xlabel='$\\Omega_x$ [rad/s]', ylabel='$\\Omega_y$ [rad/s]',
              zlabel='$\\Omega_z$ [rad/s]')
-    _equal_3d(axes, omega)
-    _tidy_3d(axes)
+    equal_3d(axes, omega)
+    tidy_3d(axes)
     axes.legend(loc='upper left', fontsize='small')
 
 
@@ -520,7 +525,7 @@ def _title(motion):
               if motion.custom(key) is not None}
     span = f'{len(motion.time)} ticks to {motion.time[-1]:g} s' if motion.time_is_simulated \
         else f'{len(motion.time)} ticks over {motion.time[-1]:g} s'
-    parts = [f'bag {motion.name}', span]
+    parts = [f'bag {motion.name}'] + ([f'body {motion.body}'] if motion.body else []) + [span]
     if 'scene' in custom:
         parts.append(f'scene {custom["scene"]}')
     if 'integrator' in custom:
@@ -538,7 +543,7 @@ def _unit_sphere(axes):
                         np.outer(np.ones_like(u), np.cos(v)), color='0.88', linewidth=0.3)
 
 
-def _equal_3d(axes, points):
+def equal_3d(axes, points):
     """Give the 3D axes equal scales around the points' bounding box."""
     low, high = points.min(axis=0), points.max(axis=0)
     centre = 0.5 * (low + high)
@@ -549,10 +554,27 @@ def _equal_3d(axes, points):
     axes.set_box_aspect((1.0, 1.0, 1.0))
 
 
-def plot_bag(bag, out=None, namespace=''):
-    """Read a bag and plot it; return the PNG path (default ``<bag>.png`` beside it)."""
-    motion = read_motion(bag, namespace)
+def plot_bag(bag, out=None, namespace='', body=None):
+    """
+    Read a bag and plot it; return the PNG path (default ``<bag>.png`` beside it).
+
+    A bag of several bodies is drawn as :mod:`.plot_bodies` draws them, or, with `body`,
+    that body as a bag of one body is (default PNG ``<bag>_<body>.png``).
+
+    Raises
+    ------
+    ValueError
+        As :func:`.motion.read_motion`: an unreadable bag, one without the topics, a
+        `body` the bag does not hold (or given for a bag of one body).
+
+    """
+    bag = Path(bag)
+    bodies = bag_bodies(bag, namespace)
+    if body is not None:
+        bodies.check(bag, body)
     if out is None:
-        bag = Path(bag)
-        out = bag.with_name(bag.name + '.png')
-    return plot_motion(motion, out)
+        out = bag.with_name(bag.name + (f'_{body}' if body else '') + '.png')
+    if body is None and bodies.names:
+        from .plot_bodies import plot_bodies
+        return plot_bodies(bag, out, namespace)
+    return plot_motion(read_motion(bag, namespace, body), out)
