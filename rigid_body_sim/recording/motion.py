@@ -75,6 +75,7 @@ __all__ = [
     'conserved_quantities',
     'not_a_bag',
     'read_body_motions',
+    'read_custom_data',
     'read_motion',
     'simulated_time_from_reports',
     'symmetry_axis',
@@ -788,6 +789,11 @@ def not_a_bag(path):
         return (f'{path} is not a bag: its metadata.yaml is not a rosbag2 one (no '
                 'rosbag2_bagfile_information)')
     return None
+
+
+def read_custom_data(bag):
+    """Return the custom data of a bag ({} if it has none); see :func:`_custom_data`."""
+    return _custom_data(Path(bag))
 
 
 def _custom_data(bag):
