@@ -85,7 +85,7 @@ def prepare_bodies_animation(bag, out, fps, speed, namespace, max_bytes):
     custom = read_custom_data(bag)
     time, _ = time_of_stamps(frames.stamps, custom)
     plan = plan_frames(time, fps, speed)
-    missing = sorted(set(int(index) for index in plan.indices) - set(frames.arrays))
+    missing = sorted({int(index) for index in plan.indices} - set(frames.arrays))
     if missing:
         # marker_frames keeps every tick a frame may show: a gap is a bug, said plainly.
         raise ValueError(f'{bag}: the marker arrays of ticks {missing[:5]} were not kept')
