@@ -20,8 +20,8 @@ figure has four panels over all the bodies drawn:
 
 Up to :data:`NAMED_BODIES` bodies are coloured as their markers (or a colour cycle) and
 named in a legend; more are coloured by |Omega(0)| on one colour bar.  At most
-:data:`MOST_BODIES` are read and drawn (the first, in the scene's order), and the title
-says how many of how many.
+:data:`MOST_BODIES` are read and drawn (every k-th in the scene's order, so a scene laid
+out in groups shows each), and the title says how many of how many.
 """
 
 from pathlib import Path
@@ -44,7 +44,7 @@ __all__ = ['MOST_BODIES', 'NAMED_BODIES', 'plot_bodies', 'plot_body_motions']
 NAMED_BODIES = 10
 """Up to this many bodies are named in a legend; more are coloured by |Omega(0)|."""
 MOST_BODIES = 100
-"""At most this many bodies are read and drawn (the first in the scene's order)."""
+"""At most this many bodies are read and drawn (every k-th in the scene's order)."""
 # Points per body's path and series: a hundred bodies of 6000 points each would only slow
 # the drawing; a path of 600 looks the same at the panel's size.
 _POINTS_PER_BODY = 600
@@ -68,19 +68,24 @@ def plot_bodies(bag, out, namespace='', most=MOST_BODIES):
     Returns the PNG's path.
     """
     bodies = bag_bodies(bag, namespace)
-    names = bodies.names[:most]
+    # Every k-th body, so a scene laid out in groups (a constellation's rings) shows all.
+    every = -(-len(bodies.names) // most)
+    names = bodies.names[::every]
     motions = read_body_motions(bag, namespace, names)
-    markers = first_markers(bag, namespace)
-    return plot_body_motions(motions, out, len(bodies.names), markers)
+    # The markers give a few bodies their colours and longest axes; more bodies are coloured
+    # by their spin, and opening a bag of thousands of topics again costs seconds.
+    markers = first_markers(bag, namespace) if len(names) <= NAMED_BODIES else None
+    return plot_body_motions(motions, out, len(bodies.names), markers, every)
 
 
-def plot_body_motions(motions, out, total=None, markers=None):
+def plot_body_motions(motions, out, total=None, markers=None, every=1):
     """
     Draw the four panels of several bodies' motions (:class:`.motion.BagMotion`) into `out`.
 
     `total`: how many bodies the bag holds (default: those given); `markers`: (stamp ns,
     {name: Marker}) of the bag's first marker array (:func:`.marker_arrays.first_markers`)
-    for the bodies' colours and longest axes, or None.
+    for the bodies' colours and longest axes, or None; `every`: the motions are every
+    that many-th body of the bag's.
     """
     import matplotlib
     matplotlib.use('Agg')
@@ -99,7 +104,7 @@ def plot_body_motions(motions, out, total=None, markers=None):
     if mappable is not None:
         figure.colorbar(mappable, ax=figure.axes, shrink=0.5, pad=0.01,
                         label='$|\\Omega(0)|$ of the body [rad/s]')
-    figure.suptitle(_title(motions, total))
+    figure.suptitle(_title(motions, total, every))
     out = Path(out)
     figure.savefig(out, dpi=100)
     pyplot.close(figure)
@@ -356,11 +361,11 @@ def _worst_panel(axes, motions, drifts, colours, spins, named):
         axes.legend(loc='best', fontsize='small')
 
 
-def _title(motions, total):
+def _title(motions, total, every):
     """Return the figure's title: bag, bodies drawn, ticks, scene, integrator."""
     first = motions[0]
     drawn = f'{total} bodies' if len(motions) == total else \
-        f'the first {len(motions)} of {total} bodies (plot --body NAME for any one)'
+        f'every {every}th of {total} bodies: {len(motions)} drawn (plot --body NAME: any one)'
     span = f'{len(first.time)} ticks to {first.time[-1]:g} s' if first.time_is_simulated \
         else f'{len(first.time)} ticks over {first.time[-1]:g} s'
     parts = [f'bag {first.name}', drawn, span]

@@ -11,12 +11,13 @@ bag's custom data); the paths of the body axes on the unit sphere; and, when the
 its path in the plane it moves in and its height z(t) with the apex, else the polhode.
 
 A bag of several bodies (a scene of `bodies:`, each body's topics under its name) is drawn
-all in one figure: the COM paths in 3-D (with each body's longest axis every tenth of the
-run, for a few bodies), each body's largest drift so far of what it conserves (log scale),
-|Omega| of each, and each body's largest drift over the run, the worst named.  Up to 10
-bodies are named in a legend; more are coloured by their initial |Omega|; at most the first
-100 are drawn, and the title says so.  --body NAME draws that one body as a bag of one body
-is drawn, with what it conserves by its own effects.
+all in one figure: the COM paths (in the plane they move in beside their heights z(t), or in
+3-D with each body's longest axis every tenth of the run), each body's largest drift so far
+of what it conserves (log scale), |Omega| of each, and each body's largest drift over the
+run, the worst named.  Up to 10 bodies are named in a legend; more are coloured by their
+initial |Omega|; at most 100 are drawn (every k-th of more), and the title says so.
+--body NAME draws that one body as a bag of one body is drawn, with what it conserves by
+its own effects.
 
 Typical use:
   rigid-body-sim simulate --scene tennis_racket --duration 30 --bag racket
