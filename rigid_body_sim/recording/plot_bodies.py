@@ -39,7 +39,7 @@ from .plot import tidy_3d
 from .plot import time_axis_label
 from .plot import wrapped_title
 
-__all__ = ['MOST_BODIES', 'NAMED_BODIES', 'plot_bodies', 'plot_body_motions']
+__all__ = ['MOST_BODIES', 'NAMED_BODIES', 'drawn_bodies', 'plot_bodies', 'plot_body_motions']
 
 NAMED_BODIES = 10
 """Up to this many bodies are named in a legend; more are coloured by |Omega(0)|."""
@@ -68,14 +68,23 @@ def plot_bodies(bag, out, namespace='', most=MOST_BODIES):
     Returns the PNG's path.
     """
     bodies = bag_bodies(bag, namespace)
-    # Every k-th body, so a scene laid out in groups (a constellation's rings) shows all.
-    every = -(-len(bodies.names) // most)
-    names = bodies.names[::every]
+    names, every = drawn_bodies(bodies.names, most)
     motions = read_body_motions(bag, namespace, names)
     # The markers give a few bodies their colours and longest axes; more bodies are coloured
     # by their spin, and opening a bag of thousands of topics again costs seconds.
     markers = first_markers(bag, namespace) if len(names) <= NAMED_BODIES else None
     return plot_body_motions(motions, out, len(bodies.names), markers, every)
+
+
+def drawn_bodies(names, most=MOST_BODIES):
+    """
+    Return (the names drawn, k): every k-th of `names`, at most `most` of them.
+
+    Every k-th rather than the first, so a scene laid out in groups (a constellation's
+    rings) shows each group.
+    """
+    every = max(1, -(-len(names) // most))
+    return list(names[::every]), every
 
 
 def plot_body_motions(motions, out, total=None, markers=None, every=1):
@@ -365,7 +374,7 @@ def _title(motions, total, every):
     """Return the figure's title: bag, bodies drawn, ticks, scene, integrator."""
     first = motions[0]
     drawn = f'{total} bodies' if len(motions) == total else \
-        f'every {every}th of {total} bodies: {len(motions)} drawn (plot --body NAME: any one)'
+        f'1 in {every} of {total} bodies: {len(motions)} drawn (plot --body NAME: any one)'
     span = f'{len(first.time)} ticks to {first.time[-1]:g} s' if first.time_is_simulated \
         else f'{len(first.time)} ticks over {first.time[-1]:g} s'
     parts = [f'bag {first.name}', drawn, span]
