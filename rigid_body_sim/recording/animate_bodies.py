@@ -171,6 +171,7 @@ class _BodiesScene:
             axis.set_pane_color((1.0, 1.0, 1.0, 0.0))
             axis.set_major_locator(matplotlib.ticker.MaxNLocator(3))
         self.polygons = None
+        self.polygons_world = []
         self.points = None
         if not self.as_points:
             facecolors = [self.colours[name] for name in self.names
@@ -204,8 +205,10 @@ class _BodiesScene:
                                             c=[self.colours[name] for name in names],
                                             depthshade=False)
         else:
-            self.polygons.set_verts([face @ poses[name][1].T + poses[name][0]
-                                     for name in names for face in self.faces[name]])
+            # The faces in the world frame, body after body in the order of self.names.
+            self.polygons_world = [face @ poses[name][1].T + poses[name][0]
+                                   for name in names for face in self.faces[name]]
+            self.polygons.set_verts(self.polygons_world)
             self.polygons.set_facecolor([self.colours[name] for name in names
                                          for _ in self.faces[name]])
         self.history.append(dict(zip(names, positions)))
