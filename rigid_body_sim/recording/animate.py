@@ -25,6 +25,9 @@ shows the latest tick at or before its time.  Writers: Pillow for GIF (a palette
 each frame shown 1 / fps s), matplotlib's ffmpeg writer for MP4 when ffmpeg is installed.
 A GIF above the size budget is scaled down (whole frames, to within the budget) rather than
 written too large.
+
+A bag of several bodies is drawn in one scene by :mod:`.animate_bodies`, or one of its
+bodies (``body``) as here, its shape from its marker in the array ``markers``.
 """
 
 from dataclasses import dataclass

@@ -15,6 +15,13 @@ live, by ``ros2 bag record``, or written offline):
 
 Messages of the two topics are paired by their header stamp (each tick stamps all alike).
 
+Several bodies.  A bag of a scene of ``bodies:`` has each body's topics under its name
+(``<ns>/<name>/odom``, ...) and, offline, a custom data list of the bodies with each one's
+mass, inertia, shape and effects (``rigid_body_sim.bodies``): :func:`bag_bodies` finds
+them (in a live bag, by their topics), ``read_motion(bag, body=NAME)`` reads one as a bag
+of one body is read, with its own mass, inertia and effects as a one-body bag names them
+(:func:`body_custom_data`), and :func:`read_body_motions` reads several in one pass.
+
 Time.  The time axis is simulated time from the scene's start: an offline bag names the
 stamp of simulated time 0 in its custom data, and the node's stamps with ``publish_clock``
 are simulated time already; so a 5 s run at 100 Hz shows ticks at 0.01 .. 5 s.  A live bag
