@@ -30,7 +30,7 @@ DURATION = 1.0
 
 @pytest.fixture(scope='module')
 def clubs(tmp_path_factory):
-    """The juggling clubs 1 s at 100 Hz: (bag, scene)."""
+    """Simulate the juggling clubs 1 s at 100 Hz: (bag, scene)."""
     bag = tmp_path_factory.mktemp('animate_bodies') / 'clubs'
     scene = load_scene('juggling_clubs')
     simulate_bodies_to_bag(scene, bag, DURATION, rate=RATE)

@@ -35,7 +35,7 @@ DURATION = 1.0
 
 @pytest.fixture(scope='module')
 def clubs(tmp_path_factory):
-    """The juggling clubs 1 s at 100 Hz: (bag, scene)."""
+    """Simulate the juggling clubs 1 s at 100 Hz: (bag, scene)."""
     bag = tmp_path_factory.mktemp('plot_bodies') / 'clubs'
     scene = load_scene('juggling_clubs')
     simulate_bodies_to_bag(scene, bag, DURATION, rate=RATE)
@@ -49,8 +49,8 @@ def _not_blank(png):
     assert len(np.unique(image.reshape(-1, image.shape[-1]), axis=0)) > 50
 
 
-def test_plot_of_a_bag_of_bodies_draws_all_of_them_into_one_png_beside_the_bag(clubs,
-                                                                                capsys):
+def test_plot_of_a_bag_of_bodies_draws_all_of_them_into_one_png_beside_the_bag(
+        clubs, capsys):
     bag, _ = clubs
     assert cli_main(['plot', str(bag)]) == 0
     out = bag.with_name('clubs.png')
