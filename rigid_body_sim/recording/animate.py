@@ -37,6 +37,12 @@ from pathlib import Path
 
 import numpy as np
 
+from .frame_plan import AnimationPlan
+from .frame_plan import DEFAULT_FPS
+from .frame_plan import DEFAULT_SPEED
+from .frame_plan import figure_image
+from .frame_plan import plan_frames
+
 # The bag reading (rosbags) and the drawing (message types) are imported where they are
 # used: the command line builds this tool's options from the defaults below at every start.
 
@@ -44,8 +50,6 @@ __all__ = ['Animation', 'AnimationPlan', 'animate_bag', 'prepare_animation',
            'render_animation', 'plan_frames', 'read_shape', 'read_trail_axis', 'DEFAULT_FPS',
            'DEFAULT_SPEED', 'DEFAULT_MAX_BYTES']
 
-DEFAULT_FPS = 10.0
-DEFAULT_SPEED = 1.0
 DEFAULT_MAX_BYTES = 4 * 1024 * 1024
 FORMATS = ('.gif', '.mp4')
 _MARKER = 'visualization_msgs/msg/Marker'
@@ -121,60 +125,6 @@ def read_shape(bag, motion, namespace=''):
     return equivalent_box_shape(mass, inertia)
 
 
-@dataclass(eq=False)
-class AnimationPlan:
-    """
-    Which tick each frame shows.
-
-    Attributes
-    ----------
-    indices : ndarray (frames,) of int
-        Index into the motion's ticks of each frame: the latest tick at or before the
-        frame's time.
-    times : ndarray (frames,)
-        Simulated time of each frame, s.
-    fps : float
-        Frames per second of the output.
-    speed : float
-        Simulated seconds per second of the output.
-
-    """
-
-    indices: np.ndarray
-    times: np.ndarray
-    fps: float
-    speed: float
-
-    @property
-    def frames(self):
-        """Get the number of frames."""
-        return len(self.indices)
-
-    @property
-    def duration(self):
-        """Get the playing time in s (frames / fps)."""
-        return self.frames / self.fps
-
-
-def plan_frames(time, fps=DEFAULT_FPS, speed=DEFAULT_SPEED):
-    """
-    Return the :class:`AnimationPlan` for ticks at simulated `time` (s, ascending).
-
-    Frame k is at t0 + k speed / fps, for every such time up to the last tick (a tolerance
-    of a microsecond absorbs the rounding of the times).
-    """
-    if not (math.isfinite(fps) and fps > 0.0):
-        raise ValueError(f'--fps must be a number > 0; got {fps:g}')
-    if not (math.isfinite(speed) and speed > 0.0):
-        raise ValueError(f'--speed must be a number > 0; got {speed:g}')
-    time = np.asarray(time, dtype=float)
-    interval = speed / fps
-    count = int(math.floor((time[-1] - time[0]) / interval + 1e-6)) + 1
-    times = time[0] + interval * np.arange(count)
-    indices = np.searchsorted(time, times + 1e-6, side='right') - 1
-    return AnimationPlan(np.clip(indices, 0, len(time) - 1), times, float(fps), float(speed))
-
-
 class _Scene3D:
     """The matplotlib figure of one animation frame, updated in place from frame to frame."""
 
@@ -213,10 +163,7 @@ class _Scene3D:
 
     def image(self):
         """Return the rendered frame as an RGB picture (Pillow)."""
-        from PIL import Image
-        self.figure.canvas.draw()
-        return Image.frombuffer('RGBA', self.figure.canvas.get_width_height(),
-                                self.figure.canvas.buffer_rgba()).convert('RGB')
+        return figure_image(self.figure)
 
     def close(self):
         """Release the figure."""

@@ -21,7 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .animate import plan_frames
+from .frame_plan import figure_image
+from .frame_plan import plan_frames
 from .marker_arrays import marker_frames
 from .motion import read_custom_data
 from .motion import time_of_stamps
@@ -232,10 +233,7 @@ class _BodiesScene:
 
     def image(self):
         """Return the rendered frame as an RGB picture (Pillow)."""
-        from PIL import Image
-        self.figure.canvas.draw()
-        return Image.frombuffer('RGBA', self.figure.canvas.get_width_height(),
-                                self.figure.canvas.buffer_rgba()).convert('RGB')
+        return figure_image(self.figure)
 
     def close(self):
         """Release the figure."""

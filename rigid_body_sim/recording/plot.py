@@ -20,20 +20,23 @@ import numpy as np
 from .motion import bag_bodies
 from .motion import conserved_quantities
 from .motion import read_motion
+from .plot_parts import apex_index
+from .plot_parts import equal_3d
+from .plot_parts import matplotlib_ticker
+from .plot_parts import plane_of_motion
+from .plot_parts import tidy_3d
+from .plot_parts import time_axis_label
+from .plot_parts import wrapped_title
 from ..drawing import AXIS_COLOURS
 from ..drawing import middle_axis
 
 __all__ = [
     'apex_index',
     'com_moves',
-    'equal_3d',
     'oscillations',
     'plane_of_motion',
     'plot_bag',
     'plot_motion',
-    'tidy_3d',
-    'time_axis_label',
-    'wrapped_title',
 ]
 
 # The COM "moves" when its path spans more than this (m): below, it is at rest up to
@@ -238,18 +241,6 @@ def plot_motion(motion, out):
     return out
 
 
-def time_axis_label(motion):
-    """Return the time axis's label: simulated time, and how it was told, or wall time."""
-    if motion.timed_by_reports:
-        return "simulated time [s] (live bag: timed by the node's /diagnostics reports)"
-    if motion.time_is_simulated:
-        return 'simulated time [s]'
-    spacing = motion.stamp_spacing
-    irregular = '' if spacing is None else \
-        f': stamps {1e3 * spacing[0]:.2g}-{1e3 * spacing[1]:.2g} ms apart, as received'
-    return f'wall-clock time since the first message [s]{irregular}'
-
-
 def _angular_velocity_panel(figure, cell, motion, time_label):
     time = motion.time
     omega = motion.angular_velocity_body
@@ -280,7 +271,7 @@ def _angular_velocity_panel(figure, cell, motion, time_label):
             lower.plot(time, shown, color=color, label=name_shown)
             lower.set_ylabel(f'{name_shown} [rad/s]')
             lower.ticklabel_format(axis='y', style='sci', scilimits=(-2, 3), useOffset=False)
-            lower.yaxis.set_major_locator(_ticker().MaxNLocator(4))
+            lower.yaxis.set_major_locator(matplotlib_ticker().MaxNLocator(4))
             lower.set_xlabel(time_label)
             lower.grid(True, alpha=0.3)
             continue
@@ -331,12 +322,6 @@ def _zoom_panel(figure, axes, time, omega, fast, time_label):
                 fontsize='small')
 
 
-def _ticker():
-    """Return matplotlib.ticker (imported with matplotlib, after the Agg backend is set)."""
-    from matplotlib import ticker
-    return ticker
-
-
 def _conserved_panel(axes, motion, time_label):
     title, quantities = conserved_quantities(motion)
     drifts = [quantity.drift for quantity in quantities]
@@ -358,26 +343,6 @@ def _conserved_panel(axes, motion, time_label):
     axes.ticklabel_format(axis='y', style='plain', useOffset=False)
     _legend_above_data(axes)
     axes.grid(True, alpha=0.3)
-
-
-def wrapped_title(title, width=70):
-    """Break a title over two lines at a space near `width` characters (mathtext kept)."""
-    if len(title) <= width:
-        return title
-    cut = title.rfind(' ', 0, width)
-    while cut > 0 and title[:cut].count('$') % 2:
-        cut = title.rfind(' ', 0, cut)
-    return title if cut <= 0 else title[:cut] + '\n' + title[cut + 1:]
-
-
-def tidy_3d(axes, ticks=4):
-    """Few ticks, small labels, no offset text: 3D tick labels otherwise collide."""
-    ticker = _ticker()
-    for axis in (axes.xaxis, axes.yaxis, axes.zaxis):
-        axis.set_major_locator(ticker.MaxNLocator(ticks))
-        formatter = ticker.ScalarFormatter(useOffset=False)
-        axis.set_major_formatter(formatter)
-    axes.tick_params(labelsize='small', pad=0)
 
 
 def _orientation_panel(axes, motion):
@@ -490,31 +455,6 @@ def _com_panel(figure, cell, motion, time_label):
     axes.grid(True, alpha=0.3)
 
 
-def plane_of_motion(position):
-    """
-    Return (first, second, normal) axis indices of the coordinate plane the COM moves in.
-
-    The plane normal to the axis along which the path spans least: x-z for a throw along x,
-    x-y for a top's COM circling above its pivot.  `position` is (n, 3), world frame.
-    """
-    normal = int(np.argmin(np.ptp(position, axis=0)))
-    first, second = [k for k in range(3) if k != normal]
-    return first, second, normal
-
-
-def apex_index(motion):
-    """
-    Return the tick of a thrown body's apex (its highest COM, world z), or None.
-
-    None when the highest point is the first or last tick (no apex inside the bag) or the
-    body is held by a pivot (its COM bobs up and down, with no single apex).
-    """
-    height = motion.position[:, 2]
-    apex = int(np.argmax(height))
-    held = any(effect['effect'] == 'pivot' for effect in (motion.effects or []))
-    return apex if 0 < apex < len(height) - 1 and not held else None
-
-
 def com_moves(motion):
     """Return True if the COM path spans more than round-off (1e-9 m) in the bag."""
     return bool(np.ptp(motion.position, axis=0).max() > _MOTION_THRESHOLD)
@@ -541,17 +481,6 @@ def _unit_sphere(axes):
     v = np.linspace(0.0, np.pi, 19)
     axes.plot_wireframe(np.outer(np.cos(u), np.sin(v)), np.outer(np.sin(u), np.sin(v)),
                         np.outer(np.ones_like(u), np.cos(v)), color='0.88', linewidth=0.3)
-
-
-def equal_3d(axes, points):
-    """Give the 3D axes equal scales around the points' bounding box."""
-    low, high = points.min(axis=0), points.max(axis=0)
-    centre = 0.5 * (low + high)
-    half = 0.5 * max(float((high - low).max()), 1e-12)
-    axes.set_xlim(centre[0] - half, centre[0] + half)
-    axes.set_ylim(centre[1] - half, centre[1] + half)
-    axes.set_zlim(centre[2] - half, centre[2] + half)
-    axes.set_box_aspect((1.0, 1.0, 1.0))
 
 
 def plot_bag(bag, out=None, namespace='', body=None):

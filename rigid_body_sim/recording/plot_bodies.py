@@ -32,12 +32,12 @@ from .marker_arrays import first_markers
 from .motion import bag_bodies
 from .motion import conserved_quantities
 from .motion import read_body_motions
-from .plot import apex_index
-from .plot import equal_3d
-from .plot import plane_of_motion
-from .plot import tidy_3d
-from .plot import time_axis_label
-from .plot import wrapped_title
+from .plot_parts import apex_index
+from .plot_parts import equal_3d
+from .plot_parts import plane_of_motion
+from .plot_parts import tidy_3d
+from .plot_parts import time_axis_label
+from .plot_parts import wrapped_title
 
 __all__ = ['MOST_BODIES', 'NAMED_BODIES', 'drawn_bodies', 'plot_bodies', 'plot_body_motions']
 
