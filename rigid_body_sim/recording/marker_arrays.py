@@ -116,9 +116,13 @@ def marker_frames(bag, namespace, interval):
     with Reader(Path(bag)) as reader:
         connection = _connection(reader, namespace)
         if connection is None:
+            elsewhere = [c.topic for c in reader.connections if c.msgtype == _MARKER_ARRAY]
+            hint = (f'its marker array is {elsewhere[0]}: --namespace '
+                    f'{elsewhere[0][:-len("/markers")] or "/"}?' if elsewhere else
+                    'record the markers of the node too')
             raise ValueError(f'{bag}: no {(namespace or "").rstrip("/")}/markers topic '
-                             f'({_MARKER_ARRAY}): the bodies cannot be drawn; record the '
-                             'markers of the node too, or animate one body with --body NAME')
+                             f'({_MARKER_ARRAY}) to draw the bodies from: {hint}; or '
+                             'animate one body with --body NAME')
         previous = None  # (tick index, raw) of the tick before
         for _, _, raw in reader.messages(connections=[connection]):
             stamp = _raw_stamp(raw)

@@ -693,7 +693,11 @@ def _body_topic(connections, namespace, body, suffix, message_type):
     for connection in connections:
         if connection.topic == wanted and connection.msgtype == message_type:
             return connection
-    raise ValueError(f'the bag has no {message_type} topic {wanted!r} of body {body!r}')
+    tail = f'/{body}/{suffix}'
+    elsewhere = [c.topic for c in connections if c.topic.endswith(tail)]
+    hint = f' (it has {elsewhere[0]}: --namespace {elsewhere[0][:-len(tail)]}?)' \
+        if elsewhere else ''
+    raise ValueError(f'the bag has no {message_type} topic {wanted!r} of body {body!r}{hint}')
 
 
 def _read_motions(bag, namespace, names, bodies):
