@@ -165,3 +165,13 @@ def test_a_subsampled_plot_says_how_many_of_how_many_it_draws(clubs, tmp_path):
     out = plot_body_motions(motions, tmp_path / 'two.png', total=3, every=2)
     assert out.is_file()
     assert '1 in 2 of 3 bodies: 2 drawn' in _title(motions, 3, 2)
+
+
+def test_a_bag_of_bodies_in_a_namespace_not_given_is_one_line_naming_it(tmp_path, capsys):
+    bag = tmp_path / 'act'
+    simulate_bodies_to_bag(load_scene('juggling_clubs'), bag, 0.2, namespace='/act')
+    assert cli_main(['plot', str(bag)]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and '--namespace /act?' in lines[0]
+    assert cli_main(['plot', str(bag), '--namespace', '/act', '--out',
+                     str(tmp_path / 'act.png')]) == 0
