@@ -75,13 +75,20 @@ class BodyShape:
         self.orientation = np.asarray(self.orientation, dtype=float)
         self.colour = tuple(self.colour)
 
-    def faces(self):
-        """Return the surface as a list of polygons (k, 3) in the body frame, m."""
+    def faces(self, coarse=False):
+        """
+        Return the surface as a list of polygons (k, 3) in the body frame, m.
+
+        `coarse`: fewer facets of a curved surface (a cylinder of 12 sides, an ellipsoid
+        of 60 facets), for a scene of many bodies drawn small.
+        """
         half = 0.5 * self.scale
         if self.kind == 'box':
             polygons = _box_faces(half)
         elif self.kind == 'cylinder':
-            polygons = _cylinder_faces(half[0], half[1], half[2])
+            polygons = _cylinder_faces(half[0], half[1], half[2], sides=12 if coarse else 24)
+        elif coarse:
+            polygons = _ellipsoid_faces(half, rings=6, sides=10)
         else:
             polygons = _ellipsoid_faces(half)
         return [polygon @ self.orientation.T for polygon in polygons]

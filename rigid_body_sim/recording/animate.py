@@ -25,6 +25,9 @@ shows the latest tick at or before its time.  Writers: Pillow for GIF (a palette
 each frame shown 1 / fps s), matplotlib's ffmpeg writer for MP4 when ffmpeg is installed.
 A GIF above the size budget is scaled down (whole frames, to within the budget) rather than
 written too large.
+
+A bag of several bodies is drawn in one scene by :mod:`.animate_bodies`, or one of its
+bodies (``body``) as here, its shape from its marker in the array ``markers``.
 """
 
 from dataclasses import dataclass
@@ -34,6 +37,12 @@ from pathlib import Path
 
 import numpy as np
 
+from .frame_plan import AnimationPlan
+from .frame_plan import DEFAULT_FPS
+from .frame_plan import DEFAULT_SPEED
+from .frame_plan import figure_image
+from .frame_plan import plan_frames
+
 # The bag reading (rosbags) and the drawing (message types) are imported where they are
 # used: the command line builds this tool's options from the defaults below at every start.
 
@@ -41,8 +50,6 @@ __all__ = ['Animation', 'AnimationPlan', 'animate_bag', 'prepare_animation',
            'render_animation', 'plan_frames', 'read_shape', 'read_trail_axis', 'DEFAULT_FPS',
            'DEFAULT_SPEED', 'DEFAULT_MAX_BYTES']
 
-DEFAULT_FPS = 10.0
-DEFAULT_SPEED = 1.0
 DEFAULT_MAX_BYTES = 4 * 1024 * 1024
 FORMATS = ('.gif', '.mp4')
 _MARKER = 'visualization_msgs/msg/Marker'
@@ -71,6 +78,9 @@ def read_shape(bag, motion, namespace=''):
     """
     Return the BodyShape to draw for a bag: its marker's, or the inertia box.
 
+    The marker of one body of a bag of bodies (`motion.body`) is its marker in the array
+    ``markers`` (``ns`` its name).
+
     A box marker with the edges of the inertia-equivalent box of the mass and inertia an
     offline bag names is labelled as that stand-in (the node draws a body given by its
     inertia alone so), unless the bag says the scene gave the body a shape (a box body is
@@ -86,7 +96,13 @@ def read_shape(bag, motion, namespace=''):
     from ..drawing import is_equivalent_box
     from ..drawing import shape_from_marker
 
-    first = _first_marker(Path(bag), (namespace or '').rstrip('/'))
+    if motion.body is not None:
+        from .marker_arrays import first_markers
+        found = first_markers(Path(bag), namespace)
+        marker = None if found is None else found[1].get(motion.body)
+        first = None if marker is None else (found[0], marker)
+    else:
+        first = _first_marker(Path(bag), (namespace or '').rstrip('/'))
     if first is not None:
         stamp, marker = first
         index = int(np.searchsorted(motion.stamps, stamp))
@@ -107,60 +123,6 @@ def read_shape(bag, motion, namespace=''):
                          'inertia of the body (a live recording): record the marker topic '
                          'of the node too, or use a bag of rigid-body-sim simulate')
     return equivalent_box_shape(mass, inertia)
-
-
-@dataclass(eq=False)
-class AnimationPlan:
-    """
-    Which tick each frame shows.
-
-    Attributes
-    ----------
-    indices : ndarray (frames,) of int
-        Index into the motion's ticks of each frame: the latest tick at or before the
-        frame's time.
-    times : ndarray (frames,)
-        Simulated time of each frame, s.
-    fps : float
-        Frames per second of the output.
-    speed : float
-        Simulated seconds per second of the output.
-
-    """
-
-    indices: np.ndarray
-    times: np.ndarray
-    fps: float
-    speed: float
-
-    @property
-    def frames(self):
-        """Get the number of frames."""
-        return len(self.indices)
-
-    @property
-    def duration(self):
-        """Get the playing time in s (frames / fps)."""
-        return self.frames / self.fps
-
-
-def plan_frames(time, fps=DEFAULT_FPS, speed=DEFAULT_SPEED):
-    """
-    Return the :class:`AnimationPlan` for ticks at simulated `time` (s, ascending).
-
-    Frame k is at t0 + k speed / fps, for every such time up to the last tick (a tolerance
-    of a microsecond absorbs the rounding of the times).
-    """
-    if not (math.isfinite(fps) and fps > 0.0):
-        raise ValueError(f'--fps must be a number > 0; got {fps:g}')
-    if not (math.isfinite(speed) and speed > 0.0):
-        raise ValueError(f'--speed must be a number > 0; got {speed:g}')
-    time = np.asarray(time, dtype=float)
-    interval = speed / fps
-    count = int(math.floor((time[-1] - time[0]) / interval + 1e-6)) + 1
-    times = time[0] + interval * np.arange(count)
-    indices = np.searchsorted(time, times + 1e-6, side='right') - 1
-    return AnimationPlan(np.clip(indices, 0, len(time) - 1), times, float(fps), float(speed))
 
 
 class _Scene3D:
@@ -201,10 +163,7 @@ class _Scene3D:
 
     def image(self):
         """Return the rendered frame as an RGB picture (Pillow)."""
-        from PIL import Image
-        self.figure.canvas.draw()
-        return Image.frombuffer('RGBA', self.figure.canvas.get_width_height(),
-                                self.figure.canvas.buffer_rgba()).convert('RGB')
+        return figure_image(self.figure)
 
     def close(self):
         """Release the figure."""
@@ -216,6 +175,8 @@ def _title(motion, shape):
     scene = motion.custom('scene')
     integrator = motion.custom('integrator')
     parts = [f'scene {scene}' if scene else motion.name]
+    if motion.body:
+        parts.append(f'body {motion.body}')
     if integrator:
         parts.append(integrator)
     # What the body is drawn as is in the legend (its shape, or a stand-in).
@@ -267,11 +228,18 @@ class Animation:
     shape: object
     max_bytes: int
 
+    def scene(self, pixels):
+        """Return the figure that draws the frames (viewed from the body's COM)."""
+        return _Scene3D(self.shape, self.motion, _title(self.motion, self.shape), pixels)
+
 
 def prepare_animation(bag, out=None, fps=DEFAULT_FPS, speed=DEFAULT_SPEED, namespace='',
-                      max_bytes=DEFAULT_MAX_BYTES):
+                      max_bytes=DEFAULT_MAX_BYTES, body=None):
     """
     Check the options and read the bag; return an :class:`Animation` (nothing written yet).
+
+    A bag of several bodies gives a :class:`.animate_bodies.BodiesAnimation` of all of
+    them in one scene, or with `body` an :class:`Animation` of that body alone.
 
     Parameters
     ----------
@@ -285,17 +253,25 @@ def prepare_animation(bag, out=None, fps=DEFAULT_FPS, speed=DEFAULT_SPEED, names
         The node's namespace in the bag.
     max_bytes : int
         Size budget of a GIF: frames are scaled down until it fits.
+    body : str, optional
+        In a bag of several bodies, the one to animate (default: all of them).
 
     Raises
     ------
     ValueError
-        Bad options, an unreadable bag or one without the topics, MP4 without ffmpeg.
+        Bad options, an unreadable bag or one without the topics, MP4 without ffmpeg, a
+        `body` the bag does not hold (or given for a bag of one body).
 
     """
+    from .motion import bag_bodies
     from .motion import read_motion
 
     bag = Path(bag)
-    out = Path(out) if out is not None else bag.with_name(bag.name + '.gif')
+    bodies = bag_bodies(bag, namespace)
+    if body is not None:
+        bodies.check(bag, body)
+    out = Path(out) if out is not None else \
+        bag.with_name(bag.name + (f'_{body}' if body else '') + '.gif')
     suffix = out.suffix.lower()
     if suffix not in FORMATS:
         raise ValueError(f'--out must end in .gif or .mp4; got {out.name!r}')
@@ -306,7 +282,10 @@ def prepare_animation(bag, out=None, fps=DEFAULT_FPS, speed=DEFAULT_SPEED, names
         if not FFMpegWriter.isAvailable():
             raise ValueError('MP4 needs ffmpeg, which is not installed (apt install ffmpeg); '
                              'write a GIF instead: --out FILE.gif')
-    motion = read_motion(bag, namespace)
+    if body is None and bodies.names:
+        from .animate_bodies import prepare_bodies_animation
+        return prepare_bodies_animation(bag, out, fps, speed, namespace, max_bytes)
+    motion = read_motion(bag, namespace, body)
     plan = plan_frames(motion.time, fps, speed)
     shape = read_shape(bag, motion, namespace)
     return Animation(out, motion, plan, shape, max_bytes)
@@ -314,12 +293,12 @@ def prepare_animation(bag, out=None, fps=DEFAULT_FPS, speed=DEFAULT_SPEED, names
 
 def render_animation(animation, pixels=400, progress=None):
     """
-    Render a prepared :class:`Animation` into its file; return the bytes written.
+    Render a prepared :class:`Animation` (or BodiesAnimation) into its file; return bytes.
 
     progress(frames_done) is called after each rendered frame.
     """
-    out, plan, motion, shape = animation.out, animation.plan, animation.motion, animation.shape
-    scene = _Scene3D(shape, motion, _title(motion, shape), pixels)
+    out, plan = animation.out, animation.plan
+    scene = animation.scene(pixels)
     try:
         if out.suffix.lower() == '.mp4':
             from matplotlib.animation import FFMpegWriter
@@ -357,13 +336,13 @@ def render_animation(animation, pixels=400, progress=None):
 
 
 def animate_bag(bag, out=None, fps=DEFAULT_FPS, speed=DEFAULT_SPEED, namespace='',
-                max_bytes=DEFAULT_MAX_BYTES, pixels=400, progress=None):
+                max_bytes=DEFAULT_MAX_BYTES, pixels=400, progress=None, body=None):
     """
     Render the bag's body into a GIF or MP4; return (path, AnimationPlan, bytes written).
 
     See :func:`prepare_animation` for the arguments and errors, :func:`render_animation`
     for `pixels` and `progress`.
     """
-    animation = prepare_animation(bag, out, fps, speed, namespace, max_bytes)
+    animation = prepare_animation(bag, out, fps, speed, namespace, max_bytes, body)
     size = render_animation(animation, pixels, progress)
     return animation.out, animation.plan, size

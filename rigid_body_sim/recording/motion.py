@@ -15,6 +15,13 @@ live, by ``ros2 bag record``, or written offline):
 
 Messages of the two topics are paired by their header stamp (each tick stamps all alike).
 
+Several bodies.  A bag of a scene of ``bodies:`` has each body's topics under its name
+(``<ns>/<name>/odom``, ...) and, offline, a custom data list of the bodies with each one's
+mass, inertia, shape and effects (``rigid_body_sim.bodies``): :func:`bag_bodies` finds
+them (in a live bag, by their topics), ``read_motion(bag, body=NAME)`` reads one as a bag
+of one body is read, with its own mass, inertia and effects as a one-body bag names them
+(:func:`body_custom_data`), and :func:`read_body_motions` reads several in one pass.
+
 Time.  The time axis is simulated time from the scene's start: an offline bag names the
 stamp of simulated time 0 in its custom data, and the node's stamps with ``publish_clock``
 are simulated time already; so a 5 s run at 100 Hz shows ticks at 0.01 .. 5 s.  A live bag
@@ -57,7 +64,7 @@ from pathlib import Path
 import numpy as np
 from rosbags.rosbag2 import Reader
 from rosbags.rosbag2 import ReaderError
-from ruamel.yaml import YAML
+import yaml
 
 from .bag_writer import CUSTOM_DATA_PREFIX
 from .bag_writer import typestore
@@ -68,21 +75,31 @@ from ..physics.principal_frame import principal_frame
 
 __all__ = [
     'BagMotion',
+    'BagBodies',
     'ConservedQuantity',
+    'bag_bodies',
+    'body_custom_data',
     'conserved_quantities',
     'not_a_bag',
+    'read_body_motions',
+    'read_custom_data',
     'read_motion',
     'simulated_time_from_reports',
     'symmetry_axis',
+    'time_of_stamps',
 ]
 
 _ODOMETRY = 'nav_msgs/msg/Odometry'
+_MARKER_ARRAY = 'visualization_msgs/msg/MarkerArray'
 # The file endings of rosbag2's storage files (MCAP, sqlite3).
 _STORAGE_SUFFIXES = ('.mcap', '.db3')
 _DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 _VECTOR3_STAMPED = 'geometry_msgs/msg/Vector3Stamped'
 # Stamps before this (one year after the epoch, ns) are simulated time, not the wall clock.
 _SIMULATED_STAMPS_BEFORE = 365 * 86400 * 10**9
+# libyaml's loader where PyYAML has it: a bag of 100 bodies has a metadata.yaml of 500 topics,
+# which a pure-Python parser reads in seconds.
+_YAML_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
 # Two principal moments closer than this (relative to the largest) are equal: the body is
 # symmetric about the third axis.
 _SYMMETRY_TOLERANCE = 1e-9
@@ -117,12 +134,16 @@ class BagMotion:
     angular_momentum : ndarray (n, 3)
         L about the COM in kg m^2/s, world frame.
     custom_data : dict
-        The bag's custom data (scene, integrator, mass, effects, ... of an offline run).
+        The bag's custom data (scene, integrator, mass, effects, ... of an offline run); of
+        one body of a bag of bodies, with that body's mass, inertia and effects
+        (:func:`body_custom_data`).
+    body : str or None
+        The body's name in a bag of several bodies, None in a bag of one.
 
     """
 
     def __init__(self, stamps, quaternion, position, angular_velocity_body, angular_momentum,
-                 custom_data, name, velocity_body=None, reports=()):
+                 custom_data, name, velocity_body=None, reports=(), body=None):
         self.stamps = np.asarray(stamps, dtype=np.int64)
         self.custom_data = dict(custom_data or {})
         origin, self.time_is_simulated = _time_origin(self.stamps, self.custom_data)
@@ -136,6 +157,7 @@ class BagMotion:
         self.velocity_body = (np.zeros_like(self.position) if velocity_body is None
                               else np.asarray(velocity_body, dtype=float))
         self.name = name
+        self.body = body
         self._rotation = None
         if not self.time_is_simulated and len(reports):
             timed = simulated_time_from_reports(self.stamps, self._moved(), reports)
@@ -299,6 +321,18 @@ def simulated_time_from_reports(stamps, moved, reports):
     for (index, simulated, rate), end in zip(anchors, bounds):
         time[index:end] = simulated + (steps[index:end] - steps[index]) / rate
     return time
+
+
+def time_of_stamps(stamps, custom_data):
+    """
+    Return (time s, whether it is simulated time) of header stamps (ns) of a bag.
+
+    Simulated time from the scene's start where the bag says when that was or its stamps
+    are simulated time; else s from the first stamp (see the module docstring).
+    """
+    stamps = np.asarray(stamps, dtype=np.int64)
+    origin, simulated = _time_origin(stamps, dict(custom_data or {}))
+    return (stamps - origin) / 1e9, simulated
 
 
 def _time_origin(stamps, custom_data):
@@ -497,41 +531,209 @@ def _find_topic(connections, suffix, message_type, namespace):
                      f'ending in /{suffix}); its topics: {found}')
 
 
-def read_motion(bag, namespace=''):
+@dataclass(eq=False)
+class BagBodies:
     """
-    Read the node's odom and angular_momentum topics of a bag; return a :class:`BagMotion`.
+    The bodies of a bag of several (``simulate`` or ``record`` of a scene of ``bodies:``).
+
+    Attributes
+    ----------
+    names : list of str
+        The bodies' names, in the scene's order (an offline bag's custom data) or sorted
+        (a live bag's topics); empty for a bag of one body.
+    entries : dict
+        Name -> the body's entry in the custom data ``rigid_body_sim.bodies`` (name, mass,
+        inertia, shape, effects, effect_parameters); empty for a live bag.
+
+    """
+
+    names: list
+    entries: dict
+
+    def described(self, most=5):
+        """Return the bodies for a message: the first `most` names and how many there are."""
+        shown = ', '.join(self.names[:most])
+        more = f', ... ({len(self.names)} bodies)' if len(self.names) > most else ''
+        return shown + more
+
+    def check(self, bag, body):
+        """
+        Raise ValueError with one line unless `body` is one of the bag's bodies.
+
+        A bag of one body has no names: --body is refused, as it names nothing there.
+        """
+        if not self.names:
+            raise ValueError(f'{bag} holds one body (its topics odom, angular_momentum, '
+                             f'...): --body {body} is for a bag of several bodies; drop it')
+        if body not in self.names:
+            raise ValueError(f'{bag} has no body {body!r}; its bodies: {self.described()}')
+
+
+def bag_bodies(bag, namespace=''):
+    """
+    Return the :class:`BagBodies` of a bag: those its custom data or its topics name.
+
+    An offline bag of bodies lists them in its custom data (``rigid_body_sim.bodies``, with
+    each body's mass, inertia and effects); a live one has each body's ``<ns>/<name>/odom``
+    and ``<ns>/<name>/angular_momentum`` and the ``<ns>/markers`` array.  A bag with
+    ``<ns>/odom`` is a bag of one body, as is one with a single ``<ns>/<name>/odom`` and no
+    marker array (the one body of a node in a namespace the caller did not give).
 
     Raises
     ------
     ValueError
-        If the bag cannot be read or lacks the topics, or no stamp is in both.
+        If the bag cannot be read.
 
     """
     bag = Path(bag)
     problem = not_a_bag(bag)
     if problem is not None:
         raise ValueError(problem)
+    custom = _custom_data(bag)
+    if CUSTOM_DATA_PREFIX + 'mass' in custom:
+        return BagBodies([], {})  # an offline bag of one body names its mass
+    listed = custom.get(CUSTOM_DATA_PREFIX + 'bodies')
+    if listed is not None:
+        try:
+            entries = {entry['name']: entry for entry in json.loads(listed)}
+        except (ValueError, TypeError, KeyError) as error:
+            raise ValueError(f'{bag}: its custom data rigid_body_sim.bodies is not a list of '
+                             f'bodies: {error}') from None
+        return BagBodies(list(entries), entries)
+    namespace = (namespace or '').rstrip('/')
+    try:
+        with Reader(bag) as reader:
+            topics = {connection.topic: connection.msgtype
+                      for connection in reader.connections}
+    except ReaderError as error:
+        raise ValueError(f'cannot read the bag {bag}: {error}') from None
+    if topics.get(f'{namespace}/odom') == _ODOMETRY:
+        return BagBodies([], {})
+    prefix = f'{namespace}/'
+    names = sorted(
+        topic[len(prefix):-len('/odom')] for topic, msgtype in topics.items()
+        if msgtype == _ODOMETRY and topic.startswith(prefix) and topic.endswith('/odom')
+        and '/' not in topic[len(prefix):-len('/odom')]
+        and topics.get(topic[:-len('odom')] + 'angular_momentum') == _VECTOR3_STAMPED)
+    if len(names) < 2 and topics.get(f'{namespace}/markers') != _MARKER_ARRAY:
+        return BagBodies([], {})
+    return BagBodies(names, {})
+
+
+def body_custom_data(custom_data, entry):
+    """
+    Return the custom data of one body of a bag of bodies, as a one-body bag names them.
+
+    The bag's (scene, integrator, rate, start_time, ...) with the body's ``mass``,
+    ``inertia``, ``body_shape``, ``effects`` and ``effect_parameters`` from its `entry` in
+    ``rigid_body_sim.bodies``, in the one-body bag's text forms; without an entry (a live
+    bag), the bag's alone.
+    """
+    custom = {key: value for key, value in custom_data.items()
+              if key != CUSTOM_DATA_PREFIX + 'bodies'}
+    if entry:
+        values = {
+            'mass': f'{float(entry["mass"]):.17g}',
+            'inertia': ' '.join(f'{float(value):.17g}' for value in entry['inertia']),
+            'body_shape': entry.get('shape', ''),
+            'effects': ', '.join(entry.get('effects') or ()) or 'none',
+            'effect_parameters': json.dumps(entry.get('effect_parameters') or []),
+        }
+        custom.update({CUSTOM_DATA_PREFIX + key: value for key, value in values.items()})
+    return custom
+
+
+def read_motion(bag, namespace='', body=None):
+    """
+    Read the node's odom and angular_momentum topics of a bag; return a :class:`BagMotion`.
+
+    `body` names one body of a bag of several: its topics ``<namespace>/<body>/...`` and its
+    mass, inertia and effects from the bag's list of bodies.
+
+    Raises
+    ------
+    ValueError
+        If the bag cannot be read or lacks the topics, or no stamp is in both; if `body`
+        is not one of the bag's bodies (or the bag holds one body).
+
+    """
+    if body is None:
+        return _read_motions(bag, namespace, [None], BagBodies([], {}))[0]
+    bodies = bag_bodies(bag, namespace)
+    bodies.check(bag, body)
+    return _read_motions(bag, namespace, [body], bodies)[0]
+
+
+def read_body_motions(bag, namespace='', names=None):
+    """
+    Read several bodies of a bag of bodies in one pass; return their :class:`BagMotion` list.
+
+    `names`: the bodies to read (default all), in the order returned.
+
+    Raises
+    ------
+    ValueError
+        As :func:`read_motion`; also for a bag of one body.
+
+    """
+    bodies = bag_bodies(bag, namespace)
+    if not bodies.names:
+        raise ValueError(f'{bag} holds one body: read it with read_motion')
+    names = bodies.names if names is None else list(names)
+    for name in names:
+        bodies.check(bag, name)
+    return _read_motions(bag, namespace, names, bodies)
+
+
+def _body_topic(connections, namespace, body, suffix, message_type):
+    """Return the connection of `body`'s topic (None: the one body's, found as before)."""
+    if body is None:
+        return _find_topic(connections, suffix, message_type, namespace)
+    wanted = f'{namespace}/{body}/{suffix}'
+    for connection in connections:
+        if connection.topic == wanted and connection.msgtype == message_type:
+            return connection
+    tail = f'/{body}/{suffix}'
+    elsewhere = [c.topic for c in connections if c.topic.endswith(tail)]
+    hint = f' (it has {elsewhere[0]}: --namespace {elsewhere[0][:-len(tail)]}?)' \
+        if elsewhere else ''
+    raise ValueError(f'the bag has no {message_type} topic {wanted!r} of body {body!r}{hint}')
+
+
+def _read_motions(bag, namespace, names, bodies):
+    """Read the odom and angular_momentum of `names` (None: the one body) in one pass."""
+    bag = Path(bag)
+    problem = not_a_bag(bag)
+    if problem is not None:
+        raise ValueError(problem)
     namespace = (namespace or '').rstrip('/')
     store = typestore()
-    odometry = {}
-    momentum = {}
+    # Per body: stamp -> odom's values, stamp -> L.
+    odometry = [{} for _ in names]
+    momentum = [{} for _ in names]
     reports = []
     try:
         with Reader(bag) as reader:
-            odom = _find_topic(reader.connections, 'odom', _ODOMETRY, namespace)
-            angular = _find_topic(reader.connections, 'angular_momentum', _VECTOR3_STAMPED,
-                                  namespace)
-            diagnostics = [c for c in reader.connections if c.msgtype == _DIAGNOSTIC_ARRAY]
+            connections = reader.connections
+            wanted = {}
+            for index, name in enumerate(names):
+                wanted[_body_topic(connections, namespace, name, 'odom', _ODOMETRY).id] = \
+                    (index, True)
+                wanted[_body_topic(connections, namespace, name, 'angular_momentum',
+                                   _VECTOR3_STAMPED).id] = (index, False)
+            diagnostics = [c for c in connections if c.msgtype == _DIAGNOSTIC_ARRAY]
             node = f'{namespace}/'
-            for connection, _, raw in reader.messages(connections=[odom, angular,
-                                                                   *diagnostics]):
+            chosen = [c for c in connections if c.id in wanted] + diagnostics
+            for connection, _, raw in reader.messages(connections=chosen):
                 message = store.deserialize_cdr(raw, connection.msgtype)
                 stamp = message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
                 if connection.msgtype == _DIAGNOSTIC_ARRAY:
                     reports.extend(_report(stamp, message, node))
-                elif connection.topic == odom.topic:
+                    continue
+                index, is_odometry = wanted[connection.id]
+                if is_odometry:
                     pose, twist = message.pose.pose, message.twist.twist
-                    odometry[stamp] = (
+                    odometry[index][stamp] = (
                         (pose.orientation.x, pose.orientation.y, pose.orientation.z,
                          pose.orientation.w),
                         (pose.position.x, pose.position.y, pose.position.z),
@@ -539,7 +741,7 @@ def read_motion(bag, namespace=''):
                         (twist.linear.x, twist.linear.y, twist.linear.z))
                 else:
                     vector = message.vector
-                    momentum[stamp] = (vector.x, vector.y, vector.z)
+                    momentum[index][stamp] = (vector.x, vector.y, vector.z)
             custom = _custom_data(bag)
     except FileNotFoundError:
         raise ValueError(f'no bag at {bag}') from None
@@ -547,14 +749,20 @@ def read_motion(bag, namespace=''):
         # A bag by its metadata (not_a_bag), which rosbags cannot read: a killed writer's.
         raise ValueError(f'cannot read the bag {bag}: {error} (if a recorder was killed, '
                          f'try: rigid-body-sim record --recover {bag})') from None
-    stamps = sorted(set(odometry) & set(momentum))
-    if not stamps:
-        raise ValueError(f'{bag}: no stamp has both an odom and an angular_momentum message')
-    rows = [odometry[stamp] for stamp in stamps]
-    return BagMotion(stamps, [row[0] for row in rows], [row[1] for row in rows],
-                     [row[2] for row in rows], [momentum[stamp] for stamp in stamps],
-                     custom, bag.name, velocity_body=[row[3] for row in rows],
-                     reports=reports)
+    motions = []
+    for name, odometry_of, momentum_of in zip(names, odometry, momentum):
+        stamps = sorted(set(odometry_of) & set(momentum_of))
+        if not stamps:
+            whose = '' if name is None else f' of body {name!r}'
+            raise ValueError(f'{bag}: no stamp has both an odom and an angular_momentum '
+                             f'message{whose}')
+        rows = [odometry_of[stamp] for stamp in stamps]
+        own = custom if name is None else body_custom_data(custom, bodies.entries.get(name))
+        motions.append(BagMotion(
+            stamps, [row[0] for row in rows], [row[1] for row in rows],
+            [row[2] for row in rows], [momentum_of[stamp] for stamp in stamps], own, bag.name,
+            velocity_body=[row[3] for row in rows], reports=reports, body=name))
+    return motions
 
 
 def not_a_bag(path):
@@ -584,7 +792,7 @@ def not_a_bag(path):
         return (f'{path} is not a bag: a folder with no metadata.yaml and no .mcap or .db3 '
                 'file')
     try:
-        document = YAML(typ='safe').load(metadata.read_text(encoding='utf-8'))
+        document = _load_yaml(metadata)
     except Exception:  # noqa: B902 (any YAML or decoding error: not rosbag2's metadata)
         document = None
     if not isinstance(document, dict) or not isinstance(
@@ -592,6 +800,11 @@ def not_a_bag(path):
         return (f'{path} is not a bag: its metadata.yaml is not a rosbag2 one (no '
                 'rosbag2_bagfile_information)')
     return None
+
+
+def read_custom_data(bag):
+    """Return the custom data of a bag ({} if it has none); see :func:`_custom_data`."""
+    return _custom_data(Path(bag))
 
 
 def _custom_data(bag):
@@ -606,10 +819,15 @@ def _custom_data(bag):
     if not bag.is_dir() or not metadata.is_file():
         return {}
     try:
-        document = YAML(typ='safe').load(metadata.read_text(encoding='utf-8'))
+        document = _load_yaml(metadata)
         return dict(document['rosbag2_bagfile_information'].get('custom_data') or {})
     except Exception as error:  # noqa: B902 (rosbags has just read it: damaged meanwhile)
         raise ValueError(f'cannot read the custom data of {metadata}: {error}') from None
+
+
+def _load_yaml(path):
+    """Return the YAML document of the file `path` (YAML's safe subset)."""
+    return yaml.load(path.read_text(encoding='utf-8'), Loader=_YAML_LOADER)  # noqa: S506
 
 
 def _report(stamp, message, node):

@@ -17,8 +17,16 @@ from pathlib import Path
 
 import numpy as np
 
+from .motion import bag_bodies
 from .motion import conserved_quantities
 from .motion import read_motion
+from .plot_parts import apex_index
+from .plot_parts import equal_3d
+from .plot_parts import matplotlib_ticker
+from .plot_parts import plane_of_motion
+from .plot_parts import tidy_3d
+from .plot_parts import time_axis_label
+from .plot_parts import wrapped_title
 from ..drawing import AXIS_COLOURS
 from ..drawing import middle_axis
 
@@ -218,7 +226,7 @@ def plot_motion(motion, out):
 
     figure = pyplot.figure(figsize=(14.0, 11.0), layout='constrained')
     grid = figure.add_gridspec(2, 2)
-    time_label = _time_label(motion)
+    time_label = time_axis_label(motion)
     _angular_velocity_panel(figure, grid[0, 0], motion, time_label)
     _conserved_panel(figure.add_subplot(grid[0, 1]), motion, time_label)
     _orientation_panel(figure.add_subplot(grid[1, 0], projection='3d'), motion)
@@ -231,18 +239,6 @@ def plot_motion(motion, out):
     figure.savefig(out, dpi=100)
     pyplot.close(figure)
     return out
-
-
-def _time_label(motion):
-    """Return the time axis's label: simulated time, and how it was told, or wall time."""
-    if motion.timed_by_reports:
-        return "simulated time [s] (live bag: timed by the node's /diagnostics reports)"
-    if motion.time_is_simulated:
-        return 'simulated time [s]'
-    spacing = motion.stamp_spacing
-    irregular = '' if spacing is None else \
-        f': stamps {1e3 * spacing[0]:.2g}-{1e3 * spacing[1]:.2g} ms apart, as received'
-    return f'wall-clock time since the first message [s]{irregular}'
 
 
 def _angular_velocity_panel(figure, cell, motion, time_label):
@@ -275,7 +271,7 @@ def _angular_velocity_panel(figure, cell, motion, time_label):
             lower.plot(time, shown, color=color, label=name_shown)
             lower.set_ylabel(f'{name_shown} [rad/s]')
             lower.ticklabel_format(axis='y', style='sci', scilimits=(-2, 3), useOffset=False)
-            lower.yaxis.set_major_locator(_ticker().MaxNLocator(4))
+            lower.yaxis.set_major_locator(matplotlib_ticker().MaxNLocator(4))
             lower.set_xlabel(time_label)
             lower.grid(True, alpha=0.3)
             continue
@@ -326,12 +322,6 @@ def _zoom_panel(figure, axes, time, omega, fast, time_label):
                 fontsize='small')
 
 
-def _ticker():
-    """Return matplotlib.ticker (imported with matplotlib, after the Agg backend is set)."""
-    from matplotlib import ticker
-    return ticker
-
-
 def _conserved_panel(axes, motion, time_label):
     title, quantities = conserved_quantities(motion)
     drifts = [quantity.drift for quantity in quantities]
@@ -348,31 +338,11 @@ def _conserved_panel(axes, motion, time_label):
             label += ' (not conserved)'
         _draw_series(axes, motion.time, drift / 10.0**k, color, label, linestyle=style)
     scale = f' [$\\times 10^{{{k}}}$]' if k else ''
-    axes.set(title=_wrapped(title), xlabel=time_label,
+    axes.set(title=wrapped_title(title), xlabel=time_label,
              ylabel=f'(X(t) $-$ X(first)) / scale{scale}')
     axes.ticklabel_format(axis='y', style='plain', useOffset=False)
     _legend_above_data(axes)
     axes.grid(True, alpha=0.3)
-
-
-def _wrapped(title, width=70):
-    """Break a title over two lines at a space near `width` characters (mathtext kept)."""
-    if len(title) <= width:
-        return title
-    cut = title.rfind(' ', 0, width)
-    while cut > 0 and title[:cut].count('$') % 2:
-        cut = title.rfind(' ', 0, cut)
-    return title if cut <= 0 else title[:cut] + '\n' + title[cut + 1:]
-
-
-def _tidy_3d(axes, ticks=4):
-    """Few ticks, small labels, no offset text: 3D tick labels otherwise collide."""
-    ticker = _ticker()
-    for axis in (axes.xaxis, axes.yaxis, axes.zaxis):
-        axis.set_major_locator(ticker.MaxNLocator(ticks))
-        formatter = ticker.ScalarFormatter(useOffset=False)
-        axis.set_major_formatter(formatter)
-    axes.tick_params(labelsize='small', pad=0)
 
 
 def _orientation_panel(axes, motion):
@@ -419,7 +389,7 @@ def _orientation_panel(axes, motion):
         f'o start, \u25a1 at {time[end - 1]:.3g} s: the first {_DRAWN_TURNS} turns'
     axes.set(title=f'Orientation: body axes on the unit sphere\n({shown})',
              xlabel='world x', ylabel='world y', zlabel='world z')
-    _equal_3d(axes, np.array([[-1.0, -1.0, -1.0], [1.0, 1.0, 1.0]]))
+    equal_3d(axes, np.array([[-1.0, -1.0, -1.0], [1.0, 1.0, 1.0]]))
     for set_ticks in (axes.set_xticks, axes.set_yticks, axes.set_zticks):
         set_ticks([-1.0, 0.0, 1.0])
     axes.tick_params(labelsize='small', pad=0)
@@ -437,8 +407,8 @@ def _polhode_panel(axes, motion):
     axes.set(title=f'Polhode: $\\Omega$ in the body frame\n(COM at rest at ({at}) m)',
              xlabel='$\\Omega_x$ [rad/s]', ylabel='$\\Omega_y$ [rad/s]',
              zlabel='$\\Omega_z$ [rad/s]')
-    _equal_3d(axes, omega)
-    _tidy_3d(axes)
+    equal_3d(axes, omega)
+    tidy_3d(axes)
     axes.legend(loc='upper left', fontsize='small')
 
 
@@ -485,31 +455,6 @@ def _com_panel(figure, cell, motion, time_label):
     axes.grid(True, alpha=0.3)
 
 
-def plane_of_motion(position):
-    """
-    Return (first, second, normal) axis indices of the coordinate plane the COM moves in.
-
-    The plane normal to the axis along which the path spans least: x-z for a throw along x,
-    x-y for a top's COM circling above its pivot.  `position` is (n, 3), world frame.
-    """
-    normal = int(np.argmin(np.ptp(position, axis=0)))
-    first, second = [k for k in range(3) if k != normal]
-    return first, second, normal
-
-
-def apex_index(motion):
-    """
-    Return the tick of a thrown body's apex (its highest COM, world z), or None.
-
-    None when the highest point is the first or last tick (no apex inside the bag) or the
-    body is held by a pivot (its COM bobs up and down, with no single apex).
-    """
-    height = motion.position[:, 2]
-    apex = int(np.argmax(height))
-    held = any(effect['effect'] == 'pivot' for effect in (motion.effects or []))
-    return apex if 0 < apex < len(height) - 1 and not held else None
-
-
 def com_moves(motion):
     """Return True if the COM path spans more than round-off (1e-9 m) in the bag."""
     return bool(np.ptp(motion.position, axis=0).max() > _MOTION_THRESHOLD)
@@ -520,7 +465,7 @@ def _title(motion):
               if motion.custom(key) is not None}
     span = f'{len(motion.time)} ticks to {motion.time[-1]:g} s' if motion.time_is_simulated \
         else f'{len(motion.time)} ticks over {motion.time[-1]:g} s'
-    parts = [f'bag {motion.name}', span]
+    parts = [f'bag {motion.name}'] + ([f'body {motion.body}'] if motion.body else []) + [span]
     if 'scene' in custom:
         parts.append(f'scene {custom["scene"]}')
     if 'integrator' in custom:
@@ -538,21 +483,27 @@ def _unit_sphere(axes):
                         np.outer(np.ones_like(u), np.cos(v)), color='0.88', linewidth=0.3)
 
 
-def _equal_3d(axes, points):
-    """Give the 3D axes equal scales around the points' bounding box."""
-    low, high = points.min(axis=0), points.max(axis=0)
-    centre = 0.5 * (low + high)
-    half = 0.5 * max(float((high - low).max()), 1e-12)
-    axes.set_xlim(centre[0] - half, centre[0] + half)
-    axes.set_ylim(centre[1] - half, centre[1] + half)
-    axes.set_zlim(centre[2] - half, centre[2] + half)
-    axes.set_box_aspect((1.0, 1.0, 1.0))
+def plot_bag(bag, out=None, namespace='', body=None):
+    """
+    Read a bag and plot it; return the PNG path (default ``<bag>.png`` beside it).
 
+    A bag of several bodies is drawn as :mod:`.plot_bodies` draws them, or, with `body`,
+    that body as a bag of one body is (default PNG ``<bag>_<body>.png``).
 
-def plot_bag(bag, out=None, namespace=''):
-    """Read a bag and plot it; return the PNG path (default ``<bag>.png`` beside it)."""
-    motion = read_motion(bag, namespace)
+    Raises
+    ------
+    ValueError
+        As :func:`.motion.read_motion`: an unreadable bag, one without the topics, a
+        `body` the bag does not hold (or given for a bag of one body).
+
+    """
+    bag = Path(bag)
+    bodies = bag_bodies(bag, namespace)
+    if body is not None:
+        bodies.check(bag, body)
     if out is None:
-        bag = Path(bag)
-        out = bag.with_name(bag.name + '.png')
-    return plot_motion(motion, out)
+        out = bag.with_name(bag.name + (f'_{body}' if body else '') + '.png')
+    if body is None and bodies.names:
+        from .plot_bodies import plot_bodies
+        return plot_bodies(bag, out, namespace)
+    return plot_motion(read_motion(bag, namespace, body), out)

@@ -9,11 +9,20 @@ direction of the world angular momentum L (dashed black) and a fading trail of t
 the body axis that moves most.  Frames are taken every SPEED / FPS simulated seconds.
 A GIF (Pillow) is kept within --max-size by scaling its frames down; MP4 needs ffmpeg.
 
+A bag of several bodies (a scene of `bodies:`) is drawn in one 3-D scene: every body its
+shape and colour from the bag's marker array, at its pose, with a fading trail of its COM,
+the axes fitted to all of them (up to 10 bodies named in the legend; more than 200, such as
+a constellation of 1,000, as coloured points).  --body NAME animates that one body alone,
+as a bag of one body is animated.
+
 Typical use:
   rigid-body-sim simulate --scene default --duration 30 --bag flip
   rigid-body-sim animate flip                          writes flip.gif beside the bag
   rigid-body-sim animate flip --out flip.gif --fps 10 --speed 2
   rigid-body-sim simulate --scene tennis_racket --duration 10 --animate racket.gif
+  rigid-body-sim simulate --scene juggling_clubs --duration 1 --bag clubs
+  rigid-body-sim animate clubs                         all three clubs: clubs.gif
+  rigid-body-sim animate clubs --body club_left        one club: clubs_club_left.gif
 """
 
 from __future__ import annotations
@@ -29,6 +38,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                            'beside the bag)')
     parser.add_argument('--namespace', default='',
                         help="the node's namespace in the bag (default: none)")
+    parser.add_argument('--body', metavar='NAME',
+                        help='in a bag of several bodies, animate this one alone, viewed '
+                             'from its COM (default: all, in one scene)')
 
 
 def add_animation_options(parser: argparse.ArgumentParser, out_help: str | None = None,
@@ -51,7 +63,7 @@ def add_animation_options(parser: argparse.ArgumentParser, out_help: str | None 
 
 
 def render(bag: str, out: str | None, fps: float, speed: float, max_size: float,
-           namespace: str = '', quiet: bool = False) -> int:
+           namespace: str = '', quiet: bool = False, body: str | None = None) -> int:
     """Animate `bag` into `out` with a progress bar; print what was written; return 0."""
     import math
     import time
@@ -64,7 +76,7 @@ def render(bag: str, out: str | None, fps: float, speed: float, max_size: float,
     started = time.perf_counter()
     # Every check (options, bag, shape) before the progress bar: an error is one line.
     animation = prepare_animation(bag, out, fps=fps, speed=speed, namespace=namespace,
-                                  max_bytes=int(max_size * 2 ** 20))
+                                  max_bytes=int(max_size * 2 ** 20), body=body)
     plan = animation.plan
     bar = None
     if not quiet:
@@ -85,4 +97,5 @@ def render(bag: str, out: str | None, fps: float, speed: float, max_size: float,
 
 def main(args: argparse.Namespace) -> int:
     """Animate the bag; return 0."""
-    return render(args.bag, args.out, args.fps, args.speed, args.max_size, args.namespace)
+    return render(args.bag, args.out, args.fps, args.speed, args.max_size, args.namespace,
+                  body=args.body)
