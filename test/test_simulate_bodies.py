@@ -141,7 +141,8 @@ def test_simulate_command_writes_a_scene_of_bodies_and_lists_every_topic(tmp_pat
     result = run_cli('simulate', '--scene', 'juggling_clubs', '--duration', '0.5', '--bag',
                      'clubs', '--quiet', cwd=tmp_path)
     assert result.returncode == 0, result.stderr
-    assert 'ticks' in result.stdout and '/club_left/pose: 50' in result.stdout
+    assert 'ticks' in result.stdout
+    assert '  /<name>/pose: 50 each, 3 bodies' in result.stdout
     assert '/markers: 50' in result.stdout
     with Reader(tmp_path / 'clubs') as reader:
         assert {c.topic for c in reader.connections} >= {'/club_middle/odom', '/tf'}

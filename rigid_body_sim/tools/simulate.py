@@ -98,6 +98,34 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_animation_options(parser, prefix='animate-')
 
 
+def count_lines(counts: dict[str, int], bodies: list[str], namespace: str = '') -> list[str]:
+    """
+    Return the summary's lines of messages per topic: one a topic, each body's alike at once.
+
+    A scene of bodies has five topics a body: those whose every body's count is the same are
+    one line (``  <name>/pose: 200 each, 3 bodies``), the others one a topic.
+    """
+    prefix = '/' + namespace.strip('/') + '/' if namespace.strip('/') else '/'
+    by_kind: dict[str, list[int]] = {}
+    shared = []
+    for topic, count in counts.items():
+        name, _, kind = topic[len(prefix):].partition('/') if topic.startswith(prefix) \
+            else ('', '', '')
+        if name in bodies and kind and '/' not in kind:
+            by_kind.setdefault(kind, []).append(count)
+        else:
+            shared.append(f'  {topic}: {count}')
+    lines = []
+    for kind, values in by_kind.items():
+        if len(values) == len(bodies) and len(set(values)) == 1:
+            lines.append(f'  {prefix}<name>/{kind}: {values[0]} each, {len(values)} bodies')
+        else:
+            lines.extend(f'  {topic}: {count}' for topic, count in counts.items()
+                         if topic.startswith(prefix) and topic.endswith('/' + kind)
+                         and topic[len(prefix):].partition('/')[0] in bodies)
+    return lines + shared
+
+
 def start_time_nanoseconds(text: str) -> int:
     """Return the --start-time value in ns since the epoch: a number of s, or 'now'."""
     if text == 'now':
@@ -231,8 +259,9 @@ def main(args: argparse.Namespace) -> int:
             summary = simulate_to_bag(scene, bag, args.duration, stop=signals.stop,
                                       body_frame=args.body_frame or 'body', **options)
     print(summary)
-    for topic, count in summary.message_counts.items():
-        print(f'  {topic}: {count}')
+    for line in count_lines(summary.message_counts,
+                            [member.name for member in scene.bodies], args.namespace):
+        print(line)
     if signals.received is not None:
         print(f'rigid-body-sim simulate: {signals.received.name}: stopped after '
               f'{summary.duration:g} of {args.duration:g} simulated s; the bag is complete up '
