@@ -440,18 +440,23 @@ class RecorderProcess:
                 self.output()
             time.sleep(0.05)  # waits-for: poll interval of the loop waiting for the first flush
 
-    def has_counts(self, bag, least):
-        """Return whether the flushed metadata.yaml counts least[topic] of each topic."""
+    def flushed_counts(self, bag):
+        """Return topic -> messages the flushed metadata.yaml counts (None: none readable)."""
         metadata = Path(bag) / 'metadata.yaml'
         if not metadata.exists():
-            return False
+            return None
         try:
             info = yaml.safe_load(metadata.read_text())['rosbag2_bagfile_information']
         except (yaml.YAMLError, KeyError, TypeError):
-            return False  # caught between the writer's truncate and write: look again
-        counts = {entry['topic_metadata']['name']: entry['message_count']
-                  for entry in info.get('topics_with_message_count') or []}
-        return all(counts.get(topic, 0) >= count for topic, count in least.items())
+            return None  # caught between the writer's truncate and write: look again
+        return {entry['topic_metadata']['name']: entry['message_count']
+                for entry in info.get('topics_with_message_count') or []}
+
+    def has_counts(self, bag, least):
+        """Return whether the flushed metadata.yaml counts least[topic] of each topic."""
+        counts = self.flushed_counts(bag)
+        return counts is not None and all(counts.get(topic, 0) >= count
+                                          for topic, count in least.items())
 
     def wait_for_counts(self, bag, least, timeout=120.0):
         """Wait until the flushed metadata.yaml counts at least least[topic] of each topic."""

@@ -17,6 +17,7 @@ from node_harness import PACKAGE_ROOT
 from node_harness import unique_namespace
 import numpy as np
 import pytest
+from rclpy.qos import QoSProfile
 from rigid_body_sim.messages.frames import default_frame_prefix
 from rigid_body_sim.messages.frames import frame_ids
 from rigid_body_sim.messages.frames import MAX_FRAME_ID_LENGTH
@@ -177,7 +178,11 @@ def test_two_namespaced_nodes_publish_distinct_frames_and_neither_jumps(
     nodes = [NodeProcess(tmp_path / f'node{index}.log', namespace=namespace,
                          parameters=dict({'rate': RATE}, **(flipped if index else {})))
              for index, namespace in enumerate(namespaces)]
-    tf_topics = {'/tf': (TFMessage, TF_QOS), '/tf_static': (TFMessage, TF_STATIC_QOS)}
+    # A reader queue no stall of this loaded test process fills: a transform dropped here
+    # would look like a jump of the body between the two it received.
+    deep_tf = QoSProfile(depth=100_000, reliability=TF_QOS.reliability,
+                         durability=TF_QOS.durability)
+    tf_topics = {'/tf': (TFMessage, deep_tf), '/tf_static': (TFMessage, TF_STATIC_QOS)}
     clients = [Client(namespace, extra_topics=tf_topics) for namespace in namespaces]
     try:
         bodies = [client.frame('body') for client in clients]

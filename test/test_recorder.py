@@ -377,7 +377,8 @@ def test_topics_the_node_does_not_publish_are_found_by_discovery_with_their_qos(
         deadline = time.monotonic() + 120.0
         while not recorder.has_counts(bag, {best_effort: 100, latched: 1}):
             assert recorder.process.poll() is None, recorder.output()
-            assert time.monotonic() < deadline, recorder.output()
+            assert time.monotonic() < deadline, \
+                f'flushed counts {recorder.flushed_counts(bag)}\n{recorder.output()}'
             publisher.publish(best_effort)
             time.sleep(0.01)  # waits-for: pace of the publisher while the recorder runs
         recorder.process.send_signal(signal.SIGINT)
