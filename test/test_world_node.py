@@ -332,6 +332,8 @@ def test_the_integrator_switches_at_run_time_for_every_body_and_the_status_says_
     assert values['tolerance [rad/s]'] == 'off'
     assert values['rate kept'] in ('yes', 'no')
     assert values['state published every k-th tick'] == '1'
+    # All bodies' integration per simulated second, the key the one-body node reports too.
+    assert 0.0 < float(values['integration CPU per simulated s [s]']) < math.inf
 
 
 def test_a_deleted_body_leaves_no_publisher_behind_in_a_world_checked_in_turns():

@@ -630,6 +630,7 @@ class WorldNode(RigidBodyNode):
         tolerance = self._world.tolerance
         stopped = sorted(self._world.diverged)
         keeps = self._keeps_rate(figures)
+        simulated = figures.simulated if figures.simulated > 0.0 else step.size * self._period
         return [
             ('scene', self._scene.name),
             ('bodies', str(len(self._bodies))),
@@ -654,6 +655,10 @@ class WorldNode(RigidBodyNode):
             ('tick duration p99 [ms]', _milliseconds(tick, 99)),
             ('integration per body-tick [us]',
              f'{1e6 * float(np.mean(step)) / count:.3f}' if step.size else 'n/a'),
+            # All bodies' steps (wall, one thread) per simulated s, as the one-body node's.
+            ('integration CPU per simulated s [s]',
+             f'{float(np.sum(step)) / simulated:.3e}' if step.size and simulated > 0.0
+             else 'n/a'),
             ('publishing CPU per publishing tick [ms]',
              f'{1e3 * self._last_publish_cost:.4f}'),
             ('simulated time [s]', f'{self._world.time:.6f}'),
