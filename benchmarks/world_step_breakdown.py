@@ -16,7 +16,10 @@ process, the median of seven rounds each timing every variant in turn, 200 ticks
   models' fields from memory costs;
 - shared arrays: the World's kernel on a World whose models all point at the first
   model's arrays (the structs themselves still one per body): what the arrays' data
-  costs against the structs' fields.
+  costs against the structs' fields;
+- one block: the World's kernel on a World whose models' arrays were copied into one
+  block, body after body in the World's order (same numbers: the same bits, checked), the
+  layout a rewrite of the model could give them; the structs stay one per body.
 
 Usage: ``.venv/bin/python benchmarks/world_step_breakdown.py``
 """
@@ -75,6 +78,58 @@ def _share_arrays(model, other):
     model.carry = other.carry
 
 
+@numba.njit(types.void(MODEL_TYPE, types.float64[::1], types.float64[:, ::1],
+                       types.float64[::1], types.int64[::1], types.float64[::1],
+                       types.int64[::1], types.float64[::1], types.float64[::1],
+                       types.float64[::1], types.float64[::1]))
+def _set_arrays(model, body, held, term_parameters, term_offsets, flow_parameters,
+                flow_offsets, constraint_parameters, physical, stage, carry):
+    model.body = body
+    model.held = held
+    model.term_parameters = term_parameters
+    model.term_offsets = term_offsets
+    model.flow_parameters = flow_parameters
+    model.flow_offsets = flow_offsets
+    model.constraint_parameters = constraint_parameters
+    model.physical = physical
+    model.stage = stage
+    model.carry = carry
+
+
+@numba.njit
+def _arrays_of(model):
+    return (model.body, model.held, model.term_parameters, model.term_offsets,
+            model.flow_parameters, model.flow_offsets, model.constraint_parameters,
+            model.physical, model.stage, model.carry)
+
+
+_OFFSETS = (3, 5)  # the int64 arrays among _arrays_of's
+
+
+def _into_one_block(models):
+    """Copy every model's arrays into two blocks (floats, offsets), body after body."""
+    arrays = [_arrays_of(model) for model in models]
+    width = max(sum(a.size for i, a in enumerate(each) if i not in _OFFSETS)
+                for each in arrays)
+    width = (width + 7) // 8 * 8  # each body's floats start on a 64-byte line
+    floats = np.zeros(len(arrays) * width)
+    offsets_width = max(sum(each[i].size for i in _OFFSETS) for each in arrays)
+    offsets = np.zeros(len(arrays) * offsets_width, dtype=np.int64)
+    for index, (model, each) in enumerate(zip(models, arrays)):
+        at, at_offsets, views = index * width, index * offsets_width, []
+        for position, array in enumerate(each):
+            if position in _OFFSETS:
+                view = offsets[at_offsets:at_offsets + array.size]
+                at_offsets += array.size
+            else:
+                view = floats[at:at + array.size]
+                at += array.size
+            view = view.reshape(array.shape)
+            view[...] = array
+            views.append(view)
+        _set_arrays(model, *views)
+
+
 def main(argv=None):
     """Print the CPU ns per body-step of each variant."""
     argparse.ArgumentParser(description=__doc__.split('\n\n')[1],
@@ -89,16 +144,25 @@ def main(argv=None):
         world.step(dt)
         return world
 
-    world, shared = new_world(), new_world()
+    world, shared, blocked = new_world(), new_world(), new_world()
     first = world_module_models(shared)[0]
     for model in world_module_models(shared):
         _share_arrays(model, first)
+    _into_one_block(world_module_models(blocked))
+    alike = new_world()
+    for _ in range(50):
+        blocked.step(dt)
+        alike.step(dt)
+    same = all(np.array_equal(blocked.simulator(name).kernel_arguments()[0],
+                              alike.simulator(name).kernel_arguments()[0])
+               for name in alike.names)
     signature = world_module.STEP_BODIES_SIGNATURE
     variants = {
         'world': (world, world_module.step_bodies.dispatcher),
         'no copy': (world, numba.njit(signature)(_no_copy)),
         'one model': (world, numba.njit(signature)(_one_model)),
         'shared arrays': (shared, world_module.step_bodies.dispatcher),
+        'one block': (blocked, world_module.step_bodies.dispatcher),
     }
     count = len(world)
     timings = {name: [] for name in variants}
@@ -115,6 +179,7 @@ def main(argv=None):
     for name, values in timings.items():
         median = float(np.median(values))
         print(f'{name:14s} {median:7.1f}  ({median - reference:+6.1f} vs world)')
+    print(f'one block: 50 ticks leave every body with the bits of a World as built: {same}')
 
 
 def world_module_models(world):
