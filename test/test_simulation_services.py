@@ -352,6 +352,17 @@ def test_step_simulation_advances_a_paused_simulation_by_exactly_its_steps(host,
 
 
 def test_simulate_steps_gives_feedback_after_every_step(host):
+    # Feedback goes out on a topic of its own, which a loaded machine may match after the
+    # goal's services: one-step goals until one's feedback arrives, then the test afresh.
+    for attempt in range(10):
+        fresh(host, SimulationState.STATE_PAUSED)
+        _, warm_up = host.simulate_steps(1)
+        try:
+            host.wait_for(lambda: warm_up, 5.0, 'the feedback of a one-step goal')
+            break
+        except AssertionError:
+            if attempt == 9:
+                raise
     fresh(host, SimulationState.STATE_PAUSED)
     before = stamp_nanoseconds(host.state('club_left').header)
     response, feedback = host.simulate_steps(5)
