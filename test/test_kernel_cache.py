@@ -22,6 +22,8 @@ from rigid_body_sim import cli
 from rigid_body_sim.physics import warm_up
 from rigid_body_sim.physics.kernels import borrow
 from rigid_body_sim.physics.kernels import cache
+from rigid_body_sim.physics.kernels import model_table
+from rigid_body_sim.physics.kernels.model import MODEL_TYPE
 
 PACKAGE = Path(cache.__file__).resolve().parents[2]
 """The rigid_body_sim package directory these tests run."""
@@ -149,6 +151,17 @@ def test_numbas_array_structure_starts_with_what_a_borrowed_view_clears():
     assert positions == list(range(len(borrow.BORROWED_MEMBERS))), (
         f'numba {numba.__version__} moved {borrow.BORROWED_MEMBERS} in its array structure: '
         'physics/kernels/borrow.py must follow')
+
+
+def test_numbas_structref_is_the_one_meminfo_pointer_a_model_table_holds():
+    # model_table.py reads a model from its meminfo's address (and casts a borrowed one to
+    # a Model by writing it as the one member): if a numba release adds a member, this says
+    # so before any kernel reads a wrong model.
+    model = default_manager.lookup(MODEL_TYPE)
+    assert len(model.get_value_type().elements) == len(model_table.STRUCTREF_MEMBERS) == 1
+    assert model.get_field_position(model_table.STRUCTREF_MEMBERS[0]) == 0, (
+        f'numba {numba.__version__} changed its StructRef data model: '
+        'physics/kernels/model_table.py must follow')
 
 
 # -- the compile command

@@ -217,3 +217,65 @@ def test_a_whole_number_of_seconds_steps_as_its_float_as_a_simulator_takes_it():
         np.testing.assert_array_equal(packed(by_int.simulator(name)),
                                       packed(by_float.simulator(name)))
     assert by_int.time == 1.0
+
+
+def test_a_held_wrench_acts_on_a_body_in_a_world_as_alone_when_bodies_come_and_go():
+    # The World moves each model's arrays into its blocks (kernels/model_table.py), the held
+    # wrench with them: the Simulator must go on writing the array its model reads.
+    world, alone = world_and_alone()
+    for simulator in (world.simulator('tumbler'), alone['tumbler']):
+        simulator.hold_wrench(torque_world=(0.01, 0.0, 0.02), force_body=(0.5, 0.0, 0.0))
+    for _ in range(20):
+        world.step(DT)
+        for simulator in alone.values():
+            simulator.step(DT)
+    sphere = RigidBody.sphere(1.0, 0.1)
+    world.add('newcomer', Simulator(sphere, State.from_velocity(sphere)))
+    for simulator in (world.simulator('tumbler'), alone['tumbler']):
+        simulator.hold_wrench(torque_body=(0.0, 0.03, 0.0))
+    for _ in range(20):
+        world.step(DT)
+        for simulator in alone.values():
+            simulator.step(DT)
+    for name in ('tumbler', 'driven', 'top'):
+        np.testing.assert_array_equal(packed(world.simulator(name)), packed(alone[name]))
+    # A body taken out of the world steps alone, its held wrench its own.
+    removed = world.remove('tumbler')
+    for simulator in (removed, alone['tumbler']):
+        simulator.hold_wrench(force_world=(0.0, 0.0, -1.0))
+        for _ in range(10):
+            simulator.step(DT)
+    np.testing.assert_array_equal(packed(removed), packed(alone['tumbler']))
+
+
+def test_the_models_moved_into_the_worlds_blocks_are_every_array_a_model_holds():
+    from numba import types
+    from rigid_body_sim.physics.kernels.model import MODEL_TYPE
+    from rigid_body_sim.physics.kernels.model_table import MOVED_ARRAYS
+    arrays = {name for name, kind in MODEL_TYPE.field_dict.items()
+              if isinstance(kind, types.Array)}
+    assert set(MOVED_ARRAYS) == arrays, 'kernels/model_table.py must move every array'
+
+
+def test_a_world_run_as_python_steps_each_body_as_it_steps_alone_as_python():
+    # The kernels' source run as Python (a node's first ticks while they compile): a
+    # table is the list of models there, and nothing is moved or prefetched.
+    world, alone = world_and_alone()
+    world.interpreted = True
+    for simulator in alone.values():
+        simulator.interpreted = True
+    for _ in range(3):
+        world.step(DT)
+        for simulator in alone.values():
+            simulator.step(DT)
+    for name, simulator in alone.items():
+        np.testing.assert_array_equal(packed(world.simulator(name)), packed(simulator))
+    world.interpreted = False
+    for simulator in alone.values():
+        simulator.interpreted = False
+    for _ in range(3):
+        world.step(DT)
+        for simulator in alone.values():
+            simulator.step(DT)
+    for name, simulator in alone.items():
+        np.testing.assert_array_equal(packed(world.simulator(name)), packed(simulator))

@@ -31,6 +31,7 @@ from .kernels.model import HELD_FORCE_WORLD
 from .kernels.model import HELD_TORQUE_BODY
 from .kernels.model import HELD_TORQUE_WORLD
 from .kernels.model import new_model
+from .kernels.model_table import move_model_arrays
 from .stability import stiffness_problem
 from .state import State
 
@@ -592,6 +593,20 @@ class Simulator:
         control[:] = self._control
         self._values = values
         self._control = control
+
+    def move_model_arrays(self, floats: npt.NDArray[np.float64],
+                          integers: npt.NDArray[np.int64]) -> None:
+        """
+        Keep the compiled model's arrays in `floats` and `integers` from now on.
+
+        As :meth:`move_arrays`, for the model (kernels/model_table.move_model_arrays: the
+        blocks' sizes, what moves); the held wrench, which it shares with its model, moves
+        with them.  Nothing for a model run as Python (:attr:`interpreted`).
+        """
+        if self._interpreted:
+            return
+        held = move_model_arrays(self._model, floats, integers)
+        self._held = self._model_arguments['held'] = held
 
     def stepping_kernels(self) -> tuple[Any, Callable[..., int], Callable[..., int]]:
         """

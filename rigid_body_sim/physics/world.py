@@ -12,11 +12,12 @@ takes every body in turn through the very compiled kernels its Simulator's own
 the error controller (error_control.controlled) under a tolerance, each reached as a
 first-class function held in a :class:`Stepper`.  So each body is advanced by the same
 machine code as when it is simulated alone, and under error control each chooses its own
-substeps: a fast tumbler does not make the others substep.  The bodies' states and control
-arrays are rows of two arrays the World owns (Simulator.move_arrays), read in order; what
-the loop adds per body is the call through a function pointer and a copy of its state kept
-to restore, should it turn non-finite (benchmarks/many_bodies.py measures the whole against
-the single body's kernel).  The bodies' Simulators are told their new time only when read
+substeps: a fast tumbler does not make the others substep.  The bodies' states, control
+arrays and their models' arrays are rows of blocks the World owns (Simulator.move_arrays,
+Simulator.move_model_arrays), read in order, the models from a table (kernels/model_table.py);
+what the loop adds per body is the call through a function pointer and a copy of its state
+kept to restore, should it turn non-finite (benchmarks/many_bodies.py measures the whole
+against the single body's kernel).  The bodies' Simulators are told their new time only when read
 (:meth:`World.simulator`, :meth:`World.state`): a tick touches no Python object per body.
 
 A body whose state turns non-finite is put back to its last finite state and stopped
@@ -47,6 +48,12 @@ from .kernels.interpreted import stand_in
 from .kernels.layout import STATE_SIZE
 from .kernels.loop import METHOD_TYPE
 from .kernels.model import MODEL_TYPE
+from .kernels.model_table import model_array_sizes
+from .kernels.model_table import model_at
+from .kernels.model_table import model_table
+from .kernels.model_table import MODEL_TABLE_KERNELS
+from .kernels.model_table import MODEL_TABLE_TYPE
+from .kernels.model_table import prefetch_model
 from .simulator import checked_positive
 from .simulator import Simulator
 from .state import State
@@ -92,8 +99,6 @@ stepper_of = LazyKernel(STEPPER_TYPE(error_control.CONTROLLER_TYPE, _CONTROLLED_
                         _stepper_of, compile_seconds=0.1)
 """The compiled constructor of a :class:`Stepper`."""
 
-_MODELS = types.ListType(MODEL_TYPE)
-
 
 def step_all(stepper: Stepper, states: npt.NDArray[np.float64], models: Any,
              controls: npt.NDArray[np.float64], checkpoints: npt.NDArray[np.float64],
@@ -103,7 +108,8 @@ def step_all(stepper: Stepper, states: npt.NDArray[np.float64], models: Any,
     Advance every active body by one tick of `tick` s from `time` (s), in place.
 
     states (N, 13), controls (N, CONTROL_SIZE): each body's packed state and control array,
-    a row each, in the bodies' order; models: their compiled models (a list); substeps:
+    a row each, in the bodies' order; models: their compiled models (a table:
+    kernels/model_table.py); substeps:
     the fixed steps per tick, or 0 for error control;
     checkpoints (N, 13): scratch, each body's state before the tick; active (N,): 0 for a
     body left as it is; taken (N,): set to each body's integrator steps, 0 if not active,
@@ -116,13 +122,15 @@ def step_all(stepper: Stepper, states: npt.NDArray[np.float64], models: Any,
     controlled = stepper.controlled
     diverged = 0
     for index in range(states.shape[0]):
+        # The model after next: its fields arrive while this body and the next are stepped.
+        prefetch_model(models, index + 2)
         if active[index] == 0:
             taken[index] = 0
             continue
         state = borrowed(states[index])
         checkpoint = borrowed(checkpoints[index])
         checkpoint[:] = state
-        model = models[index]
+        model = model_at(models, index)
         if substeps == 0:
             steps = controlled(controller, state, model, method, tick, 1, time,
                                borrowed(controls[index]))
@@ -135,7 +143,7 @@ def step_all(stepper: Stepper, states: npt.NDArray[np.float64], models: Any,
     return diverged
 
 
-STEP_BODIES_SIGNATURE = types.int64(STEPPER_TYPE, types.float64[:, ::1], _MODELS,
+STEP_BODIES_SIGNATURE = types.int64(STEPPER_TYPE, types.float64[:, ::1], MODEL_TABLE_TYPE,
                                     types.float64[:, ::1], types.float64[:, ::1],
                                     METHOD_TYPE, types.float64,
                                     types.int64, types.float64, types.uint8[::1],
@@ -143,7 +151,7 @@ STEP_BODIES_SIGNATURE = types.int64(STEPPER_TYPE, types.float64[:, ::1], _MODELS
 step_bodies = LazyKernel(STEP_BODIES_SIGNATURE, step_all, compile_seconds=1.5)
 """The compiled tick of a World (see :func:`step_all`): one kernel for every integrator."""
 
-WORLD_KERNELS = (stepper_of, step_bodies)
+WORLD_KERNELS = (stepper_of, step_bodies) + MODEL_TABLE_KERNELS
 """The kernels of a World, compiled in the ``controller`` job (physics/warm_up.py)."""
 
 
@@ -384,7 +392,7 @@ class World:
                                                   self._interpreted)
         if stepper is not None:
             kernel = step_bodies.source if self._interpreted else step_bodies.dispatcher
-            diverged = kernel(stepper, self._states, self._models, self._controls,
+            diverged = kernel(stepper, self._states, self._model_table, self._controls,
                               self._checkpoints, self._method, dt,
                               0 if self._tolerance else self._substeps, self._time,
                               self._active, self._taken)
@@ -410,9 +418,11 @@ class World:
         """
         Give every body a row of the arrays the kernel takes, in the bodies' order.
 
-        The states (N, 13) and the control arrays are one block each (Simulator.move_arrays):
-        a tick reads them in order, where a list of arrays scattered in memory cost a
-        lookup and a cache miss per body.
+        The states (N, 13) and the control arrays are one block each (Simulator.move_arrays),
+        and so are the compiled models' arrays (Simulator.move_model_arrays), the models
+        read from a table of them (kernels/model_table.py): a tick reads them in order,
+        where arrays scattered in memory and a typed list's lookups cost the tick some 14 ns
+        a body (benchmarks/world_step_breakdown.py).
         """
         simulators = list(self._simulators.values())
         count = len(simulators)
@@ -421,8 +431,13 @@ class World:
         models = [] if self._interpreted else List.empty_list(MODEL_TYPE)
         for index, simulator in enumerate(simulators):
             simulator.move_arrays(states[index], controls[index])
+        if not self._interpreted:
+            _move_model_arrays(simulators)
+        for simulator in simulators:
             models.append(simulator.kernel_arguments()[1])
         self._states, self._models, self._controls = states, models, controls
+        # The table holds the models' addresses: valid while self._models holds them.
+        self._model_table = model_table(models, self._interpreted)
         self._order = list(self._simulators)
         self._index = {name: index for index, name in enumerate(self._order)}
         self._checkpoints = np.zeros((count, STATE_SIZE))
@@ -440,3 +455,26 @@ class World:
         total = self._time + y
         self._time_compensation = (total - self._time) - y
         self._time = total
+
+
+def _move_model_arrays(simulators: list[Simulator]) -> None:
+    """Give every body's compiled model a row of two blocks (floats, integers), in order."""
+    if not simulators:
+        return
+    sizes = [model_array_sizes(simulator.kernel_arguments()[1]) for simulator in simulators]
+    floats_width = max(floats for floats, _ in sizes)
+    integers_width = max(integers for _, integers in sizes)
+    floats = _line_aligned_zeros(len(simulators) * floats_width)
+    integers = np.zeros(len(simulators) * integers_width, dtype=np.int64)
+    for index, simulator in enumerate(simulators):
+        simulator.move_model_arrays(
+            floats[index * floats_width:(index + 1) * floats_width],
+            integers[index * integers_width:(index + 1) * integers_width])
+
+
+def _line_aligned_zeros(size: int) -> npt.NDArray[np.float64]:
+    """Return `size` float64 zeros starting on a 64-byte cache line (each row's floats do)."""
+    line = 64 // 8
+    block = np.zeros(size + line)
+    start = (-block.ctypes.data % 64) // 8
+    return block[start:start + size]
