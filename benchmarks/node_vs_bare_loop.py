@@ -57,6 +57,19 @@ def process_cpu_seconds(pid):
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
+def script_process(script, role, environment, log):
+    """Start `script` in a role (its options, e.g. ['--bare']), its output written to `log`."""
+    return subprocess.Popen([sys.executable, str(script), *role], env=environment,
+                            stdout=open(log, 'w'), stderr=subprocess.STDOUT)
+
+
+def exit_if_any_stopped(processes, logs, when=''):
+    """Exit, naming it and the logs, if one of `processes` (by name) has stopped."""
+    for name, process in processes.items():
+        if process.poll() is not None:
+            raise SystemExit(f'{name} exited with {process.returncode}{when}; see {logs}')
+
+
 def cpu_windows(processes, windows, seconds):
     """
     Print and return node CPU / bare loop CPU in each of `windows` windows of `seconds` s.
@@ -348,27 +361,18 @@ def main(argv=None):
              *(word for parameter in arguments.parameter for word in ('-p', parameter))],
             env=node_environment, cwd=arguments.source,
             stdout=open(logs / 'node.log', 'w'), stderr=subprocess.STDOUT),
-        'bare': subprocess.Popen([sys.executable, script, '--bare'], env=environment,
-                                 stdout=open(logs / 'bare.log', 'w'),
-                                 stderr=subprocess.STDOUT),
-        'subscriber': subprocess.Popen([sys.executable, script, '--subscriber', namespace],
-                                       env=environment,
-                                       stdout=open(logs / 'subscriber.log', 'w'),
-                                       stderr=subprocess.STDOUT),
+        'bare': script_process(script, ['--bare'], environment, logs / 'bare.log'),
+        'subscriber': script_process(script, ['--subscriber', namespace], environment,
+                                     logs / 'subscriber.log'),
     }
     try:
         time.sleep(arguments.warmup)  # start-up, discovery, kernels loaded
-        for name, process in processes.items():
-            if process.poll() is not None:
-                raise SystemExit(f'{name} exited with {process.returncode}; see {logs}')
+        exit_if_any_stopped(processes, logs)
         measured_from = time.monotonic()
         print(f'node from {arguments.source.resolve()}; 1 kHz, one pose subscriber each'
               + ''.join(f'; {parameter}' for parameter in arguments.parameter))
         ratios = cpu_windows(processes, arguments.windows, arguments.seconds)
-        for name, process in processes.items():
-            if process.poll() is not None:
-                raise SystemExit(f'{name} exited with {process.returncode} during the windows; '
-                                 f'see {logs}')
+        exit_if_any_stopped(processes, logs, ' during the windows')
         _check_bare_loop_matched(logs / 'bare.log', measured_from, time.monotonic())
         median = statistics.median(ratios)
         verdict = 'holds' if median <= 1.3 else 'fails'

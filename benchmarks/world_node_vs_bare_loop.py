@@ -50,6 +50,8 @@ sys.path.insert(0, str(ROOT))
 
 # The CPU windows of the one-body comparison (this script's folder is on the path).
 from node_vs_bare_loop import cpu_windows  # noqa: E402
+from node_vs_bare_loop import exit_if_any_stopped  # noqa: E402
+from node_vs_bare_loop import script_process  # noqa: E402
 
 NAMESPACE = '/vs_bare_world'
 BARE = '/bare_world'
@@ -237,30 +239,22 @@ def cpu(arguments, environment, logs):
     topics = ['--topics', *arguments.topics]
     processes = {
         'node': _node(SCENE, NAMESPACE, logs / 'node.log', environment),
-        'bare': subprocess.Popen([sys.executable, script, '--bare', *topics,
-                                  *(['--bare-bytes'] if arguments.bare_bytes else [])],
-                                 env=environment,
-                                 stdout=open(logs / 'bare.log', 'w'),
-                                 stderr=subprocess.STDOUT),
-        'subscriber': subprocess.Popen([sys.executable, script, '--subscriber', *topics],
-                                       env=environment,
-                                       stdout=open(logs / 'subscriber.log', 'w'),
-                                       stderr=subprocess.STDOUT),
+        'bare': script_process(script, ['--bare', *topics, *(['--bare-bytes'] if
+                                                             arguments.bare_bytes else [])],
+                               environment, logs / 'bare.log'),
+        'subscriber': script_process(script, ['--subscriber', *topics], environment,
+                                     logs / 'subscriber.log'),
     }
     try:
         time.sleep(arguments.warmup)  # start-up, discovery, kernels loaded
-        for name, process in processes.items():
-            if process.poll() is not None:
-                raise SystemExit(f'{name} exited with {process.returncode}; see {logs}')
+        exit_if_any_stopped(processes, logs)
         print(f'{SCENE} (100 bodies) at {RATE:g} Hz; per body {", ".join(arguments.topics)}, '
               'one /tf and one MarkerArray, one subscriber each; the bare loop publishes '
               + ('the same bytes again each tick' if arguments.bare_bytes else
                  'rclpy messages, a field changed each tick'))
         measured_from = time.time()
         ratios = cpu_windows(processes, arguments.windows, arguments.seconds)
-        for name, process in processes.items():
-            if process.poll() is not None:
-                raise SystemExit(f'{name} exited with {process.returncode}; see {logs}')
+        exit_if_any_stopped(processes, logs, ' during the windows')
         measured = (measured_from, time.time())
         counts = [line for line in (logs / 'bare.log').read_text().splitlines()
                   if line.startswith('least subscribers: ')]

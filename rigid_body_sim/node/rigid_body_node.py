@@ -209,21 +209,7 @@ class RigidBodyNode(Node):
         self._period = 1.0 / self._rate
         self._real_time_factor = values['real_time_factor']
         self._wall_period = self._period / self._real_time_factor
-        kernels_ready = kernels_compiled(scene.integrator)
-        if kernels_ready:
-            # The integrator's compiled kernels loaded now, so that loading them from the cache
-            # does not make the first tick late.
-            load_kernels(scene.integrator)
-        else:
-            # Not compiled on this machine: the kernels' source runs interpreted, nothing
-            # compiled in this process, until a compile beside the node has them ready.
-            set_interpreted(True)
-            self._simulator.interpreted = True
-        # A scene whose fixed step cannot carry its stiff effect is refused, with what to
-        # change (interpreted, the check runs the same steps).
-        reason = self._step_refusal(scene.integrator, values['substeps'], values['tolerance'])
-        if reason is not None:
-            raise ValueError(reason)
+        kernels_ready = self._prepare_kernels(scene.integrator, values)
         self._substeps = values['substeps']
         self._input_timeout_ns = int(values['input_timeout'] * 1e9)
         self._max_wrench = values['max_wrench']
@@ -287,6 +273,29 @@ class RigidBodyNode(Node):
         self._set_drift_reference()
         self._log_start(scene, values, parameter_sources, tf_status)
         self._start_running(kernels_ready, scene.integrator)
+
+    def _prepare_kernels(self, integrator, values):
+        """
+        Load the integrator's kernels, or run their source until compiled; check the step.
+
+        Returns whether the kernels were compiled on this machine.  ValueError (what to
+        change) for a scene whose fixed step cannot carry its stiff effect.
+        """
+        kernels_ready = kernels_compiled(integrator)
+        if kernels_ready:
+            # The integrator's compiled kernels loaded now, so that loading them from the cache
+            # does not make the first tick late.
+            load_kernels(integrator)
+        else:
+            # Not compiled on this machine: the kernels' source runs interpreted, nothing
+            # compiled in this process, until a compile beside the node has them ready.
+            set_interpreted(True)
+            self._simulator.interpreted = True
+        # Interpreted, the check runs the same steps.
+        reason = self._step_refusal(integrator, values['substeps'], values['tolerance'])
+        if reason is not None:
+            raise ValueError(reason)
+        return kernels_ready
 
     def _start_clock(self, values):
         """Set up simulated time, /clock (with publish_clock) and the ROS clock's guard."""

@@ -47,7 +47,6 @@ from std_srvs.srv import SetBool
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
-from .background_compile import kernels_compiled
 from .parameters import declare_parameters
 from .parameters import declare_scene_parameter
 from .parameters import given_overrides
@@ -78,9 +77,7 @@ from ..messages.tf import TF_STATIC_TOPIC
 from ..messages.tf import TF_TOPIC
 from ..messages.tf import transform_message_class
 from ..physics import World
-from ..physics.kernels import set_interpreted
 from ..physics.state import State
-from ..physics.warm_up import load_kernels
 from ..scenes import DEFAULT_SCENE
 from ..scenes import load_scene
 from ..scenes.limits import MAX_BODIES
@@ -218,15 +215,7 @@ class WorldNode(RigidBodyNode):
             ((member.name, member.simulator()) for member in scene.members),
             integrator=scene.integrator, tolerance=values['tolerance'] or None,
             substeps=self._substeps)
-        kernels_ready = kernels_compiled(scene.integrator)
-        if kernels_ready:
-            load_kernels(scene.integrator)
-        else:
-            set_interpreted(True)
-            self._world.interpreted = True
-        reason = self._step_refusal(scene.integrator, self._substeps, values['tolerance'])
-        if reason is not None:
-            raise ValueError(reason)
+        kernels_ready = self._prepare_kernels(scene.integrator, values)
         self._start_clock(values)
         self._transform_class, tf_reason = transform_message_class()
         self._tf_publisher = self._tf_static_publisher = None
