@@ -421,8 +421,8 @@ class World:
         The states (N, 13) and the control arrays are one block each (Simulator.move_arrays),
         and so are the compiled models' arrays (Simulator.move_model_arrays), the models
         read from a table of them (kernels/model_table.py): a tick reads them in order,
-        where arrays scattered in memory and a typed list's lookups cost the tick some 14 ns
-        a body (benchmarks/world_step_breakdown.py).
+        where arrays scattered in memory and a typed list's lookups cost the tick a good part
+        of a body's step (benchmarks/world_step_breakdown.py, docs/benchmark.md).
         """
         simulators = list(self._simulators.values())
         count = len(simulators)

@@ -3,8 +3,9 @@ Many compiled models read by one kernel: a table of them, their arrays in one bl
 
 A World (physics/world.py) advances N bodies in one kernel call, each through its own
 :class:`~.model.Model`.  Read from a numba typed list, each with its arrays allocated apart,
-N models cost the World's tick some 20 ns a body more than the single body's kernel pays
-for its one model, hot in the cache (benchmarks/world_step_breakdown.py times the parts):
+N models cost the World's tick markedly more per body than the single body's kernel pays
+for its one model, hot in the cache (benchmarks/world_step_breakdown.py times the parts;
+docs/benchmark.md "Many bodies" has the figures):
 
 - a typed list's item is taken by a call into the list's C code, with its checks and an
   atomic reference count: a :func:`model_table` holds the models' addresses instead, and
@@ -69,7 +70,7 @@ class BorrowedModelType(types.Type):
     numba's type of a model read from a table: a Model without a reference of its own.
 
     A kernel passes it where a Model is taken (numba casts it, at no cost); it counts no
-    reference (an atomic increment and decrement per body a tick, measured ~4 ns), so it
+    reference (an atomic increment and decrement per body a tick: docs/benchmark.md), so it
     is valid while the table's owner holds the models, and a kernel never stores one.
     """
 
