@@ -54,6 +54,20 @@ def world_and_alone(integrator='buss', tolerance=None):
     return world, alone
 
 
+def step_together(world, alone, ticks):
+    """Step the World and each body's own Simulator `ticks` ticks of DT."""
+    for _ in range(ticks):
+        world.step(DT)
+        for simulator in alone.values():
+            simulator.step(DT)
+
+
+def assert_as_alone(world, alone, names=None):
+    """Assert each named body (default: all of `alone`) has in the World its bits alone."""
+    for name in alone if names is None else names:
+        np.testing.assert_array_equal(packed(world.simulator(name)), packed(alone[name]))
+
+
 def packed(simulator):
     """Return a copy of a simulator's packed state (13 values)."""
     return simulator.kernel_arguments()[0].copy()
@@ -67,8 +81,8 @@ def test_each_body_in_a_world_ends_with_the_bits_it_has_alone(integrator, tolera
         assert world.step(DT) == {}
         for simulator in alone.values():
             simulator.step(DT)
+    assert_as_alone(world, alone)
     for name, simulator in alone.items():
-        np.testing.assert_array_equal(packed(world.simulator(name)), packed(simulator))
         assert world.state(name).position.tolist() == simulator.state.position.tolist()
     # The clock is the one a body has alone (the same sum, to the bit).
     assert world.time == alone['tumbler'].time
@@ -112,8 +126,7 @@ def test_a_body_turning_non_finite_stops_alone_at_its_last_finite_state():
     np.testing.assert_array_equal(packed(world.simulator('driven')), before)
     for simulator in alone.values():
         simulator.step(DT)
-    for name in ('tumbler', 'falling', 'top'):
-        np.testing.assert_array_equal(packed(world.simulator(name)), packed(alone[name]))
+    assert_as_alone(world, alone, ('tumbler', 'falling', 'top'))
     # Stopped: the next ticks leave it where it is, until its state is set.
     world.step(DT)
     np.testing.assert_array_equal(packed(world.simulator('driven')), before)
@@ -127,10 +140,7 @@ def test_a_body_turning_non_finite_stops_alone_at_its_last_finite_state():
 
 def test_bodies_added_and_removed_leave_the_others_as_they_are_alone():
     world, alone = world_and_alone()
-    for _ in range(30):
-        world.step(DT)
-        for simulator in alone.values():
-            simulator.step(DT)
+    step_together(world, alone, 30)
     removed = world.remove('falling')
     assert 'falling' not in world and len(world) == 4 and isinstance(removed, Simulator)
     newcomer = RigidBody.sphere(1.0, 0.1)
@@ -138,12 +148,8 @@ def test_bodies_added_and_removed_leave_the_others_as_they_are_alone():
     world.add('newcomer', Simulator(newcomer, newcomer_state))
     assert world.names == ('tumbler', 'dragged', 'driven', 'top', 'newcomer')
     assert world.simulator('newcomer').time == world.time
-    for _ in range(30):
-        world.step(DT)
-        for simulator in alone.values():
-            simulator.step(DT)
-    for name in ('tumbler', 'dragged', 'driven', 'top'):
-        np.testing.assert_array_equal(packed(world.simulator(name)), packed(alone[name]))
+    step_together(world, alone, 30)
+    assert_as_alone(world, alone, ('tumbler', 'dragged', 'driven', 'top'))
     # A sphere spins about a fixed axis at a constant rate: 30 ticks turn it 0.6 rad.
     quaternion = world.state('newcomer').quaternion
     assert math.isclose(2.0 * math.atan2(quaternion[2], quaternion[3]), 0.6, rel_tol=1e-12)
@@ -184,12 +190,8 @@ def test_a_reset_puts_every_body_and_the_clock_back():
         world.step(DT)
     world.reset(initial, time=0.0)
     assert world.time == 0.0
-    for _ in range(10):
-        world.step(DT)
-        for simulator in alone.values():
-            simulator.step(DT)
-    for name, simulator in alone.items():
-        np.testing.assert_array_equal(packed(world.simulator(name)), packed(simulator))
+    step_together(world, alone, 10)
+    assert_as_alone(world, alone)
     with pytest.raises(ValueError, match='no state for top'):
         world.reset({name: state for name, state in initial.items() if name != 'top'})
 
@@ -225,20 +227,13 @@ def test_a_held_wrench_acts_on_a_body_in_a_world_as_alone_when_bodies_come_and_g
     world, alone = world_and_alone()
     for simulator in (world.simulator('tumbler'), alone['tumbler']):
         simulator.hold_wrench(torque_world=(0.01, 0.0, 0.02), force_body=(0.5, 0.0, 0.0))
-    for _ in range(20):
-        world.step(DT)
-        for simulator in alone.values():
-            simulator.step(DT)
+    step_together(world, alone, 20)
     sphere = RigidBody.sphere(1.0, 0.1)
     world.add('newcomer', Simulator(sphere, State.from_velocity(sphere)))
     for simulator in (world.simulator('tumbler'), alone['tumbler']):
         simulator.hold_wrench(torque_body=(0.0, 0.03, 0.0))
-    for _ in range(20):
-        world.step(DT)
-        for simulator in alone.values():
-            simulator.step(DT)
-    for name in ('tumbler', 'driven', 'top'):
-        np.testing.assert_array_equal(packed(world.simulator(name)), packed(alone[name]))
+    step_together(world, alone, 20)
+    assert_as_alone(world, alone, ('tumbler', 'driven', 'top'))
     # A body taken out of the world steps alone, its held wrench its own.
     removed = world.remove('tumbler')
     for simulator in (removed, alone['tumbler']):
@@ -264,18 +259,10 @@ def test_a_world_run_as_python_steps_each_body_as_it_steps_alone_as_python():
     world.interpreted = True
     for simulator in alone.values():
         simulator.interpreted = True
-    for _ in range(3):
-        world.step(DT)
-        for simulator in alone.values():
-            simulator.step(DT)
-    for name, simulator in alone.items():
-        np.testing.assert_array_equal(packed(world.simulator(name)), packed(simulator))
+    step_together(world, alone, 3)
+    assert_as_alone(world, alone)
     world.interpreted = False
     for simulator in alone.values():
         simulator.interpreted = False
-    for _ in range(3):
-        world.step(DT)
-        for simulator in alone.values():
-            simulator.step(DT)
-    for name, simulator in alone.items():
-        np.testing.assert_array_equal(packed(world.simulator(name)), packed(simulator))
+    step_together(world, alone, 3)
+    assert_as_alone(world, alone)
