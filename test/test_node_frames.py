@@ -201,6 +201,11 @@ def test_two_namespaced_nodes_publish_distinct_frames_and_neither_jumps(
         for client, body in zip(clients, bodies):
             listener.wait_for(lambda body=body: _transforms(listener, '/tf', body),
                               DISCOVERY_TIMEOUT, f'a transform to {body} on the other client')
+            # The other node's latched /tf_static writer is discovered on its own, maybe
+            # after its /tf writer.
+            listener.wait_for(lambda client=client: _transforms(
+                listener, '/tf_static', client.frame('imu')), DISCOVERY_TIMEOUT,
+                f"the static transform of {client.frame('imu')} on the other client")
             transforms = _transforms(listener, '/tf', body)
             assert transforms, f'no transform to {body} heard by the other client'
             assert {t.header.frame_id for t in transforms} == {client.frame('world')}
