@@ -237,6 +237,13 @@ def _watch_stand_in(namespace):
         stand_in.tick()
         return blocks and _fields(blocks[-1]).get('scene', '').startswith('start')
     watch.wait_for(shown, 'the stand-in node shown')
+    # One report more, awaited alone: watch then has taken the stand-in's last report, the
+    # one whose sequence number a later claim must continue (the loop above may have
+    # published more while watch lagged, and a reader of /diagnostics keeps only a few).
+    stamp = stand_in.tick()
+    stand_in.report(stamp, _sane('start-last', simulated_time(stamp)))
+    watch.wait_for(lambda blocks, lines: blocks and _fields(blocks[-1]).get(
+        'scene', '').startswith('start-last'), "the stand-in's last report shown")
     return stand_in, watch
 
 
