@@ -305,7 +305,7 @@ def test_body_force_turns_with_the_body(sim):
     sim.publish_wrench(force_body, [0.0, 0.0, 0.0], sim.frame('body'))
     wait_until_expired(sim, since, 'velocity')
     odoms = sim.messages('odom', since)
-    matched = 0
+    pushed, matched = 0, 0
     for before, after in zip(odoms, odoms[1:]):
         rotations = []
         momenta = []
@@ -317,10 +317,16 @@ def test_body_force_turns_with_the_body(sim):
             momenta.append(BODY.mass * rotation @ vector(odom.twist.twist.linear))
         if abs(stamp_of(after) - stamp_of(before) - PERIOD) > 0.5 * PERIOD:
             continue  # a message the client missed: not one tick apart
+        change = momenta[1] - momenta[0]
+        if np.allclose(change, 0.0, rtol=0, atol=1e-12):
+            continue  # a tick before the force arrived or after it expired
+        pushed += 1
         expected = 0.5 * PERIOD * (rotations[0] + rotations[1]) @ force_body
-        if np.allclose(momenta[1] - momenta[0], expected, rtol=0, atol=1e-12):
+        if np.allclose(change, expected, rtol=0, atol=1e-12):
             matched += 1
-    assert matched >= 0.5 * INPUT_TIMEOUT * RATE, matched
+    # Every tick the force acted in is its kick; how many ticks its lifetime of wall time
+    # holds depends on the machine's load (the node's ticks), so only a least few.
+    assert pushed >= 5 and matched == pushed, (matched, pushed)
 
 
 def test_torque_and_wrench_inputs_add_up(sim):
